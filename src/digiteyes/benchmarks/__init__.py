@@ -1,0 +1,1 @@
+"""Benchmarks behind ``digiteyes bench``: each module has ``run(json_path, quick) -> dict``."""

@@ -1,0 +1,239 @@
+"""Camera models: perspective pinhole with OpenCV distortion, orthographic, scaled
+orthographic (thesis eq. 2.5-2.8; Huang, Wu & Lin Sec. 4.2), with Jacobians.
+
+Conventions (DESIGN.md Sec. 3): the camera frame is OpenCV's (x right, y down, z forward);
+``T_cam_world`` maps world mm to camera mm; pixel (0, 0) is the centre of the top-left
+pixel; ``K`` is OpenCV's 3x3 intrinsic matrix and ``dist`` OpenCV's (k1, k2, p1, p2, k3).
+
+* perspective (eq. 2.6): ``w = K [distort(x/z, y/z), 1]``;
+* orthographic (eq. 2.7-2.8): ``w = (fx x + s y + cx, fy y + cy)``, ``fx``/``fy`` in pixels
+  per mm;
+* scaled orthographic (weak perspective): ``w = (fx x / Z0 + s y / Z0 + cx, fy y / Z0 + cy)``
+  with a fixed reference depth ``Z0 = depth_mm``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from digiteyes.errors import CameraError
+
+Projection = Literal["perspective", "orthographic", "scaled-orthographic"]
+PROJECTIONS = ("perspective", "orthographic", "scaled-orthographic")
+
+
+@dataclass(frozen=True)
+class Camera:
+    """One calibrated camera. Build with :meth:`create` (validates) or :meth:`look_at`.
+
+    Attributes
+    ----------
+    name : label used in files and plots.
+    K : (3, 3) intrinsics in pixels (orthographic: pixels per mm).
+    width, height : image size in pixels.
+    T_cam_world : (4, 4) rigid transform from world to camera coordinates, mm.
+    dist : (5,) OpenCV distortion (k1, k2, p1, p2, k3); perspective cameras only.
+    projection : ``"perspective"``, ``"orthographic"`` or ``"scaled-orthographic"``.
+    depth_mm : reference depth Z0 of the scaled-orthographic model, mm.
+    """
+
+    name: str
+    K: np.ndarray
+    width: int
+    height: int
+    T_cam_world: np.ndarray
+    dist: np.ndarray = field(default_factory=lambda: np.zeros(5))
+    projection: Projection = "perspective"
+    depth_mm: float = 1000.0
+
+    @classmethod
+    def create(
+        cls,
+        name: str,
+        K: np.ndarray,
+        width: int,
+        height: int,
+        T_cam_world: np.ndarray | None = None,
+        dist: np.ndarray | None = None,
+        projection: Projection = "perspective",
+        depth_mm: float = 1000.0,
+    ) -> Camera:
+        """Validated constructor; raises :class:`CameraError` naming the bad parameter."""
+        K = np.array(K, dtype=float)
+        if K.shape != (3, 3) or not np.isfinite(K).all():
+            raise CameraError(f"camera {name!r}: K must be a finite 3x3 matrix, got {K.shape}")
+        if not (K[0, 0] > 0 and K[1, 1] > 0):
+            raise CameraError(
+                f"camera {name!r}: focal lengths must be positive, got fx={K[0, 0]:g}, "
+                f"fy={K[1, 1]:g}"
+            )
+        if not np.allclose(K[2], [0.0, 0.0, 1.0]) or K[1, 0] != 0.0:
+            raise CameraError(f"camera {name!r}: K must be upper triangular with K[2] = [0 0 1]")
+        if int(width) != width or int(height) != height or width <= 0 or height <= 0:
+            raise CameraError(
+                f"camera {name!r}: image size must be positive integers, got {width}x{height}"
+            )
+        T = np.eye(4) if T_cam_world is None else np.array(T_cam_world, dtype=float)
+        if T.shape != (4, 4) or not np.isfinite(T).all():
+            raise CameraError(f"camera {name!r}: T_cam_world must be a finite 4x4 matrix")
+        R = T[:3, :3]
+        if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0 or \
+                not np.allclose(T[3], [0, 0, 0, 1]):
+            raise CameraError(f"camera {name!r}: T_cam_world must be a rigid transform")
+        d = np.zeros(5)
+        if dist is not None:
+            given = np.ravel(np.asarray(dist, dtype=float))
+            if given.size not in (0, 4, 5) or not np.isfinite(given).all():
+                raise CameraError(
+                    f"camera {name!r}: dist must hold 4 or 5 OpenCV coefficients "
+                    f"(k1 k2 p1 p2 [k3]), got {given.size}"
+                )
+            d[:given.size] = given
+        if projection not in PROJECTIONS:
+            raise CameraError(
+                f"camera {name!r}: projection must be one of {', '.join(PROJECTIONS)}, "
+                f"got {projection!r}"
+            )
+        if projection != "perspective" and np.any(d):
+            raise CameraError(f"camera {name!r}: distortion applies to perspective cameras only")
+        if not depth_mm > 0:
+            raise CameraError(f"camera {name!r}: depth_mm must be positive, got {depth_mm}")
+        return cls(name, K, int(width), int(height), T, d, projection, float(depth_mm))
+
+    @classmethod
+    def look_at(
+        cls,
+        name: str,
+        eye: np.ndarray,
+        target: np.ndarray,
+        up: np.ndarray = (0.0, 0.0, 1.0),
+        *,
+        width: int = 640,
+        height: int = 480,
+        focal_px: float = 800.0,
+        projection: Projection = "perspective",
+    ) -> Camera:
+        """A camera at ``eye`` (world mm) looking at ``target``, image ``up`` roughly along
+        world ``up``, principal point at the image centre."""
+        eye = np.asarray(eye, dtype=float)
+        forward = np.asarray(target, dtype=float) - eye
+        if np.linalg.norm(forward) == 0:
+            raise CameraError(f"camera {name!r}: eye and target coincide")
+        z = forward / np.linalg.norm(forward)
+        x = np.cross(z, -np.asarray(up, dtype=float))
+        if np.linalg.norm(x) < 1e-9:
+            raise CameraError(f"camera {name!r}: viewing direction is parallel to 'up'")
+        x /= np.linalg.norm(x)
+        y = np.cross(z, x)
+        T_world_cam = np.eye(4)
+        T_world_cam[:3, :3] = np.stack([x, y, z], axis=1)
+        T_world_cam[:3, 3] = eye
+        K = np.array([[focal_px, 0, (width - 1) / 2], [0, focal_px, (height - 1) / 2], [0, 0, 1]])
+        depth = float(np.linalg.norm(forward))
+        if projection == "orthographic":
+            K[:2, :2] /= depth
+        return cls.create(name, K, width, height, np.linalg.inv(T_world_cam),
+                          projection=projection, depth_mm=depth)
+
+    # ------------------------------------------------------------------ geometry
+    @property
+    def T_world_cam(self) -> np.ndarray:
+        """Camera pose in the world (inverse of ``T_cam_world``)."""
+        return np.linalg.inv(self.T_cam_world)
+
+    @property
+    def centre_world(self) -> np.ndarray:
+        """Optical centre in world mm (for orthographic cameras: the frame origin)."""
+        R, t = self.T_cam_world[:3, :3], self.T_cam_world[:3, 3]
+        return -R.T @ t
+
+    def to_camera(self, p_world: np.ndarray) -> np.ndarray:
+        """World points (..., 3) in camera coordinates (..., 3), mm."""
+        p = np.asarray(p_world, dtype=float)
+        return p @ self.T_cam_world[:3, :3].T + self.T_cam_world[:3, 3]
+
+    def project(self, p_world: np.ndarray) -> np.ndarray:
+        """Pixel coordinates (..., 2) of world points (..., 3)."""
+        return self.project_with_jacobian(p_world, jacobian=False)[0]
+
+    def project_with_jacobian(
+        self, p_world: np.ndarray, jacobian: bool = True
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Pixels (..., 2) and, if asked, ``d pixel / d p_world`` (..., 2, 3) in px/mm.
+
+        The Jacobian chains the projection derivative in camera coordinates with the
+        camera rotation: ``dw/dp_world = dw/dp_cam R_cam_world``.
+        """
+        pc = self.to_camera(p_world)
+        fx, s, cx = self.K[0]
+        fy, cy = self.K[1, 1], self.K[1, 2]
+        x, y, z = pc[..., 0], pc[..., 1], pc[..., 2]
+        if self.projection == "perspective":
+            inv_z = 1.0 / z
+            xn, yn = x * inv_z, y * inv_z
+            k1, k2, p1, p2, k3 = self.dist
+            r2 = xn * xn + yn * yn
+            radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+            xd = xn * radial + 2 * p1 * xn * yn + p2 * (r2 + 2 * xn * xn)
+            yd = yn * radial + p1 * (r2 + 2 * yn * yn) + 2 * p2 * xn * yn
+            w = np.stack([fx * xd + s * yd + cx, fy * yd + cy], axis=-1)
+            if not jacobian:
+                return w, None
+            dradial = k1 + r2 * (2 * k2 + 3 * k3 * r2)  # d radial / d r2
+            dxd_dxn = radial + 2 * xn * xn * dradial + 2 * p1 * yn + 6 * p2 * xn
+            dxd_dyn = 2 * xn * yn * dradial + 2 * p1 * xn + 2 * p2 * yn
+            dyd_dxn = 2 * xn * yn * dradial + 2 * p1 * xn + 2 * p2 * yn
+            dyd_dyn = radial + 2 * yn * yn * dradial + 6 * p1 * yn + 2 * p2 * xn
+            dw_dn = np.empty((*x.shape, 2, 2))
+            dw_dn[..., 0, 0] = fx * dxd_dxn + s * dyd_dxn
+            dw_dn[..., 0, 1] = fx * dxd_dyn + s * dyd_dyn
+            dw_dn[..., 1, 0] = fy * dyd_dxn
+            dw_dn[..., 1, 1] = fy * dyd_dyn
+            dn_dc = np.zeros((*x.shape, 2, 3))
+            dn_dc[..., 0, 0] = inv_z
+            dn_dc[..., 0, 2] = -xn * inv_z
+            dn_dc[..., 1, 1] = inv_z
+            dn_dc[..., 1, 2] = -yn * inv_z
+            dw_dc = dw_dn @ dn_dc
+        else:
+            scale = 1.0 if self.projection == "orthographic" else 1.0 / self.depth_mm
+            w = np.stack([scale * (fx * x + s * y) + cx, scale * fy * y + cy], axis=-1)
+            if not jacobian:
+                return w, None
+            dw_dc = np.zeros((*x.shape, 2, 3))
+            dw_dc[..., 0, 0] = scale * fx
+            dw_dc[..., 0, 1] = scale * s
+            dw_dc[..., 1, 1] = scale * fy
+        return w, dw_dc @ self.T_cam_world[:3, :3]
+
+    def depth(self, p_world: np.ndarray) -> np.ndarray:
+        """Depth along the optical axis (camera z) of world points, mm."""
+        return self.to_camera(p_world)[..., 2]
+
+    def in_image(self, w: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        """Boolean mask: pixel positions (..., 2) inside the image by at least ``margin``."""
+        w = np.asarray(w, dtype=float)
+        return ((w[..., 0] >= -0.5 + margin) & (w[..., 0] <= self.width - 0.5 - margin)
+                & (w[..., 1] >= -0.5 + margin) & (w[..., 1] <= self.height - 0.5 - margin))
+
+    def viewing_rays(self, pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """World ray origins and unit directions (..., 3) through pixel centres (no
+        distortion: the renderer draws ideal images and distorts them afterwards)."""
+        pixels = np.asarray(pixels, dtype=float)
+        R_world_cam = self.T_cam_world[:3, :3].T
+        Kinv = np.linalg.inv(self.K)
+        homog = np.concatenate([pixels, np.ones((*pixels.shape[:-1], 1))], axis=-1)
+        if self.projection == "perspective":
+            d_cam = homog @ Kinv.T
+            d_cam /= np.linalg.norm(d_cam, axis=-1, keepdims=True)
+            origins = np.broadcast_to(self.centre_world, d_cam.shape)
+            return origins.copy(), d_cam @ R_world_cam.T
+        scale = 1.0 if self.projection == "orthographic" else 1.0 / self.depth_mm
+        xy = (homog @ Kinv.T)[..., :2] / scale
+        p_cam = np.concatenate([xy, np.zeros((*xy.shape[:-1], 1))], axis=-1)
+        origins = p_cam @ R_world_cam.T + self.centre_world
+        direction = np.broadcast_to(R_world_cam[:, 2], origins.shape).copy()
+        return origins, direction

@@ -1,0 +1,1 @@
+"""Sub-commands of the ``digiteyes`` CLI, one module each."""

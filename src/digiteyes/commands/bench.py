@@ -1,0 +1,30 @@
+"""``digiteyes bench NAME``: speed and accuracy benchmarks (table + JSON)."""
+
+from __future__ import annotations
+
+import importlib
+
+import click
+
+SUITES = {
+    "kinematics": "digiteyes.benchmarks.kinematics",
+    "render": "digiteyes.benchmarks.render",
+    "tracker": "digiteyes.benchmarks.tracker",
+}
+
+
+@click.command()
+@click.argument("suite", type=click.Choice([*SUITES, "all"]))
+@click.option("--json", "json_path", type=click.Path(dir_okay=False),
+              help="Write the figures to this JSON file (with 'all': one file per suite, "
+                   "suffixed by the suite name).")
+@click.option("--quick", is_flag=True, help="Fewer repeats and frames (for a smoke run).")
+def bench(suite: str, json_path: str | None, quick: bool) -> None:
+    """Run benchmark SUITE: kinematics, render, tracker or all."""
+    names = list(SUITES) if suite == "all" else [suite]
+    for name in names:
+        path = json_path
+        if json_path and suite == "all":
+            stem, dot, ext = json_path.rpartition(".")
+            path = f"{stem}-{name}.{ext}" if dot else f"{json_path}-{name}"
+        importlib.import_module(SUITES[name]).run(json_path=path, quick=quick)

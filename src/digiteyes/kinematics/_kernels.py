@@ -1,0 +1,163 @@
+"""Compiled inner loops of forward kinematics and point Jacobians (numba).
+
+Profiling the vectorised numpy version showed Python call overhead, not arithmetic,
+dominating a single hand state (about 350 us for ~40 small array operations, DESIGN.md
+Sec. 8), so the tree walk is compiled. Each loop visits the rows in topological order
+once per state; transforms are rigid, so only their 3x4 part is computed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def fk_kernel(Q, theta0, d0, a, cos_alpha, sin_alpha, theta_state, d_state, order, parent, base_state,
+              world, shape):  # pragma: no cover - compiled
+    """Fill ``world`` and ``shape`` (N, F, 4, 4) for the states ``Q`` (N, n_q).
+
+    ``world[n, r]`` is frame r, ``shape[n, r] = world[n, r] Rot_z(theta_r)`` (thesis eq. 2.4)
+    and the frames after row r are ``shape[n, r] Trans_z(d) Trans_x(a) Rot_x(alpha)``
+    (the rest of thesis eq. 2.2).
+    """
+    n_states = Q.shape[0]
+    n_frames = theta0.shape[0]
+    outgoing = np.empty((n_frames, 3, 4))
+    for n in range(n_states):
+        for idx in range(n_frames):
+            r = order[idx]
+            p = parent[r]
+            W = world[n, r]
+            W[3, 0] = 0.0
+            W[3, 1] = 0.0
+            W[3, 2] = 0.0
+            W[3, 3] = 1.0
+            if p < 0:
+                if base_state >= 0:
+                    w = Q[n, base_state]
+                    x = Q[n, base_state + 1]
+                    y = Q[n, base_state + 2]
+                    z = Q[n, base_state + 3]
+                    inv = 1.0 / (w * w + x * x + y * y + z * z)
+                    W[0, 0] = 1.0 - 2.0 * (y * y + z * z) * inv
+                    W[0, 1] = 2.0 * (x * y - w * z) * inv
+                    W[0, 2] = 2.0 * (x * z + w * y) * inv
+                    W[1, 0] = 2.0 * (x * y + w * z) * inv
+                    W[1, 1] = 1.0 - 2.0 * (x * x + z * z) * inv
+                    W[1, 2] = 2.0 * (y * z - w * x) * inv
+                    W[2, 0] = 2.0 * (x * z - w * y) * inv
+                    W[2, 1] = 2.0 * (y * z + w * x) * inv
+                    W[2, 2] = 1.0 - 2.0 * (x * x + y * y) * inv
+                    W[0, 3] = Q[n, base_state + 4]
+                    W[1, 3] = Q[n, base_state + 5]
+                    W[2, 3] = Q[n, base_state + 6]
+                else:
+                    for i in range(3):
+                        for j in range(4):
+                            W[i, j] = 1.0 if i == j else 0.0
+            else:
+                for i in range(3):
+                    for j in range(4):
+                        W[i, j] = outgoing[p, i, j]
+            th = theta0[r]
+            if theta_state[r] >= 0:
+                th += Q[n, theta_state[r]]
+            dd = d0[r]
+            if d_state[r] >= 0:
+                dd += Q[n, d_state[r]]
+            c = np.cos(th)
+            s = np.sin(th)
+            ca = cos_alpha[r]
+            sa = sin_alpha[r]
+            S = shape[n, r]
+            for i in range(3):
+                xi = W[i, 0] * c + W[i, 1] * s
+                yi = W[i, 1] * c - W[i, 0] * s
+                zi = W[i, 2]
+                S[i, 0] = xi
+                S[i, 1] = yi
+                S[i, 2] = zi
+                S[i, 3] = W[i, 3]
+                outgoing[r, i, 0] = xi
+                outgoing[r, i, 1] = ca * yi + sa * zi
+                outgoing[r, i, 2] = ca * zi - sa * yi
+                outgoing[r, i, 3] = W[i, 3] + a[r] * xi + dd * zi
+            S[3, 0] = 0.0
+            S[3, 1] = 0.0
+            S[3, 2] = 0.0
+            S[3, 3] = 1.0
+
+
+@njit(cache=True)
+def jacobian_kernel(world, q, rows, p_world, moved, joint_row, theta_state, base_state, root,
+                    col_of_q, quaternion_form, J):  # pragma: no cover - compiled
+    """Fill ``J`` (N, P, 3, n_cols) with the point Jacobian columns (thesis eq. 2.16).
+
+    Revolute: ``z_j x (p - o_j)``; prismatic: ``z_j``; base translation: identity; base
+    rotation: ``e_k x (p - t)`` (tangent) or ``G(q)[:, k] x (p - t)`` (quaternion form,
+    :func:`digiteyes.kinematics.rotations.quaternion_rate_matrix`).
+    """
+    n_states = world.shape[0]
+    n_points = rows.shape[0]
+    n_q = joint_row.shape[0]
+    G = np.zeros((3, 4))
+    for n in range(n_states):
+        if base_state >= 0 and quaternion_form:
+            w = q[n, base_state]
+            x = q[n, base_state + 1]
+            y = q[n, base_state + 2]
+            z = q[n, base_state + 3]
+            k = 2.0 / (w * w + x * x + y * y + z * z)
+            G[0, 0], G[0, 1], G[0, 2], G[0, 3] = -x * k, w * k, -z * k, y * k
+            G[1, 0], G[1, 1], G[1, 2], G[1, 3] = -y * k, z * k, w * k, -x * k
+            G[2, 0], G[2, 1], G[2, 2], G[2, 3] = -z * k, -y * k, x * k, w * k
+        for p in range(n_points):
+            px = p_world[n, p, 0]
+            py = p_world[n, p, 1]
+            pz = p_world[n, p, 2]
+            for s in range(n_q):
+                jr = joint_row[s]
+                if jr < 0 or not moved[rows[p], s]:
+                    continue
+                col = col_of_q[s]
+                ax = world[n, jr, 0, 2]
+                ay = world[n, jr, 1, 2]
+                az = world[n, jr, 2, 2]
+                if theta_state[jr] == s:
+                    rx = px - world[n, jr, 0, 3]
+                    ry = py - world[n, jr, 1, 3]
+                    rz = pz - world[n, jr, 2, 3]
+                    J[n, p, 0, col] = ay * rz - az * ry
+                    J[n, p, 1, col] = az * rx - ax * rz
+                    J[n, p, 2, col] = ax * ry - ay * rx
+                else:
+                    J[n, p, 0, col] = ax
+                    J[n, p, 1, col] = ay
+                    J[n, p, 2, col] = az
+            if base_state >= 0:
+                rx = px - world[n, root, 0, 3]
+                ry = py - world[n, root, 1, 3]
+                rz = pz - world[n, root, 2, 3]
+                k0 = base_state
+                if quaternion_form:
+                    for j in range(4):
+                        ox = G[0, j]
+                        oy = G[1, j]
+                        oz = G[2, j]
+                        J[n, p, 0, k0 + j] = oy * rz - oz * ry
+                        J[n, p, 1, k0 + j] = oz * rx - ox * rz
+                        J[n, p, 2, k0 + j] = ox * ry - oy * rx
+                    t0 = k0 + 4
+                else:
+                    # columns e_x x r, e_y x r, e_z x r
+                    J[n, p, 1, k0] = -rz
+                    J[n, p, 2, k0] = ry
+                    J[n, p, 0, k0 + 1] = rz
+                    J[n, p, 2, k0 + 1] = -rx
+                    J[n, p, 0, k0 + 2] = -ry
+                    J[n, p, 1, k0 + 2] = rx
+                    t0 = k0 + 3
+                J[n, p, 0, t0] = 1.0
+                J[n, p, 1, t0 + 1] = 1.0
+                J[n, p, 2, t0 + 2] = 1.0

@@ -1,0 +1,70 @@
+"""Point Jacobians of the kinematic tree (thesis eq. 2.14-2.16, report eq. 8-10).
+
+For a point attached to the shape frame of row ``r`` the columns are
+
+* revolute state of row j:   ``n_j x (p - o_j)``  (thesis eq. 2.16, report eq. 8), with
+  ``n_j`` the world z axis of frame j and ``o_j`` its origin;
+* prismatic state of row j:  ``n_j``;
+* base translation:          the identity (report eq. 9, world frame);
+* base rotation, tangent form (default): a rotation step ``delta`` (3-vector, radians)
+  turns the palm about its origin in the world frame, ``R <- exp([delta]x) R``, so the
+  column for ``delta_k`` is ``e_k x (p - t)``;
+* base rotation, quaternion form (thesis Sec. 2.2.1, report eq. 10): the derivative with
+  respect to each raw quaternion number of the normalised rotation ``R(q / |q|)``,
+  ``omega_j x (p - t)`` with ``omega = G(q) dq`` (:func:`quaternion_rate_matrix`).
+
+Columns of states that do not move the point are zero.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+
+from digiteyes.kinematics._kernels import jacobian_kernel
+from digiteyes.kinematics.forward import Kinematics
+
+JacobianForm = Literal["tangent", "quaternion"]
+
+
+def point_jacobian(
+    kin: Kinematics,
+    rows: np.ndarray,
+    p_shape: np.ndarray,
+    form: JacobianForm = "tangent",
+) -> tuple[np.ndarray, np.ndarray]:
+    """World positions and Jacobians of points fixed in shape frames.
+
+    Parameters
+    ----------
+    kin : forward kinematics of one state or a batch.
+    rows : (P,) row index of the shape frame each point is fixed in.
+    p_shape : (P, 3) points in those shape frames, mm.
+    form : ``"tangent"`` gives (..., P, 3, n_v) columns for the tangent step of
+        :func:`~digiteyes.kinematics.state.integrate`; ``"quaternion"`` gives
+        (..., P, 3, n_q) columns for the raw state numbers (thesis form).
+
+    Returns
+    -------
+    p_world : (N, P, 3) or (P, 3), mm.
+    J : (N, P, 3, n) or (P, 3, n); units mm per radian (revolute, rotation) or mm/mm.
+    """
+    if form not in ("tangent", "quaternion"):
+        raise ValueError(f"form must be 'tangent' or 'quaternion', got {form!r}")
+    model = kin.model
+    rows = np.asarray(rows, dtype=int)
+    T = kin.T_world_shape[:, rows]
+    p_world = np.einsum("npij,pj->npi", T[..., :3, :3], np.asarray(p_shape, dtype=float))
+    p_world += T[..., :3, 3]
+    quaternion_form = form == "quaternion"
+    n_cols = model.n_q if quaternion_form else model.n_v
+    col_of_q = np.arange(model.n_q) if quaternion_form else model.q_to_v
+    J = np.zeros((len(kin.q), len(rows), 3, n_cols))
+    jacobian_kernel(kin.T_world_frame, kin.q, rows, p_world, model.shape_moved_by,
+                    model.joint_row, model.theta_state,
+                    -1 if model.base_state is None else model.base_state, model.root,
+                    col_of_q, quaternion_form, J)
+    if not kin.batched:
+        return p_world[0], J[0]
+    return p_world, J

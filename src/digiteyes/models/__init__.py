@@ -1,0 +1,51 @@
+"""Model files shipped with digiteyes, loadable by name: ``load_model("hand")``.
+
+``hand`` (thesis Appendix A), ``mouse-hand`` (thesis Sec. 4.3.4), ``two-finger``
+(Sec. 4.4.2) and ``cardboard-hand`` (Huang, Wu & Lin Sec. 2). See docs/models.md.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+
+from digiteyes.errors import ModelFileError
+
+MODEL_DIR = Path(__file__).parent
+
+
+def shipped_models() -> list[str]:
+    """Names of the model files that ship with the package."""
+    return sorted(p.stem for p in MODEL_DIR.glob("*.dh"))
+
+
+def model_path(name_or_path: str | Path) -> Path:
+    """Path of a shipped model name, or the given path if it is a file."""
+    candidate = Path(name_or_path)
+    if candidate.suffix or candidate.exists() or "/" in str(name_or_path):
+        return candidate
+    shipped = MODEL_DIR / f"{name_or_path}.dh"
+    if not shipped.exists():
+        raise ModelFileError(
+            str(name_or_path), None,
+            f"no shipped model of that name; shipped models are {', '.join(shipped_models())} "
+            "(or give a path to a .dh file)",
+        )
+    return shipped
+
+
+@lru_cache(maxsize=32)
+def _load(path: str, mtime: float):
+    from digiteyes.kinematics.model import model_from_file
+
+    return model_from_file(path)
+
+
+def load_model(name_or_path: str | Path):
+    """Load a :class:`~digiteyes.kinematics.KinematicModel` by shipped name or file path."""
+    path = model_path(name_or_path)
+    try:
+        mtime = path.stat().st_mtime
+    except OSError:
+        raise ModelFileError(str(path), None, "no such model file") from None
+    return _load(str(path.resolve()), mtime)

@@ -1,0 +1,1 @@
+"""occlusion layer (see DESIGN.md)."""

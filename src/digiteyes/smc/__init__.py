@@ -1,0 +1,1 @@
+"""smc layer (see DESIGN.md)."""

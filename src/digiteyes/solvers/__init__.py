@@ -1,0 +1,1 @@
+"""solvers layer (see DESIGN.md)."""

@@ -1,0 +1,1 @@
+"""trackers layer (see DESIGN.md)."""
