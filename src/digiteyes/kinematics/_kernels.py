@@ -13,8 +13,8 @@ from numba import njit
 
 
 @njit(cache=True)
-def fk_kernel(Q, theta0, d0, a, cos_alpha, sin_alpha, theta_state, d_state, order, parent, base_state,
-              world, shape):  # pragma: no cover - compiled
+def fk_kernel(Q, theta0, d0, a, cos_alpha, sin_alpha, theta_state, d_state, order, parent,
+              base_state, world, shape):  # pragma: no cover - compiled
     """Fill ``world`` and ``shape`` (N, F, 4, 4) for the states ``Q`` (N, n_q).
 
     ``world[n, r]`` is frame r, ``shape[n, r] = world[n, r] Rot_z(theta_r)`` (thesis eq. 2.4)

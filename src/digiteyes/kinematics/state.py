@@ -194,7 +194,9 @@ def write_states_csv(
             writer.writerow([*(col[i] for col in extra.values()), *(repr(float(x)) for x in q)])
 
 
-def read_states_csv(model: KinematicModel, path: str | Path) -> tuple[np.ndarray, dict[str, list[str]]]:
+def read_states_csv(
+    model: KinematicModel, path: str | Path
+) -> tuple[np.ndarray, dict[str, list[str]]]:
     """Read states written by :func:`write_states_csv`: (N, n_q) array and extra columns."""
     path = Path(path)
     try:
@@ -221,5 +223,6 @@ def read_states_csv(model: KinematicModel, path: str | Path) -> tuple[np.ndarray
             raise StateError(f"{path}:{i}: {exc}") from None
         for h in extra_names:
             extra[h].append(row[header.index(h)])
-    validate_state(model, states) if len(states) else None
+    if len(states):
+        validate_state(model, states)
     return states, extra
