@@ -25,7 +25,7 @@ Projection = Literal["perspective", "orthographic", "scaled-orthographic"]
 PROJECTIONS = ("perspective", "orthographic", "scaled-orthographic")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Camera:
     """One calibrated camera. Build with :meth:`create` (validates) or :meth:`look_at`.
 
@@ -86,12 +86,17 @@ class Camera:
         d = np.zeros(5)
         if dist is not None:
             given = np.ravel(np.asarray(dist, dtype=float))
-            if given.size not in (0, 4, 5) or not np.isfinite(given).all():
+            if given.size not in (0, 4, 5, 8, 12, 14) or not np.isfinite(given).all():
                 raise CameraError(
-                    f"camera {name!r}: dist must hold 4 or 5 OpenCV coefficients "
-                    f"(k1 k2 p1 p2 [k3]), got {given.size}"
+                    f"camera {name!r}: dist must hold 4, 5, 8, 12 or 14 OpenCV coefficients "
+                    f"(k1 k2 p1 p2 [k3 ...]), got {given.size}"
                 )
-            d[:given.size] = given
+            if np.any(given[5:]):
+                raise CameraError(
+                    f"camera {name!r}: only the k1 k2 p1 p2 k3 distortion model is supported; "
+                    "the rational/prism/tilt coefficients must be zero"
+                )
+            d[:min(given.size, 5)] = given[:5]
         if projection not in PROJECTIONS:
             raise CameraError(
                 f"camera {name!r}: projection must be one of {', '.join(PROJECTIONS)}, "
@@ -101,6 +106,8 @@ class Camera:
             raise CameraError(f"camera {name!r}: distortion applies to perspective cameras only")
         if not depth_mm > 0:
             raise CameraError(f"camera {name!r}: depth_mm must be positive, got {depth_mm}")
+        for array in (K, T, d):
+            array.setflags(write=False)
         return cls(name, K, int(width), int(height), T, d, projection, float(depth_mm))
 
     @classmethod
@@ -123,7 +130,7 @@ class Camera:
         if np.linalg.norm(forward) == 0:
             raise CameraError(f"camera {name!r}: eye and target coincide")
         z = forward / np.linalg.norm(forward)
-        x = np.cross(z, -np.asarray(up, dtype=float))
+        x = np.cross(z, np.asarray(up, dtype=float))
         if np.linalg.norm(x) < 1e-9:
             raise CameraError(f"camera {name!r}: viewing direction is parallel to 'up'")
         x /= np.linalg.norm(x)

@@ -98,8 +98,11 @@ def _read_opencv(path: Path) -> dict:
         raise CameraError(f"{path}: no such OpenCV calibration file")
     try:
         storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
-    except cv2.error as exc:
-        raise CameraError(f"{path}: not an OpenCV calibration file ({exc.err})") from None
+    except (cv2.error, SystemError) as exc:
+        # OpenCV 5 wraps parse errors of FileStorage in SystemError.
+        cause = exc if isinstance(exc, cv2.error) else exc.__cause__
+        detail = getattr(cause, "err", None) or str(exc)
+        raise CameraError(f"{path}: not an OpenCV calibration file ({detail})") from None
     try:
         if not storage.isOpened():
             raise CameraError(f"{path}: not an OpenCV calibration file")
@@ -144,13 +147,16 @@ def _camera_from_entry(entry: dict, base: Path, index: int, where: str) -> Camer
     name = str(entry.get("name", f"cam{index}"))
     values = dict(entry)
     if "opencv" in entry:
-        calib = _read_opencv(base / str(entry["opencv"]))
+        try:
+            calib = _read_opencv(base / str(entry["opencv"]))
+        except CameraError as exc:
+            raise CameraError(f"{where}: camera {name!r}: {exc}") from None
         values.setdefault("K", calib["camera_matrix"])
         values.setdefault("dist", calib.get("distortion_coefficients"))
         values.setdefault("width", calib["image_width"])
         values.setdefault("height", calib["image_height"])
         for key in ("rvec", "tvec", "R", "T"):
-            if key in calib and not {"T_cam_world", "rvec", "tvec"} & set(entry):
+            if key in calib and not {"T_cam_world", "rvec", "tvec", "R", "T"} & set(entry):
                 values[key] = calib[key]
     for key in ("K", "width", "height"):
         if key not in values:

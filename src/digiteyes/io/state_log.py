@@ -1,0 +1,172 @@
+"""State logs: the CSV every tracker run writes, one row per frame (DESIGN §5, thesis §4.3.3).
+
+The thesis logged the estimated states of its real-time runs and plotted them afterwards
+(Figs. 4.7, 4.8); ``digiteyes evaluate`` reads the same log. Header::
+
+    frame,time_s,lost,residual_rms_px,iterations,<state names of the model>
+
+``frame`` is the 0-based index of the frame in its sequence or video, ``time_s`` the
+wall-clock seconds spent on that frame (measurement + solving), ``lost`` 0 or 1 (the
+tracker's own track-loss flag), ``residual_rms_px`` the RMS image residual after the last
+iteration (pixels; empty cell or ``nan`` when unknown), ``iterations`` the solver iterations
+spent on the frame, then the estimated state (mm, radians, quaternion w, x, y, z). Every row
+is flushed as soon as it is written, so an interrupted run keeps every frame it finished.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from digiteyes.errors import DatasetError, StateError
+from digiteyes.kinematics import KinematicModel, validate_state
+
+LOG_COLUMNS = ("frame", "time_s", "lost", "residual_rms_px", "iterations")
+
+
+@dataclass(frozen=True)
+class StateLog:
+    """A state log read back: T rows.
+
+    frames (T,) int, states (T, n_q), lost (T,) bool, residual_rms_px (T,) px (nan when
+    unknown), iterations (T,) int, time_s (T,) seconds per frame.
+    """
+
+    frames: np.ndarray
+    states: np.ndarray
+    lost: np.ndarray
+    residual_rms_px: np.ndarray
+    iterations: np.ndarray
+    time_s: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.frames)
+
+
+class StateLogWriter:
+    """Append tracker results to a state-log CSV (context manager).
+
+    Creates the parent folder; replaces an existing file. Each row is flushed to the
+    operating system at once. OSError (unwritable folder, full disk) becomes
+    :class:`DatasetError` naming the file.
+    """
+
+    def __init__(self, path: str | Path, model: KinematicModel) -> None:
+        self.path = Path(path)
+        self.model = model
+        self.n_rows = 0
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._handle = open(self.path, "w", newline="", encoding="utf-8")
+        except OSError as exc:
+            raise DatasetError(f"{self.path}: cannot create state log ({exc.strerror or exc})"
+                               ) from None
+        self._writer = csv.writer(self._handle)
+        self._write([*LOG_COLUMNS, *model.state_names])
+
+    def _write(self, row: list[str]) -> None:
+        try:
+            self._writer.writerow(row)
+            self._handle.flush()
+        except OSError as exc:
+            raise DatasetError(f"{self.path}: cannot write state log ({exc.strerror or exc})"
+                               ) from None
+
+    def append(self, frame: int, state: np.ndarray, *, time_s: float, lost: bool,
+               residual_rms_px: float, iterations: int) -> None:
+        """Write one row: the estimate of ``frame`` (0-based) and how it was obtained."""
+        if self._handle.closed:
+            raise DatasetError(f"{self.path}: state log is closed")
+        state = np.asarray(state, dtype=float)
+        if state.shape != (self.model.n_q,):
+            raise StateError(f"model {self.model.name!r} needs states of size "
+                             f"{self.model.n_q}, got shape {state.shape}")
+        self._write([str(int(frame)), repr(float(time_s)), str(int(bool(lost))),
+                     repr(float(residual_rms_px)), str(int(iterations)),
+                     *(repr(float(x)) for x in state)])
+        self.n_rows += 1
+
+    def close(self) -> None:
+        """Close the file (idempotent)."""
+        self._handle.close()
+
+    def __enter__(self) -> StateLogWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _number(text: str, path: Path, line: int, column: str, integer: bool = False) -> float:
+    if column == "residual_rms_px" and text.strip() == "":
+        return math.nan
+    try:
+        value = float(text)
+        if integer:
+            if not value.is_integer():
+                raise ValueError(text)
+            return int(value)
+        return value
+    except ValueError:
+        kind = "an integer" if integer else "a number"
+        raise DatasetError(f"{path}:{line}: column {column!r} must be {kind}, got {text!r}"
+                           ) from None
+
+
+def read_state_log(path: str | Path, model: KinematicModel) -> StateLog:
+    """Read a state log written by :class:`StateLogWriter` for ``model``.
+
+    A last row cut short by an interruption (no newline, too few cells) is dropped.
+    Raises :class:`DatasetError` naming the file (and line) for a missing file, a header
+    without the log columns or without the model's state names (a log of another model),
+    or unreadable values.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise DatasetError(f"{path}: no such state log") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DatasetError(f"{path}: cannot read state log ({exc})") from None
+    rows = list(csv.reader(text.splitlines()))
+    if not rows:
+        raise DatasetError(f"{path}: empty; expected a header "
+                           f"{','.join(LOG_COLUMNS)},<state names>")
+    header = rows[0]
+    missing = [c for c in LOG_COLUMNS if c not in header]
+    if missing:
+        raise DatasetError(f"{path}: not a state log; header lacks {', '.join(missing)}")
+    missing = [n for n in model.state_names if n not in header]
+    if missing:
+        raise DatasetError(f"{path}: not a log of model {model.name!r}: header lacks states "
+                           f"{', '.join(missing)}")
+    body = rows[1:]
+    if body and not text.endswith("\n") and len(body[-1]) != len(header):
+        body = body[:-1]
+    col = {name: header.index(name) for name in (*LOG_COLUMNS, *model.state_names)}
+    n = len(body)
+    frames = np.empty(n, dtype=int)
+    iterations = np.empty(n, dtype=int)
+    lost = np.empty(n, dtype=bool)
+    residual = np.empty(n)
+    time_s = np.empty(n)
+    states = np.empty((n, model.n_q))
+    for i, row in enumerate(body):
+        line = i + 2
+        if len(row) != len(header):
+            raise DatasetError(f"{path}:{line}: expected {len(header)} cells, got {len(row)}")
+        frames[i] = _number(row[col["frame"]], path, line, "frame", integer=True)
+        iterations[i] = _number(row[col["iterations"]], path, line, "iterations", integer=True)
+        lost[i] = _number(row[col["lost"]], path, line, "lost", integer=True) != 0
+        residual[i] = _number(row[col["residual_rms_px"]], path, line, "residual_rms_px")
+        time_s[i] = _number(row[col["time_s"]], path, line, "time_s")
+        states[i] = [_number(row[col[name]], path, line, name) for name in model.state_names]
+    try:
+        validate_state(model, states, normalize=True)
+    except StateError as exc:
+        raise DatasetError(f"{path}: {exc}") from None
+    return StateLog(frames, states, lost, residual, iterations, time_s)

@@ -1,0 +1,212 @@
+"""Video files through PyAV: one file per camera, decoded to numpy images.
+
+Images are ``uint8`` arrays, ``(H, W)`` grayscale or ``(H, W, 3)`` RGB (red first).
+Two codecs are offered for writing (docs/dataset.md explains the choice):
+
+* ``"ffv1"`` (default): FFV1 in Matroska (``.mkv``), lossless, grey (``gray``) or colour
+  (``bgr0``) pixels stored exactly, so ground truth and images stay consistent to the bit;
+* ``"h264"``: libx264 in MP4 (``.mp4``, ``yuv420p``), lossy (chroma subsampled, CRF 12) but
+  small and playable everywhere; needs even image sizes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from fractions import Fraction
+from pathlib import Path
+
+import av
+import numpy as np
+
+from digiteyes.errors import DatasetError
+
+#: codec name -> (file suffix, PyAV encoder, whether decoding returns the exact pixels)
+VIDEO_CODECS: dict[str, tuple[str, str, bool]] = {
+    "ffv1": (".mkv", "ffv1", True),
+    "h264": (".mp4", "libx264", False),
+}
+
+
+def _rate(fps: float) -> Fraction:
+    """Frame rate as a fraction (29.97 -> 30000/1001)."""
+    if not np.isfinite(fps) or fps <= 0:
+        raise DatasetError(f"fps must be a positive number, got {fps}")
+    return Fraction(fps).limit_denominator(1001)
+
+
+class VideoWriter:
+    """Encode images of one camera into a video file (context manager).
+
+    Parameters
+    ----------
+    path : output file; its suffix should be that of the codec (``.mkv`` / ``.mp4``).
+    fps : frames per second.
+    codec : ``"ffv1"`` (lossless) or ``"h264"`` (lossy), see the module docstring.
+
+    The first image fixes the size and the colour (grey ``(H, W)`` or RGB ``(H, W, 3)``);
+    later images must match. OSError (disk full, unwritable folder) becomes
+    :class:`DatasetError` naming the file.
+    """
+
+    def __init__(self, path: str | Path, fps: float, codec: str = "ffv1") -> None:
+        if codec not in VIDEO_CODECS:
+            raise DatasetError(f"unknown video codec {codec!r}; expected one of "
+                               f"{', '.join(VIDEO_CODECS)}")
+        self.path = Path(path)
+        self.codec = codec
+        self.rate = _rate(fps)
+        self.n_written = 0
+        self._shape: tuple[int, ...] | None = None
+        self._stream = None
+        try:
+            self._container = av.open(str(self.path), "w")
+        except (OSError, av.FFmpegError) as exc:
+            raise DatasetError(f"{self.path}: cannot create video file ({exc})") from None
+
+    def _open_stream(self, image: np.ndarray) -> None:
+        h, w = image.shape[:2]
+        encoder = VIDEO_CODECS[self.codec][1]
+        if encoder == "libx264" and (h % 2 or w % 2):
+            raise DatasetError(
+                f"{self.path}: h264 needs even image sizes, got {w}x{h}; use the ffv1 codec"
+            )
+        stream = self._container.add_stream(encoder, rate=self.rate)
+        stream.width, stream.height = w, h
+        if encoder == "ffv1":
+            stream.pix_fmt = "gray" if image.ndim == 2 else "bgr0"
+        else:
+            stream.pix_fmt = "yuv420p"
+            stream.options = {"crf": "12", "preset": "medium"}
+        self._stream = stream
+        self._shape = image.shape
+
+    def write(self, image: np.ndarray) -> None:
+        """Encode one ``uint8`` image, grey ``(H, W)`` or RGB ``(H, W, 3)``."""
+        image = np.ascontiguousarray(image)
+        if image.dtype != np.uint8 or image.ndim not in (2, 3) or (
+                image.ndim == 3 and image.shape[2] != 3):
+            raise DatasetError(f"{self.path}: video frames must be uint8 (H, W) or (H, W, 3), "
+                               f"got {image.dtype} {image.shape}")
+        if self._stream is None:
+            self._open_stream(image)
+        elif image.shape != self._shape:
+            raise DatasetError(f"{self.path}: frame {self.n_written} has shape {image.shape}, "
+                               f"earlier frames {self._shape}")
+        frame = av.VideoFrame.from_ndarray(image, format="gray" if image.ndim == 2 else "rgb24")
+        try:
+            for packet in self._stream.encode(frame):
+                self._container.mux(packet)
+        except (OSError, av.FFmpegError) as exc:
+            raise DatasetError(f"{self.path}: cannot write video frame ({exc})") from None
+        self.n_written += 1
+
+    def close(self) -> None:
+        """Flush the encoder and finalise the file (idempotent)."""
+        if self._container is None:
+            return
+        container, self._container = self._container, None
+        try:
+            if self._stream is not None:
+                for packet in self._stream.encode():
+                    container.mux(packet)
+            container.close()
+        except (OSError, av.FFmpegError) as exc:
+            raise DatasetError(f"{self.path}: cannot finalise video file ({exc})") from None
+
+    def __enter__(self) -> VideoWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class VideoReader:
+    """Decode one video file frame by frame (opened at once, so errors come early).
+
+    ``read()`` returns the next image, ``uint8`` (H, W) if ``gray`` else (H, W, 3) RGB, or
+    None at the end; ``n_read`` counts the frames returned so far. Iterating yields the
+    remaining frames. Raises :class:`DatasetError` naming the file if it is missing, has no
+    video stream or cannot be decoded.
+    """
+
+    def __init__(self, path: str | Path, *, gray: bool = False) -> None:
+        self.path = Path(path)
+        self.gray = gray
+        self.n_read = 0
+        try:
+            self._container = av.open(str(self.path))
+        except (OSError, av.FFmpegError) as exc:
+            raise DatasetError(f"{self.path}: cannot open video ({exc})") from None
+        if not self._container.streams.video:
+            self._container.close()
+            raise DatasetError(f"{self.path}: holds no video stream")
+        self._frames = self._container.decode(video=0)
+
+    def read(self) -> np.ndarray | None:
+        """The next frame, or None after the last one."""
+        if self._container is None:
+            return None
+        try:
+            frame = next(self._frames, None)
+        except (OSError, av.FFmpegError) as exc:
+            raise DatasetError(f"{self.path}: cannot decode frame {self.n_read} ({exc})") from None
+        if frame is None:
+            self.close()
+            return None
+        self.n_read += 1
+        return frame.to_ndarray(format="gray" if self.gray else "rgb24")
+
+    def __iter__(self) -> Iterator[np.ndarray]:
+        while (image := self.read()) is not None:
+            yield image
+
+    def close(self) -> None:
+        """Release the file (idempotent)."""
+        if self._container is not None:
+            self._container.close()
+            self._container = None
+
+    def __enter__(self) -> VideoReader:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def open_video_frames(paths: Sequence[str | Path], *, gray: bool = False
+                      ) -> Iterator[list[np.ndarray]]:
+    """Synchronised frames of several videos, one per camera (for ``digiteyes track``).
+
+    Returns an iterator of lists holding one image per file, in the order of ``paths``
+    (the order of the rig's cameras): ``uint8`` (H, W) if ``gray`` else (H, W, 3) RGB. It
+    stops when the shortest video ends. Every file is opened before this function returns,
+    so a missing or undecodable file raises :class:`DatasetError` naming it at once.
+    """
+    if not paths:
+        raise DatasetError("open_video_frames needs at least one video file")
+    readers: list[VideoReader] = []
+    try:
+        for path in paths:
+            readers.append(VideoReader(path, gray=gray))
+    except DatasetError:
+        for reader in readers:
+            reader.close()
+        raise
+    return _zip_frames(readers)
+
+
+def _zip_frames(readers: list[VideoReader]) -> Iterator[list[np.ndarray]]:
+    try:
+        step = 0
+        while True:
+            images = [r.read() for r in readers]
+            if any(im is None for im in images):
+                if step == 0:
+                    empty = next(r for r, im in zip(readers, images, strict=True) if im is None)
+                    raise DatasetError(f"{empty.path}: video holds no frames")
+                return
+            step += 1
+            yield images
+    finally:
+        for reader in readers:
+            reader.close()
