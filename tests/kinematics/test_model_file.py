@@ -18,7 +18,12 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from digiteyes.errors import ModelFileError
-from digiteyes.kinematics import KinematicModel, model_from_file, parse_model_text
+from digiteyes.kinematics import (
+    KinematicModel,
+    forward_kinematics,
+    model_from_file,
+    parse_model_text,
+)
 from digiteyes.kinematics.model_file import parse_value, read_model_file
 from digiteyes.models import MODEL_DIR
 
@@ -148,6 +153,18 @@ def test_box_with_three_sizes_is_centred_on_the_shape_frame() -> None:
     palm = build(ARM).link("base")
     assert palm.size == (40.0, 40.0, 20.0)
     assert palm.centre == (0.0, 0.0, 0.0)
+
+
+def test_worked_example_in_the_docs(tmp_path: Path) -> None:
+    """The arm of docs/models.md loads and puts its hand where the text says."""
+    docs = (Path(__file__).parents[2] / "docs" / "models.md").read_text(encoding="utf-8")
+    block = docs.split("<!-- example: arm.dh", 1)[1].split("```text\n", 1)[1].split("```", 1)[0]
+    path = tmp_path / "arm.dh"
+    path.write_text(block, encoding="utf-8")
+    arm = model_from_file(path)
+    assert arm.describe().startswith("model arm: two-link planar arm")
+    tips, _ = forward_kinematics(arm, np.radians([90.0, 90.0])).tip_centres()
+    np.testing.assert_allclose(tips, [[-250.0, 300.0, 0.0]], atol=1e-9)
 
 
 # ---------------------------------------------------------------------------- error cases
@@ -313,6 +330,14 @@ def test_non_utf8_file_is_unreadable(tmp_path: Path) -> None:
 def test_odd_integers_raise_model_file_error(text: str, line: int) -> None:
     with pytest.raises(ModelFileError, match=rf"^{FILE_NAME}:{line}: "):
         build(text)
+
+
+def test_describe_survives_a_deep_chain() -> None:
+    """describe() walks the tree recursively today and hits Python's recursion limit."""
+    n = 1500
+    rows = "\n".join(f"{i} - 0 0 1 0 - {i + 1 if i < n - 1 else '-'}" for i in range(n))
+    model = build(f"model chain\n[frames]\n{rows}\n")
+    assert f"{n - 1}" in model.describe()
 
 
 def test_path_with_nul_byte_raises_model_file_error() -> None:

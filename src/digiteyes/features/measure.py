@@ -85,6 +85,11 @@ class FeatureOptions:
     min_axis_px : links whose projected axis is shorter are not measured.
     min_tip_edges : tip slices (of 3) that must find the silhouette end.
     max_tip_spread_px : largest disagreement of the tip slices' estimates.
+    tip_end : shape of the finger end. ``"capsule"`` (default): the distal link is a
+        capsule whose far cap covers the tip sphere, so the silhouette ends
+        ``max(tip radius, link radius)`` beyond the tip centre (the renderer's geometry,
+        and closer to real fingers than a thin tip on a thick cylinder); ``"sphere"``: the
+        tip sphere alone (report Fig. 3).
     """
 
     window_px: float = 20.0
@@ -101,6 +106,7 @@ class FeatureOptions:
     min_axis_px: float = 5.0
     min_tip_edges: int = 2
     max_tip_spread_px: float = 3.0
+    tip_end: str = "capsule"
 
     def __post_init__(self) -> None:
         positive = ("window_px", "tip_search_px", "step_px", "max_fit_rms_px",
@@ -110,7 +116,10 @@ class FeatureOptions:
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"FeatureOptions.{name} must be positive, got {value!r}")
         if not (self.min_contrast >= 0 and self.min_axis_px >= 0):
-            raise ValueError("FeatureOptions.min_contrast and min_axis_px must be >= 0")
+            raise ValueError(
+                f"FeatureOptions.min_contrast and min_axis_px must be >= 0, got "
+                f"{self.min_contrast!r} and {self.min_axis_px!r}"
+            )
         if self.slices_per_link < 2:
             raise ValueError(
                 f"FeatureOptions.slices_per_link must be >= 2, got {self.slices_per_link}"
@@ -127,6 +136,10 @@ class FeatureOptions:
         if not 0.0 <= self.end_margin < 0.5:
             raise ValueError(f"FeatureOptions.end_margin must be in [0, 0.5), got "
                              f"{self.end_margin}")
+        if self.tip_end not in ("capsule", "sphere"):
+            raise ValueError(
+                f"FeatureOptions.tip_end must be 'capsule' or 'sphere', got {self.tip_end!r}"
+            )
         if self.robust not in ("tukey", "huber", "none"):
             raise ValueError(
                 f"FeatureOptions.robust must be 'tukey', 'huber' or 'none', got {self.robust!r}"
@@ -154,6 +167,7 @@ class FeatureMeasurement:
     edge_inlier : (L, 2, S) bool, edge points kept by the robust fit.
     slice_centres : (L, S, 2) slice centres on the projected axis.
     slice_normal : (L, 2) unit image normal of each projected axis (slice direction).
+    slice_ends : (L, S, 2, 2) ends of each slice's searched span (both sides' ranges).
     contour_offsets : (L, S, 2) predicted silhouette offsets along the normal (side 0 < 0).
     tip_ids : (T,) indices into ``model.links`` of the tracked tips.
     predicted_tip : (T, 2) projected tip centres.
@@ -177,6 +191,7 @@ class FeatureMeasurement:
     edge_inlier: np.ndarray
     slice_centres: np.ndarray
     slice_normal: np.ndarray
+    slice_ends: np.ndarray
     contour_offsets: np.ndarray
     tip_ids: np.ndarray
     predicted_tip: np.ndarray
@@ -191,14 +206,6 @@ class FeatureMeasurement:
     def n_valid(self) -> int:
         """Number of valid features (links plus tips)."""
         return int(self.link_valid.sum() + self.tip_valid.sum())
-
-    def slice_ends(self, window_px: float) -> np.ndarray:
-        """(L, S, 2, 2) ends of each slice's search span (both sides' ranges), px."""
-        lo = self.contour_offsets[..., 0] - 0.5 * window_px
-        hi = self.contour_offsets[..., 1] + 0.5 * window_px
-        ends = np.stack([lo, hi], axis=-1)
-        return self.slice_centres[..., None, :] + ends[..., None] * self.slice_normal[:, None,
-                                                                                        None]
 
 
 def select_links(model: KinematicModel, names: Sequence[str] | None, kind: str) -> np.ndarray:
@@ -227,7 +234,7 @@ def _single_state_shapes(kin: Kinematics) -> np.ndarray:
 
 
 def _sample_grid(half: float, step: float) -> np.ndarray:
-    n = int(math.ceil(half / step)) + KERNEL_HALF_WIDTH + 1
+    n = math.ceil(half / step) + KERNEL_HALF_WIDTH + 1
     return np.arange(-n, n + 1) * step
 
 
@@ -366,6 +373,9 @@ def _measure_links(gray, camera, model, shapes, link_ids, opt) -> dict:
         "edge_inlier": fit.inlier,
         "slice_centres": w_slices,
         "slice_normal": normal,
+        "slice_ends": w_slices[..., None, :] + np.stack(
+            [contour[..., 0] - 0.5 * opt.window_px, contour[..., 1] + 0.5 * opt.window_px],
+            axis=-1)[..., None] * normal[:, None, None],
         "contour_offsets": contour,
     }
 
@@ -385,11 +395,14 @@ def _tip_axes(model: KinematicModel, shapes: np.ndarray, tip_ids: np.ndarray):
 
 
 def _measure_tips(gray, camera, model, shapes, tip_ids, link_ids, link_part, opt) -> dict:
-    n_tips, n_k = len(tip_ids), len(TIP_LATERAL)
+    n_tips = len(tip_ids)
     rows = np.array([model.links[i].row for i in tip_ids], dtype=int)
     radii = np.array([model.links[i].radius for i in tip_ids], dtype=float)
     centre3 = shapes[rows, :3, 3]
     parents, axis3 = _tip_axes(model, shapes, tip_ids)
+    if opt.tip_end == "capsule":
+        parent_radii = np.array([model.links[p].radius if p >= 0 else 0.0 for p in parents])
+        radii = np.maximum(radii, parent_radii)
     w_c, u, along, across, sin_view = sphere_extent(camera, centre3, axis3, radii)
 
     reason = np.full(n_tips, "ok", dtype=object)

@@ -90,9 +90,11 @@ def fk_kernel(Q, theta0, d0, a, cos_alpha, sin_alpha, theta_state, d_state, orde
 
 
 @njit(cache=True)
-def jacobian_kernel(world, q, rows, p_world, moved, joint_row, theta_state, base_state, root,
-                    col_of_q, quaternion_form, J):  # pragma: no cover - compiled
-    """Fill ``J`` (N, P, 3, n_cols) with the point Jacobian columns (thesis eq. 2.16).
+def jacobian_kernel(world, shape, q, rows, p_shape, moved, joint_row, theta_state, base_state,
+                    root, col_of_q, quaternion_form, p_world, J):  # pragma: no cover - compiled
+    """Fill ``p_world`` (N, P, 3) with the world positions of points ``p_shape`` (P, 3) fixed
+    in the shape frames of ``rows``, and ``J`` (N, P, 3, n_cols) with their Jacobian columns
+    (thesis eq. 2.16).
 
     Revolute: ``z_j x (p - o_j)``; prismatic: ``z_j``; base translation: identity; base
     rotation: ``e_k x (p - t)`` (tangent) or ``G(q)[:, k] x (p - t)`` (quaternion form,
@@ -113,9 +115,16 @@ def jacobian_kernel(world, q, rows, p_world, moved, joint_row, theta_state, base
             G[1, 0], G[1, 1], G[1, 2], G[1, 3] = -y * k, z * k, w * k, -x * k
             G[2, 0], G[2, 1], G[2, 2], G[2, 3] = -z * k, -y * k, x * k, w * k
         for p in range(n_points):
-            px = p_world[n, p, 0]
-            py = p_world[n, p, 1]
-            pz = p_world[n, p, 2]
+            T = shape[n, rows[p]]
+            sx = p_shape[p, 0]
+            sy = p_shape[p, 1]
+            sz = p_shape[p, 2]
+            px = T[0, 0] * sx + T[0, 1] * sy + T[0, 2] * sz + T[0, 3]
+            py = T[1, 0] * sx + T[1, 1] * sy + T[1, 2] * sz + T[1, 3]
+            pz = T[2, 0] * sx + T[2, 1] * sy + T[2, 2] * sz + T[2, 3]
+            p_world[n, p, 0] = px
+            p_world[n, p, 1] = py
+            p_world[n, p, 2] = pz
             for s in range(n_q):
                 jr = joint_row[s]
                 if jr < 0 or not moved[rows[p], s]:

@@ -53,18 +53,18 @@ def point_jacobian(
     if form not in ("tangent", "quaternion"):
         raise ValueError(f"form must be 'tangent' or 'quaternion', got {form!r}")
     model = kin.model
-    rows = np.asarray(rows, dtype=int)
-    T = kin.T_world_shape[:, rows]
-    p_world = np.einsum("npij,pj->npi", T[..., :3, :3], np.asarray(p_shape, dtype=float))
-    p_world += T[..., :3, 3]
+    rows = np.ascontiguousarray(rows, dtype=np.int64)
+    p_shape = np.ascontiguousarray(p_shape, dtype=float).reshape(len(rows), 3)
+    n = len(kin.q)
+    p_world = np.empty((n, len(rows), 3))
     quaternion_form = form == "quaternion"
     n_cols = model.n_q if quaternion_form else model.n_v
     col_of_q = np.arange(model.n_q) if quaternion_form else model.q_to_v
-    J = np.zeros((len(kin.q), len(rows), 3, n_cols))
-    jacobian_kernel(kin.T_world_frame, kin.q, rows, p_world, model.shape_moved_by,
-                    model.joint_row, model.theta_state,
+    J = np.zeros((n, len(rows), 3, n_cols))
+    jacobian_kernel(kin.T_world_frame, kin.T_world_shape, kin.q, rows, p_shape,
+                    model.shape_moved_by, model.joint_row, model.theta_state,
                     -1 if model.base_state is None else model.base_state, model.root,
-                    col_of_q, quaternion_form, J)
+                    col_of_q, quaternion_form, p_world, J)
     if not kin.batched:
         return p_world[0], J[0]
     return p_world, J

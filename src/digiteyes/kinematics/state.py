@@ -107,10 +107,28 @@ class State:
         return float(self.q[self._index(name)])
 
     def __setitem__(self, name: str, value: float) -> None:
+        index = self._index(name)
+        base = self.model.base_state
+        if base is not None and base <= index < base + 4:
+            raise StateError(
+                f"{name!r} is one number of the base quaternion; set all four at once with "
+                "State.set_base_rotation(quat) so the quaternion stays unit"
+            )
         value = float(value)
         if not np.isfinite(value):
             raise StateError(f"state {name!r} must be finite, got {value}")
-        self.q[self._index(name)] = value
+        self.q[index] = value
+
+    def set_base_rotation(self, quat: np.ndarray) -> None:
+        """Set the base quaternion (w, x, y, z); it is normalised (must be non-zero)."""
+        base = self.model.base_state
+        if base is None:
+            raise StateError(f"model {self.model.name!r} has no base rotation")
+        quat = np.asarray(quat, dtype=float)
+        norm = float(np.linalg.norm(quat)) if quat.shape == (4,) else 0.0
+        if not (np.isfinite(norm) and norm > 1e-12):
+            raise StateError(f"base rotation must be a finite non-zero 4-vector, got {quat}")
+        self.q[base:base + 4] = quat / norm
 
     def _index(self, name: str) -> int:
         try:

@@ -1,5 +1,5 @@
-"""Motion-script helpers for the synthetic scenarios: smooth keyframe paths, palm rotations,
-keypoints and their image speed.
+"""Motion-script helpers for the synthetic scenarios: smooth keyframe paths, palm rotations
+and the image speed of the keypoints.
 
 Everything here is deterministic: random keyframes come from a ``numpy.random.Generator``
 passed in by the caller. Times are in frames unless a name says seconds; angles in
@@ -19,6 +19,7 @@ from digiteyes.kinematics.rotations import (
     quaternion_from_rotvec,
     quaternion_multiply,
 )
+from digiteyes.render.keypoints import keypoints
 
 
 def min_jerk(s: np.ndarray) -> np.ndarray:
@@ -102,32 +103,15 @@ def palm_quaternions(R_world_rest: np.ndarray, rotvecs: np.ndarray) -> np.ndarra
     return quat * np.where(quat[..., :1] < 0, -1.0, 1.0)
 
 
-def keypoint_names(model: KinematicModel) -> list[str]:
-    """Names of the points :func:`joint_points` returns: each cylinder link's start
-    (``<link>.start``; a joint centre) and end (``<link>.end``), then each tip centre."""
-    names = [f"{link.name}.{end}" for link in model.links if link.kind == "link"
-             for end in ("start", "end")]
-    return names + [link.name for link in model.links if link.kind == "tip"]
-
-
-def joint_points(model: KinematicModel, states: np.ndarray) -> np.ndarray:
-    """World positions (T, K, 3), mm, of the link end points and tip centres of each state
-    (order of :func:`keypoint_names`)."""
-    kin = forward_kinematics(model, np.atleast_2d(states))
-    start, end, _ = kin.link_segments()
-    tips, _ = kin.tip_centres()
-    pairs = np.stack([start, end], axis=2).reshape(len(start), -1, 3)
-    return np.concatenate([pairs, tips], axis=1)
-
-
 def image_speed(model: KinematicModel, states: np.ndarray, rig: Rig) -> np.ndarray:
     """Largest image displacement per frame of any keypoint in any camera, (T,) px/frame.
 
     Entry t is the displacement from frame t-1 to frame t (entry 0 is 0). The keypoints
-    are :func:`joint_points`; this is the number to compare with a tracker's search window
-    (thesis Sec. 4.3.2: track loss when the features leave the window).
+    are the renderer's ground-truth keypoints (:func:`digiteyes.render.keypoints.keypoints`:
+    joint centres, tip centres, palm centre); this is the number to compare with a
+    tracker's search window (thesis Sec. 4.3.2: track loss when the features leave it).
     """
-    points = joint_points(model, states)
+    points = keypoints(model, forward_kinematics(model, np.atleast_2d(states)))[1]
     speed = np.zeros(len(points))
     for cam in rig:
         w = cam.project(points)

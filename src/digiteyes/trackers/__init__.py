@@ -1,1 +1,21 @@
-"""trackers layer (see DESIGN.md)."""
+"""Trackers: one interface (``reset``, ``step`` -> :class:`TrackResult`) for all of them.
+
+:class:`FeatureTracker` is DigitEyes (thesis Sec. 2.5, 4.3): point and line features,
+stabilised Gauss-Newton, several cameras stacked in one system.
+"""
+
+from digiteyes.trackers.base import TIMING_STAGES, Tracker, TrackResult
+from digiteyes.trackers.feature_tracker import (
+    THESIS_EXCLUDED_LINKS,
+    FeatureTracker,
+    FeatureTrackerOptions,
+    thesis_whole_hand_links,
+)
+from digiteyes.trackers.parameterisation import StateParameterisation
+from digiteyes.trackers.prediction import StatePredictor
+
+__all__ = [
+    "THESIS_EXCLUDED_LINKS", "TIMING_STAGES", "FeatureTracker", "FeatureTrackerOptions",
+    "StateParameterisation", "StatePredictor", "TrackResult", "Tracker",
+    "thesis_whole_hand_links",
+]

@@ -1,0 +1,368 @@
+"""The DigitEyes feature tracker (thesis Sec. 2.5 and 4.3.2, report Sec. 5).
+
+Per frame: predict the state from the past estimates, then run a few stabilised
+Gauss-Newton iterations (thesis eq. 2.22). Every residual evaluation is one pass of the
+thesis's loop (Sec. 4.3.2 steps 1-5): forward kinematics at the current iterate, feature
+search around the projected model in every camera, line and tip residuals with their
+Jacobians, stacked over the cameras into one system (thesis Sec. 2.5.5). The solve and the
+state update are steps 6-7. Finally the track-loss rules look at the result.
+
+Track loss (thesis Sec. 4.1, 4.3.2: the search windows no longer contain the features):
+a frame is flagged ``lost`` when
+
+* no feature could be measured at all;
+* more than ``max_invalid_fraction`` of the requested features are invalid;
+* the residual RMS exceeds ``max_residual_rms_px`` (default: half the feature window,
+  where the features start falling out of their windows);
+* the residual RMS has grown in each of the last ``growth_frames`` frames to more than
+  ``growth_factor`` times its value before them (and above ``growth_min_px``).
+
+A lost frame is reported, not acted on: tracking continues from the estimate, and the
+constant-velocity prediction drops its velocity.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from digiteyes.camera import Rig
+from digiteyes.errors import StateError
+from digiteyes.features import FeatureOptions, feature_residuals, measure_features
+from digiteyes.features.slices import prepare_image
+from digiteyes.kinematics import KinematicModel, forward_kinematics, validate_state
+from digiteyes.solvers import (
+    GaussNewtonOptions,
+    SolverSummary,
+    gauss_newton,
+    hand_conditioning,
+)
+from digiteyes.solvers.options import DAMPINGS, Damping
+from digiteyes.solvers.robust import ROBUST_LOSSES, RobustLoss
+from digiteyes.trackers.base import TIMING_STAGES, TrackResult
+from digiteyes.trackers.parameterisation import STEP_FORMS, StateParameterisation, StepForm
+from digiteyes.trackers.prediction import PREDICTIONS, PredictionKind, StatePredictor
+
+THESIS_EXCLUDED_LINKS = ("middle.proximal", "ring.proximal")
+"""Links the thesis's whole-hand experiment did not measure (Sec. 4.3.3: the proximal
+phalanges of the middle two fingers, which were always occluded)."""
+
+
+def thesis_whole_hand_links(model: KinematicModel) -> tuple[str, ...]:
+    """Every cylinder link and tip of ``model`` except :data:`THESIS_EXCLUDED_LINKS`:
+    the 13 phalanges and 5 tips of thesis Sec. 4.3.3 for the full hand."""
+    return tuple(link.name for link in model.links
+                 if link.kind in ("link", "tip") and link.name not in THESIS_EXCLUDED_LINKS)
+
+
+@dataclass(frozen=True)
+class FeatureTrackerOptions:
+    """Settings of :class:`FeatureTracker` (defaults follow thesis Table 4.2).
+
+    Attributes
+    ----------
+    iterations_per_frame : Gauss-Newton iterations per frame; each re-measures the
+        features at the current iterate.
+    features : feature-search settings (window size, slices, contrast).
+    links : names of the cylinder links and tips to measure; ``None`` for all of them.
+        :func:`thesis_whole_hand_links` gives the thesis's whole-hand set.
+    conditioning : weights of ``S`` for (quaternion/rotation, translation, joint angle),
+        thesis eq. 2.22 and Table 4.2: 1, 10, 1000 (px^2 per squared step unit).
+    use_conditioning : False drops ``S`` (plain Gauss-Newton; an ablation).
+    damping : ``"fixed"`` (thesis) or ``"levenberg-marquardt"``.
+    robust_loss : ``None``, ``"huber"`` or ``"tukey"`` on the feature residuals.
+    robust_scale_px : scale of the robust loss, pixels.
+    clip_to_limits : clip joint states into their limits after every step.
+    prediction : ``"constant-velocity"`` (tangent-space extrapolation) or ``"none"``
+        (previous estimate, as the thesis).
+    form : ``"tangent"`` steps (n_v) or the thesis's ``"quaternion"`` form (n_q).
+    max_invalid_fraction : lost when more than this fraction of requested features is
+        invalid.
+    max_residual_rms_px : lost when the final residual RMS exceeds this; ``None`` means
+        half the feature window (``features.window_px / 2``).
+    growth_frames, growth_factor, growth_min_px : lost when the residual RMS rose in each
+        of the last ``growth_frames`` frames, to more than ``growth_factor`` times its value
+        before them and above ``growth_min_px``.
+    """
+
+    iterations_per_frame: int = 5
+    features: FeatureOptions = field(default_factory=FeatureOptions)
+    links: tuple[str, ...] | None = None
+    conditioning: tuple[float, float, float] = (1.0, 10.0, 1000.0)
+    use_conditioning: bool = True
+    damping: Damping = "fixed"
+    robust_loss: RobustLoss | None = None
+    robust_scale_px: float = 5.0
+    clip_to_limits: bool = True
+    prediction: PredictionKind = "constant-velocity"
+    form: StepForm = "tangent"
+    max_invalid_fraction: float = 0.5
+    max_residual_rms_px: float | None = None
+    growth_frames: int = 5
+    growth_factor: float = 2.0
+    growth_min_px: float = 1.0
+
+    def __post_init__(self) -> None:
+        if isinstance(self.iterations_per_frame, bool) or not isinstance(
+                self.iterations_per_frame, int | np.integer) or self.iterations_per_frame < 1:
+            raise ValueError(
+                f"iterations_per_frame must be a positive integer, got "
+                f"{self.iterations_per_frame!r}"
+            )
+        if not isinstance(self.features, FeatureOptions):
+            raise ValueError(f"features must be a FeatureOptions, got {type(self.features)}")
+        if self.links is not None:
+            if isinstance(self.links, str) or not all(isinstance(n, str) for n in self.links):
+                raise ValueError(f"links must be a sequence of link names, got {self.links!r}")
+            object.__setattr__(self, "links", tuple(self.links))
+        weights = tuple(float(w) for w in self.conditioning)
+        if len(weights) != 3 or not all(np.isfinite(w) and w >= 0 for w in weights):
+            raise ValueError(
+                "conditioning must be three non-negative weights (quaternion, translation, "
+                f"joint), got {self.conditioning!r}"
+            )
+        object.__setattr__(self, "conditioning", weights)
+        choices = (("damping", DAMPINGS), ("prediction", PREDICTIONS), ("form", STEP_FORMS))
+        for name, allowed in choices:
+            if getattr(self, name) not in allowed:
+                raise ValueError(
+                    f"{name} must be one of {', '.join(allowed)}, got {getattr(self, name)!r}"
+                )
+        if self.robust_loss is not None and self.robust_loss not in ROBUST_LOSSES:
+            raise ValueError(
+                f"robust_loss must be None, 'huber' or 'tukey', got {self.robust_loss!r}"
+            )
+        positive = ["robust_scale_px", "growth_factor"]
+        if self.max_residual_rms_px is not None:
+            positive.append("max_residual_rms_px")
+        for name in positive:
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a positive number, got {value!r}")
+        if not 0.0 <= self.max_invalid_fraction <= 1.0:
+            raise ValueError(
+                f"max_invalid_fraction must be in [0, 1], got {self.max_invalid_fraction!r}"
+            )
+        if not isinstance(self.growth_frames, int | np.integer) or self.growth_frames < 1:
+            raise ValueError(f"growth_frames must be a positive integer, got "
+                             f"{self.growth_frames!r}")
+        if not (np.isfinite(self.growth_min_px) and self.growth_min_px >= 0):
+            raise ValueError(f"growth_min_px must be >= 0, got {self.growth_min_px!r}")
+
+    @property
+    def residual_limit_px(self) -> float:
+        """The residual RMS above which a frame is lost, pixels."""
+        if self.max_residual_rms_px is not None:
+            return float(self.max_residual_rms_px)
+        return 0.5 * self.features.window_px
+
+
+@dataclass
+class _Evaluation:
+    """One pass of measurement at a state: what the tracker reports for the final one."""
+
+    q: np.ndarray
+    measurements: list[Any]
+    layouts: list[Any]
+    residuals: np.ndarray
+
+
+class _FeatureProblem:
+    """Feature alignment at one set of frames as a least-squares problem: residuals are
+    re-measured at every iterate (thesis Sec. 4.3.2 steps 1-5)."""
+
+    def __init__(self, tracker: FeatureTracker, images: list[np.ndarray],
+                 timings: dict[str, float]) -> None:
+        self.tracker = tracker
+        self.images = images
+        self.timings = timings
+        self.param = tracker.parameterisation
+        self.n_v = self.param.n_v
+        self.evaluations: list[_Evaluation] = []
+
+    def residuals(self, q: np.ndarray, jacobian: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        tracker, timings = self.tracker, self.timings
+        start = time.perf_counter()
+        kin = forward_kinematics(tracker.model, q)
+        timings["forward_kinematics"] += time.perf_counter() - start
+        rs, Js, measurements, layouts = [], [], [], []
+        for camera, image in zip(tracker.rig, self.images, strict=True):
+            start = time.perf_counter()
+            meas = measure_features(image, camera, tracker.model, kin,
+                                    tracker.options.features, tracker.link_names,
+                                    tracker.tip_names)
+            timings["feature_detection"] += time.perf_counter() - start
+            start = time.perf_counter()
+            r, J, layout = feature_residuals(meas, camera, kin, jacobian=jacobian,
+                                             form=self.param.form)
+            rs.append(r)
+            Js.append(J)
+            measurements.append(meas)
+            layouts.append(layout)
+            timings["jacobian"] += time.perf_counter() - start
+        start = time.perf_counter()
+        r = np.concatenate(rs)
+        J = np.concatenate(Js) if jacobian else None
+        timings["jacobian"] += time.perf_counter() - start
+        self.evaluations.append(_Evaluation(np.array(q), measurements, layouts, r))
+        return r, J
+
+    def retract(self, q: np.ndarray, dv: np.ndarray) -> np.ndarray:
+        return self.param.retract(q, dv)
+
+    def project(self, q: np.ndarray) -> np.ndarray:
+        return self.param.project(q)
+
+    def evaluation_at(self, q: np.ndarray) -> _Evaluation:
+        """The latest evaluation at exactly ``q`` (measuring again if there was none)."""
+        for evaluation in reversed(self.evaluations):
+            if np.array_equal(evaluation.q, q):
+                return evaluation
+        self.residuals(q, False)
+        return self.evaluations[-1]
+
+
+class FeatureTracker:
+    """Track a kinematic model through point and line features (DigitEyes).
+
+    Parameters
+    ----------
+    model : the kinematic model (any model file works, thesis Sec. 4.2).
+    rig : the calibrated cameras; :meth:`step` takes one image per camera, in rig order.
+    options : :class:`FeatureTrackerOptions`.
+
+    Examples
+    --------
+    >>> tracker = FeatureTracker(load_model("hand"), rig)          # doctest: +SKIP
+    >>> tracker.reset(initial_state)                                # doctest: +SKIP
+    >>> for frames in video:                                        # doctest: +SKIP
+    ...     result = tracker.step(frames)
+    ...     print(result.state, result.residual_rms_px, result.lost)
+    """
+
+    def __init__(self, model: KinematicModel, rig: Rig,
+                 options: FeatureTrackerOptions | None = None) -> None:
+        self.model = model
+        self.rig = rig
+        self.options = FeatureTrackerOptions() if options is None else options
+        opts = self.options
+        self.link_names, self.tip_names = self._split_features(model, opts.links)
+        self.n_features = (len(self.link_names) + len(self.tip_names)) * len(rig)
+        self.parameterisation = StateParameterisation(model, opts.form, opts.clip_to_limits)
+        conditioning = None
+        if opts.use_conditioning:
+            conditioning = hand_conditioning(model, *opts.conditioning, form=opts.form)
+        self.solver_options = GaussNewtonOptions(
+            max_iterations=opts.iterations_per_frame, conditioning=conditioning,
+            damping=opts.damping, robust_loss=opts.robust_loss,
+            scale_px=opts.robust_scale_px, step_tolerance=0.0, cost_tolerance=0.0)
+        self.predictor = StatePredictor(model, opts.prediction, opts.clip_to_limits)
+        self._rms_history: deque[float] = deque(maxlen=opts.growth_frames + 1)
+        self._frame_index = 0
+        self.state: np.ndarray | None = None
+
+    @staticmethod
+    def _split_features(model: KinematicModel, names: tuple[str, ...] | None
+                        ) -> tuple[list[str], list[str]]:
+        features = [link for link in model.links if link.kind in ("link", "tip")]
+        if names is None:
+            chosen = features
+        else:
+            by_name = {link.name: link for link in features}
+            unknown = [n for n in names if n not in by_name]
+            if unknown:
+                raise ValueError(
+                    f"model {model.name!r} has no cylinder link or tip named "
+                    f"{', '.join(map(repr, unknown))}; choose from "
+                    f"{', '.join(by_name)}"
+                )
+            chosen = [by_name[n] for n in dict.fromkeys(names)]
+        links = [link.name for link in chosen if link.kind == "link"]
+        tips = [link.name for link in chosen if link.kind == "tip"]
+        if not links and not tips:
+            raise ValueError(f"no cylinder link or tip to track in model {model.name!r}")
+        return links, tips
+
+    def reset(self, initial_state: np.ndarray) -> None:
+        """Start a new track from ``initial_state`` (n_q,); a non-unit quaternion is
+        normalised, joint states are clipped into their limits when ``clip_to_limits``."""
+        q = np.asarray(getattr(initial_state, "q", initial_state), dtype=float)
+        if q.shape != (self.model.n_q,):
+            raise StateError(
+                f"initial state must hold {self.model.n_q} numbers for model "
+                f"{self.model.name!r}, got shape {q.shape}"
+            )
+        q = self.parameterisation.project(validate_state(self.model, q, normalize=True))
+        self.state = q
+        self.predictor.reset(q)
+        self._rms_history.clear()
+        self._frame_index = 0
+
+    def step(self, frames: Sequence[np.ndarray]) -> TrackResult:
+        """Estimate the state for one set of frames (one image per camera, rig order).
+
+        Raises :class:`~digiteyes.errors.CameraError` when the frames do not fit the rig
+        and :class:`~digiteyes.errors.StateError` before :meth:`reset`.
+        """
+        if self.state is None:
+            raise StateError("the tracker has no state: call reset(initial_state) first")
+        start_total = time.perf_counter()
+        self.rig.check_images(frames)
+        timings = dict.fromkeys(TIMING_STAGES, 0.0)
+        start = time.perf_counter()
+        predicted = self.predictor.predict()
+        timings["prediction"] = time.perf_counter() - start
+        start = time.perf_counter()
+        images = [prepare_image(frame) for frame in frames]
+        timings["feature_detection"] += time.perf_counter() - start
+        problem = _FeatureProblem(self, images, timings)
+        q, summary = gauss_newton(problem, predicted, self.solver_options)
+        timings["linear_solve"] = summary.timings["linear_solve"]
+        final = problem.evaluation_at(q)
+        result = self._result(q, predicted, summary, final, timings)
+        self.state = q
+        self.predictor.update(q, reliable=not result.lost)
+        self._frame_index += 1
+        timings["total"] = time.perf_counter() - start_total
+        return result
+
+    def _result(self, q: np.ndarray, predicted: np.ndarray, summary: SolverSummary,
+                final: _Evaluation, timings: dict[str, float]) -> TrackResult:
+        r = final.residuals
+        rms = float(np.sqrt(np.mean(r * r))) if len(r) else float("nan")
+        n_links = int(sum(int(np.sum(m.link_valid)) for m in final.measurements))
+        n_tips = int(sum(int(np.sum(m.tip_valid)) for m in final.measurements))
+        reasons = self._loss_reasons(rms, n_links + n_tips, len(r))
+        return TrackResult(
+            state=q, residual_rms_px=rms, cost=summary.cost_final, lost=bool(reasons),
+            loss_reason="; ".join(reasons), iterations=summary.iterations, summary=summary,
+            measurements=final.measurements, residual_layouts=final.layouts, residuals=r,
+            n_valid_links=n_links, n_valid_tips=n_tips, n_features=self.n_features,
+            predicted_state=predicted, frame_index=self._frame_index, timings=timings)
+
+    def _loss_reasons(self, rms: float, n_valid: int, n_residuals: int) -> list[str]:
+        opts = self.options
+        if n_residuals == 0 or n_valid == 0:
+            self._rms_history.clear()
+            return ["no features measured"]
+        reasons = []
+        invalid = 1.0 - n_valid / self.n_features
+        if invalid > opts.max_invalid_fraction:
+            reasons.append(f"{invalid:.0%} of the features invalid "
+                           f"(limit {opts.max_invalid_fraction:.0%})")
+        if rms > opts.residual_limit_px:
+            reasons.append(f"residual RMS {rms:.2f} px > {opts.residual_limit_px:.2f} px")
+        history = self._rms_history
+        history.append(rms)
+        if len(history) == history.maxlen:
+            values = np.array(history)
+            if (np.all(np.diff(values) > 0) and rms > opts.growth_factor * values[0]
+                    and rms > opts.growth_min_px):
+                reasons.append(f"residual RMS grew from {values[0]:.2f} to {rms:.2f} px over "
+                               f"{opts.growth_frames} frames")
+        return reasons
