@@ -289,8 +289,8 @@ def test_malformed_file_names_file_line_and_problem(
 
 
 def test_cycle_through_the_root_names_a_line() -> None:
-    """With every frame reached from another there is no root; the error should still point
-    at a row (expected behaviour, see the parser report: today the line is missing)."""
+    """With every frame listed in some 'next' cell there is no root; the error still points
+    at a row (the one that lists frame 0)."""
     text = edit(9, "3 hand 0 0 0 0 tip(30) 0")
     with pytest.raises(ModelFileError, match=rf"^{FILE_NAME}:\d+: ") as info:
         build(text)
@@ -315,7 +315,7 @@ def test_non_utf8_file_is_unreadable(tmp_path: Path) -> None:
         read_model_file(path)
 
 
-# ---------------------------------------------------------------- parser bugs (see report)
+# ------------------------------------------- odd input that must not escape as other errors
 @pytest.mark.parametrize(
     ("text", "line"),
     [
@@ -333,7 +333,7 @@ def test_odd_integers_raise_model_file_error(text: str, line: int) -> None:
 
 
 def test_describe_survives_a_deep_chain() -> None:
-    """describe() walks the tree recursively today and hits Python's recursion limit."""
+    """A chain deeper than Python's recursion limit still describes itself."""
     n = 1500
     rows = "\n".join(f"{i} - 0 0 1 0 - {i + 1 if i < n - 1 else '-'}" for i in range(n))
     model = build(f"model chain\n[frames]\n{rows}\n")

@@ -31,7 +31,8 @@ ANCHORS = {
     "little": (-26.0, 30.0, 0.0),
 }
 THUMB_ANCHOR = {"hand": (38.0, -43.0, 15.0), "mouse-hand": (38.0, -43.0, 0.0),
-                "cardboard-hand": (38.0, -43.0, 0.0)}
+                "cardboard-hand": (38.0, -43.0, 15.0)}
+REST_HEIGHT = 7.5  # mouse-hand: palm frame and finger axes above the table, mm
 STEP = 0.2  # rad, a small joint step from the zero state
 
 
@@ -204,13 +205,14 @@ def test_mouse_hand_palm_rests_flat_on_the_table() -> None:
     assert (world + T[:3, 3])[:, 2].min() == pytest.approx(0.0, abs=1e-9)
 
 
-def test_mouse_hand_tips_hover_above_the_table() -> None:
+def test_mouse_hand_digits_lie_in_the_slab_mid_plane() -> None:
     model = load_model("mouse-hand")
     kin = forward_kinematics(model, model.neutral())
-    tips, idx = kin.tip_centres()
-    radii = np.array([model.links[i].radius for i in idx])
-    np.testing.assert_allclose(tips[:, 2], 15.0, atol=1e-9)
-    assert np.all(tips[:, 2] > radii)
+    tips, _ = kin.tip_centres()
+    start, end, _ = kin.link_segments()
+    np.testing.assert_allclose(tips[:, 2], REST_HEIGHT, atol=1e-9)
+    np.testing.assert_allclose(start[:, 2], REST_HEIGHT, atol=1e-9)
+    np.testing.assert_allclose(end[:, 2], REST_HEIGHT, atol=1e-9)
 
 
 def test_mouse_hand_palm_slides_and_turns_in_the_table_plane() -> None:
@@ -220,7 +222,7 @@ def test_mouse_hand_palm_slides_and_turns_in_the_table_plane() -> None:
     q[model.state_index("palm.y")] = -40.0
     q[model.state_index("palm.rot")] = math.pi / 2
     T = palm_pose(model, q)
-    np.testing.assert_allclose(T[:3, 3], (120.0, -40.0, 15.0), atol=1e-9)
+    np.testing.assert_allclose(T[:3, 3], (120.0, -40.0, REST_HEIGHT), atol=1e-9)
     # counterclockwise seen from above: the fingers (palm +y) turn from world +y to -x
     np.testing.assert_allclose(T[:3, 1], (-1.0, 0.0, 0.0), atol=1e-12)
     np.testing.assert_allclose(T[:3, 2], (0.0, 0.0, -1.0), atol=1e-12)
@@ -237,7 +239,7 @@ def test_mouse_hand_index_extension_raises_the_pole() -> None:
     height = kin.T_world_shape[:, model.link("index.tip").row, 2, 3]
     assert np.all(np.diff(height) > 0.0)
     finger = 45.0 + 26.0 + 24.0
-    assert height[-1] == pytest.approx(15.0 + finger * math.sin(math.radians(30.0)))
+    assert height[-1] == pytest.approx(REST_HEIGHT + finger * math.sin(math.radians(30.0)))
 
 
 def test_mouse_hand_buttons_turn_in_the_table_plane() -> None:
@@ -275,10 +277,39 @@ def test_cardboard_palm_is_a_thin_plane_through_the_anchors() -> None:
     assert palm.centre[2] == 0.0
 
 
-def test_cardboard_thumb_signs() -> None:
-    model = load_model("cardboard-hand")
-    assert tip_shift_in_palm(model, "thumb", "thumb.cmc_abd")[2] > 1.0  # palmar abduction
+@pytest.mark.parametrize("name", ["hand", "cardboard-hand"])
+def test_thumb_signs(name: str) -> None:
+    """Positive abduction lifts the thumb palmar; positive in-plane angles extend it."""
+    model = load_model(name)
+    for state in ("thumb.cmc_abd", "thumb.mp_abd"):
+        if state in model.state_names:
+            assert tip_shift_in_palm(model, "thumb", state)[2] > 1.0, state  # palmar
     for state in ("thumb.cmc_flex", "thumb.mp", "thumb.ip"):
         shift = tip_shift_in_palm(model, "thumb", state)
-        assert shift[0] < -1.0, state  # curls towards the fingers
+        assert shift[0] > 1.0, state  # away from the fingers
         assert abs(shift[2]) < 1e-9, state
+
+
+def test_cardboard_hand_is_the_hand_without_the_thumb_mp_abduction() -> None:
+    """Shared states have the same limits and, with thumb.mp_abd = 0, the same pose."""
+    hand, card = load_model("hand"), load_model("cardboard-hand")
+    assert set(card.state_names) == set(hand.state_names) - {"thumb.mp_abd"}
+    shared = [hand.state_index(name) for name in card.state_names]
+    np.testing.assert_array_equal(card.lower, hand.lower[shared])
+    np.testing.assert_array_equal(card.upper, hand.upper[shared])
+    rng = np.random.default_rng(7)
+    q_hand = hand.neutral()
+    joints = np.isfinite(hand.lower)
+    q_hand[joints] = rng.uniform(hand.lower[joints], hand.upper[joints])
+    q_hand[:4] = (0.5, 0.5, -0.5, 0.5)
+    q_hand[4:7] = (10.0, 20.0, 300.0)
+    q_hand[hand.state_index("thumb.mp_abd")] = 0.0
+    kin_hand = forward_kinematics(hand, q_hand)
+    kin_card = forward_kinematics(card, q_hand[shared])
+    for link in card.links:
+        if link.kind != "palm":
+            np.testing.assert_allclose(
+                kin_card.T_world_shape[0, link.row],
+                kin_hand.T_world_shape[0, hand.link(link.name).row], atol=1e-9,
+                err_msg=link.name,
+            )

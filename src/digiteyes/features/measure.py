@@ -31,14 +31,14 @@ import numpy as np
 
 from digiteyes.camera import Camera
 from digiteyes.errors import CameraError, StateError
-from digiteyes.features.edges import KERNEL_HALF_WIDTH, edge_response, strongest_peaks
-from digiteyes.features.lines import bisector, fit_lines, orient_lines, weighted_line
+from digiteyes.features.edges import KERNEL_HALF_WIDTH, find_edges
+from digiteyes.features.lines import bisector, fit_lines
 from digiteyes.features.slices import (
-    cylinder_contour_offsets,
+    cylinder_tangent_points,
     perpendicular,
     prepare_image,
     sample_profiles,
-    sphere_extent,
+    sphere_tangent_points,
 )
 from digiteyes.kinematics import KinematicModel, Kinematics
 
@@ -279,6 +279,13 @@ def measure_features(
                               **link_part, **tip_part)
 
 
+def _unit2(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit image vectors (..., 2) (``(1, 0)`` for zero vectors) and their lengths."""
+    length = np.sqrt(np.sum(v * v, axis=-1))
+    safe = np.where(length > 0, length, 1.0)[..., None]
+    return np.where(length[..., None] > 0, v / safe, [1.0, 0.0]), length
+
+
 def _measure_links(gray, camera, model, shapes, link_ids, opt) -> dict:
     n_links, n_slices = len(link_ids), opt.slices_per_link
     rows = np.array([model.links[i].row for i in link_ids], dtype=int)
@@ -288,94 +295,84 @@ def _measure_links(gray, camera, model, shapes, link_ids, opt) -> dict:
     start, axis = T[:, :3, 3], T[:, :3, 0]
     end = start + axis * lengths[:, None]
     t = np.linspace(opt.end_margin, 1.0 - opt.end_margin, n_slices)
-    p_slices = start[:, None] + t[None, :, None] * (end - start)[:, None]
-    w_ends = camera.project(np.stack([start, end], axis=1))
-    w_slices = camera.project(p_slices)
-    direction = w_ends[:, 1] - w_ends[:, 0]
-    length_px = np.linalg.norm(direction, axis=-1)
-    u = np.where(length_px[:, None] > 0, direction / np.maximum(length_px, 1e-12)[:, None],
-                 [1.0, 0.0])
+    p_slices = start[:, None] + (t[None, :, None] * lengths[:, None, None]) * axis[:, None]
+    tangent = cylinder_tangent_points(camera, p_slices, axis[:, None], radii[:, None])
+    w = camera.project(np.concatenate(
+        [start[:, None], end[:, None], p_slices, tangent.reshape(n_links, 2 * n_slices, 3)],
+        axis=1))
+    w_ends = w[:, :2]
+    w_slices = w[:, 2:2 + n_slices]
+    u, length_px = _unit2(w_ends[:, 1] - w_ends[:, 0])
     normal = perpendicular(u)
-    minus, plus = cylinder_contour_offsets(
-        camera, p_slices, np.broadcast_to(axis[:, None], p_slices.shape), radii[:, None],
-        w_slices, normal[:, None])
+    w_tangent = w[:, 2 + n_slices:].reshape(n_links, n_slices, 2, 2)
+    contour = np.sort(np.sum((w_tangent - w_slices[:, :, None]) * normal[:, None, None],
+                             axis=-1), axis=-1)  # (L, S, 2): side 0 < 0 < side 1
 
     reason = np.full(n_links, "ok", dtype=object)
+    behind = ~np.isfinite(contour).all(axis=(1, 2))
     if camera.projection == "perspective":
-        depth = camera.depth(np.stack([start, end], axis=1))
-        behind = (depth <= radii[:, None]).any(axis=1)
-    else:
-        behind = np.zeros(n_links, dtype=bool)
-    behind |= ~np.isfinite(minus).all(axis=1) | ~np.isfinite(plus).all(axis=1)
+        behind |= (camera.depth(np.stack([start, end], axis=1)) <= radii[:, None]).any(axis=1)
     short = (length_px < opt.min_axis_px) & ~behind
-    centres_inside = camera.in_image(w_slices).sum(axis=1)
-    off_image = (centres_inside < opt.min_edge_points) & ~behind & ~short
+    off_image = (camera.in_image(w_slices).sum(axis=1) < opt.min_edge_points) & ~behind & ~short
     reason[behind] = "behind-camera"
     reason[short] = "foreshortened"
     reason[off_image] = "off-image"
-    usable_link = ~(behind | short | off_image)
-    contour = np.stack([np.where(usable_link[:, None], minus, 0.0),
-                        np.where(usable_link[:, None], plus, 0.0)], axis=-1)
-    w_slices_safe = np.where(usable_link[:, None, None], w_slices, -1e4)
+    usable = ~(behind | short | off_image)
+    contour = np.where(usable[:, None, None], contour, np.nan)
 
-    # One bilinear lookup for every slice of every link (L, S, J).
-    reach = np.abs(contour).max() if n_links else 0.0
+    # One bilinear lookup for every slice of every link: profiles (L, S, J).
+    reach = np.nanmax(np.abs(contour)) if usable.any() else 0.0
     offsets = _sample_grid(reach + 0.5 * opt.window_px, opt.step_px)
-    profiles, inside = sample_profiles(gray, w_slices_safe, normal[:, None], offsets)
-    response = edge_response(profiles)
+    origins = np.where(usable[:, None, None], w_slices, -1e4)
+    profiles, inside = sample_profiles(gray, origins, normal[:, None], offsets)
     polarity = 1.0 if opt.bright_object else -1.0
-    strength = np.stack([polarity * response, -polarity * response], axis=1)  # (L, 2, S, J)
-    contour_sides = np.moveaxis(contour, -1, 1)  # (L, 2, S)
-    in_window = np.abs(offsets - contour_sides[..., None]) <= 0.5 * opt.window_px
-    allowed = in_window & inside[:, None] & usable_link[:, None, None, None]
-    position, found, _ = strongest_peaks(strength, allowed, opt.min_contrast)
-    edge_offset = offsets[0] + position * opt.step_px  # (L, 2, S)
-    edge_points = w_slices[:, None] + edge_offset[..., None] * normal[:, None, None]
-    edge_points = np.where(found[..., None], edge_points, np.nan)
-
-    side_normal = np.broadcast_to(normal[:, None], (n_links, 2, 2))
+    position, _ = find_edges(profiles.reshape(-1, len(offsets)), inside.reshape(-1, len(offsets)),
+                             contour.reshape(-1, 2), np.array([polarity, -polarity]), offsets,
+                             0.5 * opt.window_px, opt.min_contrast)
+    position = position.reshape(n_links, n_slices, 2).transpose(0, 2, 1)  # (L, 2, S)
+    found = np.isfinite(position)
+    edge_points = w_slices[:, None] + position[..., None] * normal[:, None, None]
+    side_normal = normal[:, None]
     fit = fit_lines(edge_points, found, robust=opt.robust, normal=side_normal)
-    # One-edge fallback: move each side's edge points onto the predicted axis.
-    axis_points = w_slices[:, None] + (edge_offset - contour_sides)[..., None] * normal[:, None,
+    # One-edge fallback: each side's inliers moved onto the predicted axis by their
+    # predicted contour offsets, then one line through them.
+    contour_sides = contour.transpose(0, 2, 1)
+    axis_points = w_slices[:, None] + (position - contour_sides)[..., None] * normal[:, None,
                                                                                        None]
-    shifted = orient_lines(weighted_line(axis_points, fit.inlier.astype(float)), side_normal)
+    shifted = fit_lines(axis_points, fit.inlier, robust="none", normal=side_normal).line
 
     side_ok = (fit.count >= opt.min_edge_points) & (fit.rms <= opt.max_fit_rms_px)
     cos_sides = np.abs(np.sum(fit.line[:, 0, :2] * fit.line[:, 1, :2], axis=-1))
-    parallel = cos_sides >= math.cos(math.radians(opt.max_side_angle_deg))
-    both = side_ok.all(axis=1) & parallel
-    prefer_one = fit.count[:, 1] > fit.count[:, 0]
-    prefer_one |= (fit.count[:, 1] == fit.count[:, 0]) & (fit.rms[:, 1] < fit.rms[:, 0])
-    one_side = np.where(side_ok[:, 0] & side_ok[:, 1], prefer_one.astype(int),
-                        side_ok[:, 1].astype(int))
+    both = side_ok.all(axis=1) & (cos_sides >= math.cos(math.radians(opt.max_side_angle_deg)))
+    prefer_1 = (fit.count[:, 1] > fit.count[:, 0]) | (
+        (fit.count[:, 1] == fit.count[:, 0]) & (fit.rms[:, 1] < fit.rms[:, 0]))
+    one_side = np.where(side_ok.all(axis=1), prefer_1, side_ok[:, 1]).astype(int)
     single = np.take_along_axis(shifted, one_side[:, None, None], axis=1)[:, 0]
     line = np.where(both[:, None], bisector(fit.line[:, 0], fit.line[:, 1]), single)
-    any_side = side_ok.any(axis=1)
 
     end_slices = w_slices[:, [0, -1]]
     distance = np.abs(np.sum(line[:, None, :2] * end_slices, axis=-1) - line[:, None, 2])
     outside = ~(distance <= 0.5 * opt.window_px).all(axis=1)
     enough = (fit.count >= opt.min_edge_points).any(axis=1)
-    pending = usable_link.copy()
-    reason[pending & ~enough] = "few-edges"
-    reason[pending & enough & ~any_side] = "fit-residual"
-    reason[pending & any_side & outside] = "outside-window"
+    any_side = side_ok.any(axis=1)
+    reason[usable & ~enough] = "few-edges"
+    reason[usable & enough & ~any_side] = "fit-residual"
+    reason[usable & any_side & outside] = "outside-window"
     valid = reason == "ok"
-    side_lines = np.where(side_ok[..., None], fit.line, np.nan)
+    half = 0.5 * opt.window_px
+    span = np.stack([contour[..., 0] - half, contour[..., 1] + half], axis=-1)
     return {
         "predicted_axis": w_ends,
         "line": np.where(valid[:, None], line, np.nan),
         "link_valid": valid,
         "link_reason": reason.astype(str),
         "n_edges": fit.count,
-        "side_lines": side_lines,
+        "side_lines": np.where(side_ok[..., None], fit.line, np.nan),
         "edge_points": edge_points,
         "edge_inlier": fit.inlier,
         "slice_centres": w_slices,
         "slice_normal": normal,
-        "slice_ends": w_slices[..., None, :] + np.stack(
-            [contour[..., 0] - 0.5 * opt.window_px, contour[..., 1] + 0.5 * opt.window_px],
-            axis=-1)[..., None] * normal[:, None, None],
+        "slice_ends": w_slices[..., None, :] + span[..., None] * normal[:, None, None],
         "contour_offsets": contour,
     }
 
@@ -384,14 +381,12 @@ def _tip_axes(model: KinematicModel, shapes: np.ndarray, tip_ids: np.ndarray):
     """3D outward axis of each tip (its parent cylinder's axis, else its own x axis) and
     the index into ``model.links`` of that parent cylinder (-1 if none)."""
     row_to_link = {link.row: i for i, link in enumerate(model.links) if link.kind == "link"}
-    parents, axes = [], []
-    for i in tip_ids:
-        row = model.links[i].row
-        parent = row_to_link.get(int(model.parent[row]), -1)
-        parents.append(parent)
-        axis_row = model.links[parent].row if parent >= 0 else row
-        axes.append(shapes[axis_row, :3, 0])
-    return np.array(parents, dtype=int), np.array(axes, dtype=float).reshape(-1, 3)
+    parents = np.array([row_to_link.get(int(model.parent[model.links[i].row]), -1)
+                        for i in tip_ids], dtype=int)
+    own = np.array([model.links[i].row for i in tip_ids], dtype=int)
+    axis_rows = np.where(parents >= 0,
+                         [model.links[p].row if p >= 0 else 0 for p in parents], own)
+    return parents, shapes[axis_rows.astype(int), :3, 0].reshape(-1, 3)
 
 
 def _measure_tips(gray, camera, model, shapes, tip_ids, link_ids, link_part, opt) -> dict:
@@ -403,31 +398,35 @@ def _measure_tips(gray, camera, model, shapes, tip_ids, link_ids, link_part, opt
     if opt.tip_end == "capsule":
         parent_radii = np.array([model.links[p].radius if p >= 0 else 0.0 for p in parents])
         radii = np.maximum(radii, parent_radii)
-    w_c, u, along, across, sin_view = sphere_extent(camera, centre3, axis3, radii)
+    tangent, sin_view = sphere_tangent_points(camera, centre3, axis3, radii)
+    w = camera.project(np.concatenate([centre3[:, None], tangent], axis=1))
+    w_c = w[:, 0]
+    u, along = _unit2(w[:, 1] - w_c)
+    across = np.sqrt(np.sum((w[:, 2] - w_c) ** 2, axis=-1))
 
     reason = np.full(n_tips, "ok", dtype=object)
-    behind = ~np.isfinite(along) | ~np.isfinite(across)
+    behind = ~(np.isfinite(along) & np.isfinite(across))
     if camera.projection == "perspective":
         behind |= camera.depth(centre3) <= radii
     short = ~behind & ~(sin_view >= MIN_TIP_SIN)
     reason[behind] = "behind-camera"
     reason[short] = "foreshortened"
     usable = ~(behind | short)
-    u = np.where(usable[:, None], u, [1.0, 0.0])
-    along = np.where(usable, along, 0.0)
-    across = np.where(usable, across, 0.0)
 
-    # Lateral position from the measured axis of the parent link, when there is one.
-    base, direction = w_c.copy(), u.copy()
+    # Lateral position and direction from the measured axis of the parent link, if valid.
     position_of = {int(link): k for k, link in enumerate(link_ids)}
-    for t, parent in enumerate(parents):
-        k = position_of.get(int(parent), -1)
-        if k >= 0 and link_part["link_valid"][k] and usable[t]:
-            m, rho = link_part["line"][k, :2], link_part["line"][k, 2]
-            base[t] = w_c[t] - (m @ w_c[t] - rho) * m
-            along_line = np.array([m[1], -m[0]])
-            direction[t] = along_line if along_line @ u[t] >= 0 else -along_line
+    k = np.array([position_of.get(int(p), -1) for p in parents], dtype=int)
+    has_line = (k >= 0) & usable
+    has_line[has_line] = link_part["link_valid"][k[has_line]]
+    line = link_part["line"][np.maximum(k, 0)] if len(link_ids) else np.zeros((n_tips, 3))
+    m = line[:, :2]
+    base = np.where(has_line[:, None],
+                    w_c - (np.sum(m * w_c, axis=-1) - line[:, 2])[:, None] * m, w_c)
+    along_line = np.stack([m[:, 1], -m[:, 0]], axis=-1)
+    along_line *= np.where(np.sum(along_line * u, axis=-1) < 0, -1.0, 1.0)[:, None]
+    direction = np.where(has_line[:, None], along_line, u)
     lateral = perpendicular(direction)
+
     expected_end = along[:, None] * np.sqrt(1.0 - TIP_LATERAL**2)[None, :]  # (T, K)
     origins = (base[:, None] + (TIP_LATERAL[None, :] * across[:, None])[..., None]
                * lateral[:, None] + expected_end[..., None] * direction[:, None])
@@ -436,17 +435,18 @@ def _measure_tips(gray, camera, model, shapes, tip_ids, link_ids, link_part, opt
     offsets = _sample_grid(half, opt.step_px)
     profiles, inside = sample_profiles(gray, origins, direction[:, None], offsets)
     polarity = 1.0 if opt.bright_object else -1.0
-    strength = -polarity * edge_response(profiles)
-    allowed = inside & (np.abs(offsets) <= half) & usable[:, None, None]
-    position, found, _ = strongest_peaks(strength, allowed, opt.min_contrast)
-    shift = offsets[0] + position * opt.step_px  # (T, K): end moved along the axis
-    edge_points = np.where(found[..., None], origins + shift[..., None] * direction[:, None],
-                           np.nan)
+    centre = np.where(usable[:, None], 0.0, np.nan) * np.ones((1, len(TIP_LATERAL)))
+    shift, _ = find_edges(profiles.reshape(-1, len(offsets)), inside.reshape(-1, len(offsets)),
+                          centre.reshape(-1, 1), np.array([-polarity]), offsets, half,
+                          opt.min_contrast)
+    shift = shift.reshape(n_tips, len(TIP_LATERAL))  # (T, K): end moved along the axis
+    found = np.isfinite(shift)
+    edge_points = origins + shift[..., None] * direction[:, None]
     count = found.sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         mean_shift = np.where(found, shift, 0.0).sum(axis=1) / count
-    spread = (np.where(found, shift, -np.inf).max(axis=1)
-              - np.where(found, shift, np.inf).min(axis=1))
+    spread = (np.where(found, shift, -np.inf).max(axis=1, initial=-np.inf)
+              - np.where(found, shift, np.inf).min(axis=1, initial=np.inf))
     few = usable & (count < opt.min_tip_edges)
     reason[few] = "few-edges"
     reason[usable & ~few & (spread > opt.max_tip_spread_px)] = "inconsistent"

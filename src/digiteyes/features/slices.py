@@ -6,9 +6,10 @@ Fig. 4.2); tip trackers use slices along the axis, beyond the distal link. This 
 
 * converts an image once to a grey float32 array (:func:`prepare_image`);
 * predicts where the silhouette of a cylinder or a sphere lies around its projected axis
-  or centre (:func:`cylinder_contour_offsets`, :func:`sphere_extent`), from the exact
-  tangent points of the viewing rays (so perspective, orthographic and scaled orthographic
-  cameras are handled by the same code through ``camera.project``);
+  or centre (:func:`cylinder_tangent_points`, :func:`sphere_tangent_points`), from the
+  exact tangent points of the viewing rays, which the caller projects with
+  ``camera.project`` (so perspective, orthographic and scaled orthographic cameras are
+  handled alike);
 * samples every slice of every link with one bilinear lookup (:func:`sample_profiles`,
   one ``cv2.remap`` call; OpenCV interpolates at 1/32 px positions, far below the edge
   noise).
@@ -55,81 +56,73 @@ def perpendicular(u: np.ndarray) -> np.ndarray:
 
 
 def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    norm = np.linalg.norm(v, axis=-1)
+    norm = np.sqrt(np.sum(v * v, axis=-1))
     with np.errstate(invalid="ignore", divide="ignore"):
         return v / norm[..., None], norm
 
 
-def view_vectors(camera: Camera, p_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unit viewing directions (..., 3) towards world points and the ratio scale.
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+                     a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
 
-    Returns ``(v_hat, distance)``: for a perspective camera the unit vector from the optical
-    centre to each point and its distance (mm); for (scaled) orthographic cameras the
-    optical axis direction and ``inf`` (parallel rays).
+
+def view_vectors(camera: Camera, p_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit viewing directions (..., 3) towards world points and their distances (...,).
+
+    Perspective cameras: from the optical centre to each point, distance in mm. Parallel
+    projections (orthographic, scaled orthographic): the optical axis and ``inf``.
     """
     if camera.projection == "perspective":
         return _unit(p_world - camera.centre_world)
-    axis = camera.T_cam_world[2, :3]
     shape = p_world.shape
-    return np.broadcast_to(axis, shape).copy(), np.full(shape[:-1], np.inf)
+    return (np.broadcast_to(camera.T_cam_world[2, :3], shape).copy(),
+            np.full(shape[:-1], np.inf))
 
 
-def cylinder_contour_offsets(
-    camera: Camera,
-    p_world: np.ndarray,
-    axis_world: np.ndarray,
-    radius: np.ndarray,
-    w_axis: np.ndarray,
-    normal_px: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Signed image offsets of a cylinder's two occluding contours across its axis.
+def cylinder_tangent_points(
+    camera: Camera, p_world: np.ndarray, axis_world: np.ndarray, radius: np.ndarray
+) -> np.ndarray:
+    """Points where viewing rays graze a cylinder, on the cross-sections through ``p``.
 
-    At each axis point ``p`` the viewing rays touching the cylinder meet its surface at
-    ``p + r N`` with ``N = -(r/D) v + +-sqrt(1 - (r/D)^2) w``, where ``v`` is the unit
-    component of the viewing direction perpendicular to the axis, ``D`` the distance of
-    the optical centre from the axis through ``p`` (``inf`` for parallel projection) and
-    ``w = axis x v``. The tangent points are projected and measured along the image normal.
+    At an axis point ``p`` the rays touching the cylinder meet its surface at ``p + r N``
+    with ``N = -(r/D) v +- sqrt(1 - (r/D)^2) w``: ``v`` is the unit component of the
+    viewing direction perpendicular to the axis, ``D`` the distance of the optical centre
+    from the axis (``inf`` for parallel projection, where ``N = +-w``) and
+    ``w = axis x v``. Their projections lie on the two occluding contours.
 
     Parameters
     ----------
     p_world : (..., 3) points on the axis, mm.
     axis_world : (..., 3) unit axis directions.
     radius : (...,) cylinder radii, mm.
-    w_axis : (..., 2) projections of ``p_world``, px.
-    normal_px : (..., 2) unit image normals of the projected axis.
 
     Returns
     -------
-    (minus, plus) : (...,) offsets along ``normal_px`` in px, ``minus <= plus``; NaN where
-        the optical centre lies inside the cylinder or the axis is along the viewing ray.
+    (..., 2, 3) world tangent points, mm (NaN where the optical centre lies inside the
+    cylinder or the axis is along the viewing ray).
     """
     v_hat, distance = view_vectors(camera, p_world)
     v_perp = v_hat - np.sum(v_hat * axis_world, axis=-1, keepdims=True) * axis_world
     v_perp, sin_view = _unit(v_perp)
-    w_hat = np.cross(axis_world, v_perp)
+    w_hat = _cross(axis_world, v_perp)
     with np.errstate(invalid="ignore", divide="ignore"):
         ratio = radius / (distance * sin_view)
         along = np.sqrt(1.0 - ratio**2)
     base = p_world - (radius * ratio)[..., None] * v_perp
     side = (radius * along)[..., None] * w_hat
-    tangent = np.stack([base - side, base + side], axis=-2)
-    w_tangent = camera.project(tangent)
-    offsets = np.sum((w_tangent - w_axis[..., None, :]) * normal_px[..., None, :], axis=-1)
-    return np.min(offsets, axis=-1), np.max(offsets, axis=-1)
+    return np.stack([base - side, base + side], axis=-2)
 
 
-def sphere_extent(
-    camera: Camera,
-    centre_world: np.ndarray,
-    direction_world: np.ndarray,
-    radius: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Projected centre, image direction and silhouette extents of spheres.
+def sphere_tangent_points(
+    camera: Camera, centre_world: np.ndarray, direction_world: np.ndarray, radius: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Silhouette points of spheres along and across an image direction.
 
     The silhouette point of a sphere on the side of the 3D direction ``e`` is the tangent
     point ``c + r N`` with ``N = -(r/d) v + sqrt(1 - (r/d)^2) e_perp`` (``v`` the unit viewing
     direction, ``d`` the centre's distance, ``e_perp`` the unit part of ``e`` perpendicular
-    to ``v``).
+    to ``v``); the point across uses ``v x e_perp`` instead of ``e_perp``.
 
     Parameters
     ----------
@@ -139,27 +132,19 @@ def sphere_extent(
 
     Returns
     -------
-    centre_px : (T, 2) projected centres.
-    u_px : (T, 2) unit image direction of the outward axis.
-    extent_along : (T,) px from the projected centre to the silhouette along ``u_px``.
-    extent_across : (T,) px from the projected centre to the silhouette across ``u_px``.
-    sin_view : (T,) sine of the angle between the axis and the viewing ray (small values
-        mean the axis points at the camera and the end of the finger is not visible).
+    points : (T, 2, 3) tangent points along and across, mm.
+    sin_view : (T,) sine of the angle between the direction and the viewing ray (small
+        values mean the finger points at or away from the camera).
     """
     v_hat, distance = view_vectors(camera, centre_world)
     e_perp = direction_world - np.sum(direction_world * v_hat, axis=-1, keepdims=True) * v_hat
     e_perp, sin_view = _unit(e_perp)
-    f_perp = np.cross(v_hat, e_perp)
+    f_perp = _cross(v_hat, e_perp)
     with np.errstate(invalid="ignore"):
         ratio = radius / distance
-        along = np.sqrt(1.0 - ratio**2)
+        along = (radius * np.sqrt(1.0 - ratio**2))[..., None]
     base = centre_world - (radius * ratio)[..., None] * v_hat
-    points = np.stack([centre_world, base + (radius * along)[..., None] * e_perp,
-                       base + (radius * along)[..., None] * f_perp], axis=-2)
-    w = camera.project(points)
-    u_px, extent_along = _unit(w[..., 1, :] - w[..., 0, :])
-    extent_across = np.linalg.norm(w[..., 2, :] - w[..., 0, :], axis=-1)
-    return w[..., 0, :], u_px, extent_along, extent_across, sin_view
+    return np.stack([base + along * e_perp, base + along * f_perp], axis=-2), sin_view
 
 
 def sample_profiles(

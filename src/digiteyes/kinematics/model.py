@@ -76,9 +76,14 @@ class KinematicModel:
                     f"expected q{expected}, got q{state.index}",
                 )
         names = [s.name for s in states]
-        for state in states:
-            if names.count(state.name) > 1:
-                raise ModelFileError(spec.path, state.line, f"state name {state.name!r} repeats")
+        seen: dict[str, int] = {}
+        for state in sorted(states, key=lambda s: s.line):
+            if state.name in seen:
+                raise ModelFileError(
+                    spec.path, state.line,
+                    f"state name {state.name!r} repeats (first on line {seen[state.name]})",
+                )
+            seen[state.name] = state.line
         self.n_q = len(states)
         self.state_names: tuple[str, ...] = tuple(names)
         self.state_kinds: tuple[str, ...] = tuple(s.kind for s in states)
@@ -126,7 +131,7 @@ class KinematicModel:
         roots = [r for r in range(n) if parent[r] == -1]
         if len(roots) != 1:
             raise ModelFileError(
-                path, rows[roots[1]].line if len(roots) > 1 else None,
+                path, rows[roots[1]].line if roots else rows[parent[0]].line,
                 f"the frames must form one tree with one root; found roots {roots}",
             )
         root = roots[0]
@@ -225,12 +230,15 @@ class KinematicModel:
             else:
                 p = row.shape.params
                 links.append(Link(name, "palm", row.index, 0.0, 0.5 * p[2], p[:3], p[3:6]))
-        names = [link.name for link in links]
-        for link in links:
-            if names.count(link.name) > 1:
+        seen: dict[str, int] = {}
+        for link in sorted(links, key=lambda link: self.rows[link.row].line):
+            line = self.rows[link.row].line
+            if link.name in seen:
                 raise ModelFileError(
-                    spec.path, self.rows[link.row].line, f"geometry name {link.name!r} repeats"
+                    spec.path, line,
+                    f"geometry name {link.name!r} repeats (first on line {seen[link.name]})",
                 )
+            seen[link.name] = line
         self.links: tuple[Link, ...] = tuple(links)
 
     def _build_tangent_layout(self) -> None:
@@ -288,7 +296,9 @@ class KinematicModel:
                  f"{sum(link.kind == 'tip' for link in self.links)} tips, "
                  f"{self.n_q} states (tangent size {self.n_v})", "", "frame tree:"]
 
-        def walk(r: int, indent: str) -> None:
+        stack = [(self.root, "  ")]
+        while stack:
+            r, indent = stack.pop()
             row = self.rows[r]
             joint = ""
             if row.pose_state is not None:
@@ -302,10 +312,7 @@ class KinematicModel:
                 shape = f"{row.shape.kind}({', '.join(f'{p:g}' for p in row.shape.params)})"
             label = row.geometry or ""
             lines.append(f"{indent}{r:>3} {label:<18} {joint:<32} {shape}".rstrip())
-            for child in row.next:
-                walk(child, indent + "  ")
-
-        walk(self.root, "  ")
+            stack.extend((child, indent + "  ") for child in reversed(row.next))
         lines += ["", "state layout:"]
         for i, (name, kind) in enumerate(zip(self.state_names, self.state_kinds, strict=True)):
             lim = ""

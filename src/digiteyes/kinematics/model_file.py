@@ -33,7 +33,8 @@ _VALUE_RE = re.compile(
     rf"^(?P<sign>[-+])?(?:(?P<num>{_NUMBER})(?P<deg>deg)?|(?:(?P<mul>{_NUMBER})\*)?pi"
     rf"(?:/(?P<div>{_NUMBER}))?)$"
 )
-_STATE_RE = re.compile(r"^q(\d+)$")
+_STATE_RE = re.compile(r"^q([0-9]{1,9})$")
+_INDEX_RE = re.compile(r"^[0-9]{1,9}$")
 _SHAPE_RE = re.compile(r"^(?P<kind>box|cyl|tip)\((?P<args>[^()]*)\)$")
 _SHAPE_ARITY = {"box": (3, 6), "cyl": (1, 1), "tip": (1, 1)}
 
@@ -118,7 +119,7 @@ def read_model_file(path: str | Path) -> ModelSpec:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise ModelFileError(str(path), None, "no such model file") from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
         raise ModelFileError(str(path), None, f"cannot read model file ({exc})") from None
     return parse_model_text(text, str(path))
 
@@ -142,7 +143,7 @@ def parse_model_text(text: str, path: str = "<string>") -> ModelSpec:
                 )
             continue
         if section is None:
-            key, _, rest = line.partition(" ")
+            key, _, rest = line.replace("\t", " ").partition(" ")
             if key == "model" and rest.strip():
                 name = rest.strip()
             elif key == "description":
@@ -196,7 +197,7 @@ def _parse_frame_row(cells: list[str], path: str, line: int) -> FrameSpec:
             "frame row needs 8 cells 'frame geometry theta d a alpha shape next...', "
             f"got {len(cells)}",
         )
-    if not cells[0].isdigit():
+    if not _INDEX_RE.match(cells[0]):
         raise ModelFileError(path, line, f"frame number must be an integer, got {cells[0]!r}")
     geometry = None if cells[1] == "-" else cells[1]
     pose_state = theta_state = d_state = None
@@ -219,7 +220,7 @@ def _parse_frame_row(cells: list[str], path: str, line: int) -> FrameSpec:
     nexts: list[int] = []
     if cells[7:] != ["-"]:
         for cell in cells[7:]:
-            if not cell.isdigit():
+            if not _INDEX_RE.match(cell):
                 raise ModelFileError(
                     path, line, f"'next' must list frame numbers or '-', got {cell!r}"
                 )
@@ -236,7 +237,7 @@ def _parse_shape(cell: str, path: str, line: int) -> ShapeSpec:
     if match is None:
         raise ModelFileError(path, line, f"{expected}; got {cell!r}")
     kind = match["kind"]
-    args = [arg for arg in match["args"].split(",") if arg]
+    args = match["args"].split(",")
     low, high = _SHAPE_ARITY[kind]
     if len(args) not in (low, high):
         raise ModelFileError(path, line, f"{expected}; got {cell!r}")

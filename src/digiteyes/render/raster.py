@@ -1,21 +1,23 @@
-"""Z-buffer ray casting of primitives on a pixel grid.
+"""Z-buffer ray casting of a scene on a pixel grid.
 
-Each primitive is ray cast only inside the pixel block that bounds its projection (see
-:meth:`~digiteyes.render.scene.Primitive.bounds`); where its hit is nearer than the
-depth already stored, the pixel takes its depth, its label and the Lambert cosine
-``max(0, n . l)`` of its surface normal with the light direction. All pixels of a block
-are processed at once with numpy.
+Each primitive is ray cast only inside the pixel block that bounds its projection (exact
+tangent bounds for balls and capsule ends, vertex bounds for boxes, the whole image for a
+primitive reaching behind a perspective camera); where its hit is nearer than the depth
+already stored, the pixel takes its depth, its label and its Lambert shading
+``ambient + (1 - ambient) max(0, n . l)`` (n the outward normal, l the direction towards
+a distant light). The loop is compiled
+(:mod:`digiteyes.render._kernels` says why).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from digiteyes.render._kernels import cast_kernel
 from digiteyes.render.pixels import PixelGrid
-from digiteyes.render.scene import Primitive
+from digiteyes.render.scene import Scene
 
 
 @dataclass
@@ -24,7 +26,7 @@ class Raster:
 
     ``depth`` float32, camera z (mm) of the nearest surface, ``np.inf`` on background;
     ``labels`` int16, link index of that surface, -1 on background; ``shade`` float32,
-    Lambert cosine ``max(0, n . l)`` in [0, 1], 0 on background.
+    Lambert factor ``ambient + (1 - ambient) max(0, n . l)`` in [0, 1], 0 on background.
     """
 
     depth: np.ndarray
@@ -37,35 +39,15 @@ class Raster:
         return self.labels >= 0
 
 
-def rasterise(prims: Sequence[Primitive], grid: PixelGrid, light_cam: np.ndarray) -> Raster:
-    """Ray cast camera-frame primitives on ``grid``; ``light_cam`` is the unit direction
-    towards the light in the camera frame."""
+def rasterise(scene: Scene, grid: PixelGrid, light_cam: np.ndarray,
+              ambient: float = 0.0) -> Raster:
+    """Ray cast a camera-frame scene on ``grid``; ``light_cam`` is the unit direction
+    towards the light in the camera frame, ``ambient`` the ambient fraction in [0, 1]."""
     depth = np.full((grid.height, grid.width), np.inf, dtype=np.float32)
     labels = np.full((grid.height, grid.width), -1, dtype=np.int16)
     shade = np.zeros((grid.height, grid.width), dtype=np.float32)
-    for prim in prims:
-        block = grid.pixel_block(prim.bounds(grid))
-        if block is None:
-            continue
-        u0, u1, v0, v1 = block
-        o, d = grid.rays(u0, u1, v0, v1)
-        t = prim.hit(o, d)
-        z_view = depth[v0:v1 + 1, u0:u1 + 1]
-        nearer = t < z_view
-        if not nearer.any():
-            continue
-        t_hit = t[nearer]
-        z_view[nearer] = t_hit
-        p = np.stack([_pick(o[k], nearer) + t_hit * _pick(d[k], nearer) for k in range(3)],
-                     axis=1)
-        labels[v0:v1 + 1, u0:u1 + 1][nearer] = prim.labels(p)
-        cosine = prim.normals(p) @ light_cam
-        shade[v0:v1 + 1, u0:u1 + 1][nearer] = np.maximum(cosine, 0.0)
+    cast_kernel(scene.kinds, scene.params, scene.labels, scene.far_labels, grid.intrinsics,
+                grid.perspective, grid.scale, np.asarray(light_cam, dtype=float), float(ambient),
+                depth,
+                labels, shade)
     return Raster(depth, labels, shade)
-
-
-def _pick(component, mask: np.ndarray) -> np.ndarray | float:
-    """The entries of a ray component (float or broadcastable array) at ``mask``."""
-    if np.ndim(component) == 0:
-        return component
-    return np.broadcast_to(component, mask.shape)[mask]

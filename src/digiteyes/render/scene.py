@@ -1,99 +1,73 @@
-"""The posed model as a list of solid primitives (balls, capsules, boxes) with labels.
+"""The posed model as solid primitives (balls, capsules, boxes) with link labels.
 
 Geometry follows the DigitEyes report (Fig. 1: finger links are cylinders, fingertips
 hemispheres) and the model file: a cylinder link of radius r and length a becomes a
 capsule (a cylinder with hemispherical ends) around its axis segment; a tip becomes a
 ball at its shape-frame origin, which is also the far end of the distal link, so the
-capsule's far hemisphere and the tip coincide (the capsule's far cap carries the tip's
-label); the palm box ``size`` becomes a rounded slab, the Minkowski sum of a flat
-rectangle and a ball whose radius is half the box's smallest dimension. That slab is
-exactly the union of a box (the rectangle thickened by the ball radius) and four
-capsules along the rectangle's edges, so it needs no primitive of its own.
+tip and the capsule's far hemisphere coincide (that hemisphere carries the tip's label);
+the palm box becomes a rounded slab, the Minkowski sum of a flat rectangle and a ball
+whose radius is half the box's smallest size. That slab is exactly the union of a box
+(the rectangle thickened by the ball radius) and four capsules along the rectangle's
+edges, so it needs no primitive of its own.
 
-Labels are indices into ``model.links``.
+Labels are indices into ``model.links``. Parameters are packed as in
+:mod:`digiteyes.render._kernels` (one row of 15 numbers per primitive).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from digiteyes.kinematics import KinematicModel, Kinematics
-from digiteyes.render import geometry
+from digiteyes.render._kernels import BALL, BOX, CAPSULE, N_PARAMS
 
 
 @dataclass(frozen=True)
-class Primitive:
-    """One convex solid: ``kind`` is ``"ball"``, ``"capsule"`` or ``"box"``.
+class Scene:
+    """Primitives in one frame (world or camera), mm.
 
-    ``a`` is the ball centre, the capsule start or the box centre; ``b`` the capsule end;
-    ``radius`` the ball or capsule radius; ``axes`` (3, 3) the box axes as columns and
-    ``half`` its half extents (mm, in whatever frame the primitive is expressed).
-    ``label`` is the link index; points of a capsule beyond ``b`` get ``far_label``.
+    ``kinds`` (P,) int8 (ball 0, capsule 1, box 2), ``labels`` (P,) int16 link indices,
+    ``far_labels`` (P,) int16 label of a capsule's far hemisphere, ``params`` (P, 15).
     """
 
-    kind: str
-    label: int
-    a: np.ndarray
-    b: np.ndarray | None = None
-    radius: float = 0.0
-    axes: np.ndarray = field(default_factory=lambda: np.eye(3))
-    half: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    far_label: int = -1
+    kinds: np.ndarray
+    labels: np.ndarray
+    far_labels: np.ndarray
+    params: np.ndarray
 
-    def transformed(self, T: np.ndarray) -> Primitive:
-        """The primitive in another frame: ``T`` (4, 4) maps its frame to the new one."""
+    def transformed(self, T: np.ndarray) -> Scene:
+        """The scene in another frame: ``T`` (4, 4) maps this scene's frame to the new one."""
         R, t = T[:3, :3], T[:3, 3]
-        b = None if self.b is None else R @ self.b + t
-        return Primitive(self.kind, self.label, R @ self.a + t, b, self.radius,
-                         R @ self.axes, self.half, self.far_label)
+        params = self.params.copy()
+        params[:, 0:3] = self.params[:, 0:3] @ R.T + t
+        capsule = self.kinds == CAPSULE
+        params[capsule, 3:6] = self.params[capsule, 3:6] @ R.T + t
+        box = self.kinds == BOX
+        axes = self.params[box, 3:12].reshape(-1, 3, 3)  # (B, axis, xyz)
+        params[box, 3:12] = (axes @ R.T).reshape(-1, 9)
+        return Scene(self.kinds, self.labels, self.far_labels, params)
 
-    def hit(self, o: tuple, d: tuple) -> np.ndarray:
-        """Ray parameters of the nearest hits (``np.inf`` on a miss); see
-        :mod:`digiteyes.render.geometry`."""
-        if self.kind == "ball":
-            return geometry.hit_sphere(o, d, self.a, self.radius)
-        if self.kind == "capsule":
-            return geometry.hit_capsule(o, d, self.a, self.b, self.radius)
-        return geometry.hit_box(o, d, self.a, self.axes, self.half)
-
-    def normals(self, p: np.ndarray) -> np.ndarray:
-        """Outward unit normals (M, 3) at surface points p (M, 3)."""
-        if self.kind == "ball":
-            return geometry.sphere_normals(p, self.a)
-        if self.kind == "capsule":
-            return geometry.capsule_normals(p, self.a, self.b)
-        return geometry.box_normals(p, self.a, self.axes, self.half)
-
-    def labels(self, p: np.ndarray) -> np.ndarray:
-        """Labels (M,) of surface points p (M, 3): ``far_label`` on a capsule's far cap."""
-        out = np.full(len(p), self.label, dtype=np.int16)
-        if self.kind == "capsule" and self.far_label != self.label:
-            out[geometry.segment_parameter(p, self.a, self.b) > 1.0] = self.far_label
+    def distance(self, points: np.ndarray) -> np.ndarray:
+        """Signed distances (M, P) from points (M, 3) to each primitive, negative inside."""
+        p = np.asarray(points, dtype=float)[:, None, :]  # (M, 1, 3)
+        out = np.empty((p.shape[0], len(self.kinds)))
+        P = self.params
+        ball = self.kinds == BALL
+        out[:, ball] = np.linalg.norm(p - P[ball, 0:3], axis=2) - P[ball, 3]
+        capsule = self.kinds == CAPSULE
+        a, b = P[capsule, 0:3], P[capsule, 3:6]
+        s = np.clip(np.einsum("mpk,pk->mp", p - a, b - a) / np.sum((b - a) ** 2, axis=1),
+                    0.0, 1.0)
+        closest = a + s[..., None] * (b - a)
+        out[:, capsule] = np.linalg.norm(p - closest, axis=2) - P[capsule, 6]
+        box = self.kinds == BOX
+        axes = P[box, 3:12].reshape(-1, 3, 3)
+        local = np.abs(np.einsum("mpk,pik->mpi", p - P[box, 0:3], axes)) - P[box, 12:15]
+        out[:, box] = (np.linalg.norm(np.maximum(local, 0.0), axis=2)
+                       + np.minimum(local.max(axis=2), 0.0))
         return out
-
-    def distance(self, p: np.ndarray) -> np.ndarray:
-        """Signed distance (M,) from points p (M, 3) to the surface, negative inside."""
-        if self.kind == "ball":
-            return np.linalg.norm(p - self.a, axis=1) - self.radius
-        if self.kind == "capsule":
-            s = np.clip(geometry.segment_parameter(p, self.a, self.b), 0.0, 1.0)
-            axis_point = self.a + s[:, None] * (self.b - self.a)
-            return np.linalg.norm(p - axis_point, axis=1) - self.radius
-        q = np.abs((p - self.a) @ self.axes) - self.half
-        outside = np.linalg.norm(np.maximum(q, 0.0), axis=1)
-        return outside + np.minimum(q.max(axis=1), 0.0)
-
-    def bounds(self, grid) -> np.ndarray | None:
-        """Pixel bounds of the projection on a :class:`~digiteyes.render.pixels.PixelGrid`
-        (primitive in that grid's camera frame)."""
-        if self.kind == "ball":
-            return grid.ball_bounds(self.a[None], self.radius)
-        if self.kind == "capsule":
-            return grid.ball_bounds(np.stack([self.a, self.b]), self.radius)
-        signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)])
-        return grid.point_bounds(self.a + (signs * self.half) @ self.axes.T)
 
 
 def tip_of_link(model: KinematicModel) -> dict[int, int]:
@@ -101,37 +75,44 @@ def tip_of_link(model: KinematicModel) -> dict[int, int]:
     row_to_link = {link.row: i for i, link in enumerate(model.links)}
     out = {}
     for i, link in enumerate(model.links):
-        if link.kind == "tip" and model.parent[link.row] in row_to_link:
-            parent = row_to_link[model.parent[link.row]]
-            if model.links[parent].kind == "link":
-                out[parent] = i
+        parent = row_to_link.get(int(model.parent[link.row]), -1)
+        if link.kind == "tip" and parent >= 0 and model.links[parent].kind == "link":
+            out[parent] = i
     return out
 
 
-def build_scene(model: KinematicModel, kin: Kinematics, index: int = 0) -> list[Primitive]:
+def build_scene(model: KinematicModel, kin: Kinematics, index: int = 0) -> Scene:
     """The primitives of state ``index`` of ``kin``, in world coordinates (mm)."""
     T_shape = kin.T_world_shape[index]
     tips = tip_of_link(model)
-    prims: list[Primitive] = []
+    rows: list[tuple[int, int, int, np.ndarray]] = []
     for i, link in enumerate(model.links):
         T = T_shape[link.row]
         origin, R = T[:3, 3], T[:3, :3]
         if link.kind == "link":
             end = origin + link.length * R[:, 0]
-            prims.append(Primitive("capsule", i, origin, end, link.radius,
-                                   far_label=tips.get(i, i)))
+            rows.append((CAPSULE, i, tips.get(i, i), _pack(origin, end, [link.radius])))
         elif link.kind == "tip":
-            prims.append(Primitive("ball", i, origin, radius=link.radius))
+            rows.append((BALL, i, i, _pack(origin, [link.radius])))
         else:
-            prims += _rounded_slab(i, origin + R @ np.asarray(link.centre), R,
-                                   0.5 * np.asarray(link.size, dtype=float))
-    return prims
+            centre = origin + R @ np.asarray(link.centre, dtype=float)
+            rows += [(kind, i, i, p) for kind, p in
+                     _rounded_slab(centre, R, 0.5 * np.asarray(link.size, dtype=float))]
+    return Scene(np.array([r[0] for r in rows], dtype=np.int8),
+                 np.array([r[1] for r in rows], dtype=np.int16),
+                 np.array([r[2] for r in rows], dtype=np.int16),
+                 np.stack([r[3] for r in rows]) if rows else np.zeros((0, N_PARAMS)))
 
 
-def _rounded_slab(label: int, centre: np.ndarray, axes: np.ndarray,
-                  half: np.ndarray) -> list[Primitive]:
-    """A box of half extents ``half`` with all edges rounded by half its smallest size:
-    one thin box plus capsules (or balls) along the edges of the inner rectangle."""
+def _pack(*parts) -> np.ndarray:
+    flat = np.concatenate([np.ravel(np.asarray(p, dtype=float)) for p in parts])
+    return np.concatenate([flat, np.zeros(N_PARAMS - flat.size)])
+
+
+def _rounded_slab(centre: np.ndarray, axes: np.ndarray,
+                  half: np.ndarray) -> list[tuple[int, np.ndarray]]:
+    """A box (axes as columns, half extents ``half``) with every edge rounded by half its
+    smallest size: a thin box plus capsules along the edges of the inner rectangle."""
     thin = int(np.argmin(half))
     rounding = float(half[thin])
     i, j = (k for k in range(3) if k != thin)
@@ -141,13 +122,15 @@ def _rounded_slab(label: int, centre: np.ndarray, axes: np.ndarray,
     if inner[i] > 0.0 and inner[j] > 0.0:
         slab = inner.copy()
         slab[thin] = rounding
-        prims.append(Primitive("box", label, centre, axes=axes, half=slab))
+        prims.append((BOX, _pack(centre, axes.T, slab)))
     ei, ej = axes[:, i] * inner[i], axes[:, j] * inner[j]
     corners = [centre + ei + ej, centre - ei + ej, centre - ei - ej, centre + ei - ej]
-    for k in range(4):
-        a, b = corners[k], corners[(k + 1) % 4]
-        if np.linalg.norm(b - a) > 1e-9:
-            prims.append(Primitive("capsule", label, a, b, rounding, far_label=label))
-        elif k == 0:
-            prims.append(Primitive("ball", label, a, radius=rounding))
+    edges = [(corners[k], corners[(k + 1) % 4]) for k in range(4)
+             if np.linalg.norm(corners[(k + 1) % 4] - corners[k]) > 1e-9]
+    if len(edges) == 2:  # a flat segment: both long edges are the same
+        edges = edges[:1]
+    for a, b in edges:
+        prims.append((CAPSULE, _pack(a, b, [rounding])))
+    if not edges:
+        prims.append((BALL, _pack(centre, [rounding])))
     return prims

@@ -13,9 +13,11 @@ def expose(image: np.ndarray, blur_sigma: float, noise_sigma: float,
     A Gaussian blur of ``blur_sigma`` px (optics) comes first, then additive Gaussian noise
     of ``noise_sigma`` grey levels (sensor), then clipping and rounding.
     """
-    out = np.asarray(image, dtype=np.float32)
+    out = np.array(image, dtype=np.float32)
     if blur_sigma > 0.0:
         out = cv2.GaussianBlur(out, (0, 0), blur_sigma, borderType=cv2.BORDER_REFLECT)
     if noise_sigma > 0.0:
-        out = out + np.float32(noise_sigma) * rng.standard_normal(out.shape, dtype=np.float32)
-    return np.clip(np.rint(out), 0, 255).astype(np.uint8)
+        out += np.float32(noise_sigma) * rng.standard_normal(out.shape, dtype=np.float32)
+    np.rint(out, out=out)
+    np.clip(out, 0, 255, out=out)
+    return out.astype(np.uint8)

@@ -24,8 +24,8 @@ from digiteyes.render.distortion import distortion_warp
 from digiteyes.render.keypoints import keypoints
 from digiteyes.render.options import RenderOptions
 from digiteyes.render.pixels import PixelGrid
-from digiteyes.render.raster import Raster, rasterise
-from digiteyes.render.scene import Primitive, build_scene
+from digiteyes.render.raster import rasterise
+from digiteyes.render.scene import Scene, build_scene
 from digiteyes.render.sensor import expose
 
 _CONTAIN_TOL_MM = 1e-6
@@ -111,33 +111,34 @@ def _cameras(rig_or_cameras) -> tuple[Camera, ...]:
     return cameras
 
 
-def _owners(world: list[Primitive], points: np.ndarray, n_links: int) -> np.ndarray:
+def _owners(world: Scene, points: np.ndarray, n_links: int) -> np.ndarray:
     """(K, L) bool: link l's solid contains keypoint k, or l is keypoint k's own link."""
     owners = np.eye(len(points), n_links, dtype=bool)
-    for prim in world:
-        owners[:, prim.label] |= prim.distance(points) <= _CONTAIN_TOL_MM
+    inside = world.distance(points) <= _CONTAIN_TOL_MM  # (K, P)
+    for label in np.unique(world.labels):
+        owners[:, label] |= inside[:, world.labels == label].any(axis=1)
     return owners
 
 
-def _render_camera(world: list[Primitive], points: np.ndarray, names: tuple[str, ...],
+def _render_camera(world: Scene, points: np.ndarray, names: tuple[str, ...],
                    owners: np.ndarray, cam: Camera, index: int, options: RenderOptions,
                    rng: np.random.Generator) -> RenderedView:
-    prims = [prim.transformed(cam.T_cam_world) for prim in world]
+    scene = world.transformed(cam.T_cam_world)
     light = np.asarray(options.light_dir, dtype=float)
     light_cam = cam.T_cam_world[:3, :3] @ (light / np.linalg.norm(light))
     grid = PixelGrid.from_camera(cam)
     warp = distortion_warp(cam)
     if warp is not None:
         grid = grid.canvas(warp.u_min, warp.v_min, warp.canvas_width, warp.canvas_height)
-    raster = rasterise(prims, grid, light_cam)
+    raster = rasterise(scene, grid, light_cam, options.ambient)
     if options.supersample > 1:
         ss = options.supersample
-        fine = rasterise(prims, grid.supersampled(ss), light_cam)
+        fine = rasterise(scene, grid.supersampled(ss), light_cam, options.ambient)
         alpha = _block_mean(fine.hit.astype(np.float32), ss)
-        lit = _block_mean(_lighting(fine, options.ambient), ss)
+        lit = _block_mean(fine.shade, ss)
     else:
         alpha = raster.hit.astype(np.float32)
-        lit = _lighting(raster, options.ambient)
+        lit = raster.shade
     depth, labels = raster.depth, raster.labels
     if warp is not None:
         alpha = warp.warp(alpha, nearest=False, fill=0.0)
@@ -163,12 +164,6 @@ def _render_camera(world: list[Primitive], points: np.ndarray, names: tuple[str,
     seen = labels[v, u].astype(int)
     visible = inside & (seen >= 0) & owners[np.arange(len(points)), np.maximum(seen, 0)]
     return RenderedView(image, depth, labels, points.copy(), pixels, visible, names)
-
-
-def _lighting(raster: Raster, ambient: float) -> np.ndarray:
-    """Premultiplied Lambert term ``hit * (ambient + (1 - ambient) * cos)`` (float32)."""
-    lit = np.float32(ambient) + np.float32(1.0 - ambient) * raster.shade
-    return lit * raster.hit
 
 
 def _block_mean(image: np.ndarray, factor: int) -> np.ndarray:

@@ -54,7 +54,7 @@ def plot_error_series(t: np.ndarray, series: Mapping[str, np.ndarray], *, ylabel
         ax.plot(t, np.asarray(values, dtype=float), label=name, linewidth=1.2)
     if threshold is not None:
         ax.axhline(threshold, color="k", linestyle=":", linewidth=0.9,
-                   label=f"threshold {threshold:g}")
+                   label=f"loss threshold {threshold:g}")
     _mark_lost(ax, t, lost)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)

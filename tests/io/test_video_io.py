@@ -1,0 +1,70 @@
+"""Video files: lossless FFV1 round trip, synchronised multi-camera reading, bad files."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from digiteyes.errors import DatasetError
+from digiteyes.io import VideoReader, VideoWriter, open_video_frames
+
+
+def write_video(path, images, codec="ffv1"):
+    with VideoWriter(path, 30, codec) as writer:
+        for image in images:
+            writer.write(image)
+
+
+def test_ffv1_is_lossless_for_grey_and_rgb(tmp_path):
+    rng = np.random.default_rng(2)
+    grey = [rng.integers(0, 256, (30, 40), dtype=np.uint8) for _ in range(3)]
+    rgb = [rng.integers(0, 256, (30, 40, 3), dtype=np.uint8) for _ in range(3)]
+    write_video(tmp_path / "g.mkv", grey)
+    write_video(tmp_path / "c.mkv", rgb)
+    with VideoReader(tmp_path / "g.mkv", gray=True) as reader:
+        for got, want in zip(reader, grey, strict=True):
+            np.testing.assert_array_equal(got, want)
+    with VideoReader(tmp_path / "c.mkv") as reader:
+        frames = list(reader)
+        assert reader.n_read == 3
+    for got, want in zip(frames, rgb, strict=True):
+        np.testing.assert_array_equal(got, want)
+
+
+def test_open_video_frames_stops_at_shortest(tmp_path):
+    rng = np.random.default_rng(3)
+    a = [rng.integers(0, 256, (16, 16, 3), dtype=np.uint8) for _ in range(5)]
+    b = [rng.integers(0, 256, (16, 16, 3), dtype=np.uint8) for _ in range(4)]
+    write_video(tmp_path / "a.mkv", a)
+    write_video(tmp_path / "b.mkv", b)
+    steps = list(open_video_frames([tmp_path / "a.mkv", tmp_path / "b.mkv"]))
+    assert len(steps) == 4
+    for i, (img_a, img_b) in enumerate(steps):
+        np.testing.assert_array_equal(img_a, a[i])
+        np.testing.assert_array_equal(img_b, b[i])
+    grey = next(open_video_frames([tmp_path / "a.mkv"], gray=True))[0]
+    assert grey.shape == (16, 16) and grey.dtype == np.uint8
+
+
+def test_missing_or_undecodable_video_is_named(tmp_path):
+    write_video(tmp_path / "ok.mkv", [np.zeros((8, 8), np.uint8)])
+    (tmp_path / "junk.mp4").write_bytes(b"this is not a video" * 50)
+    with pytest.raises(DatasetError, match=r"nothere\.mp4"):
+        open_video_frames([tmp_path / "ok.mkv", tmp_path / "nothere.mp4"])
+    with pytest.raises(DatasetError, match=r"junk\.mp4"):
+        open_video_frames([tmp_path / "junk.mp4"])
+
+
+def test_writer_rejects_bad_frames(tmp_path):
+    writer = VideoWriter(tmp_path / "x.mp4", 30, "h264")
+    with pytest.raises(DatasetError, match="even image sizes"):
+        writer.write(np.zeros((9, 8), np.uint8))
+    writer = VideoWriter(tmp_path / "y.mkv", 30)
+    writer.write(np.zeros((8, 8), np.uint8))
+    with pytest.raises(DatasetError, match="shape"):
+        writer.write(np.zeros((8, 10), np.uint8))
+    with pytest.raises(DatasetError, match="uint8"):
+        writer.write(np.zeros((8, 8), np.float32))
+    writer.close()
+    with pytest.raises(DatasetError, match="unknown video codec"):
+        VideoWriter(tmp_path / "z.avi", 30, "divx")
