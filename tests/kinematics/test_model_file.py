@@ -237,8 +237,8 @@ ERROR_CASES = [
      r"states must be numbered q0\.\.q1 .* expected q1, got q2"),
     ("state repeated", edit(4, "q0 elbow angle 0deg 150deg"), 4,
      r"states must be numbered .* expected q1, got q0"),
-    ("state name repeated", edit(4, "q1 shoulder angle 0deg 150deg"), 3,
-     r"state name 'shoulder' repeats"),
+    ("state name repeated", edit(4, "q1 shoulder angle 0deg 150deg"), 4,
+     r"state name 'shoulder' repeats \(first on line 3\)"),
     ("unknown state", edit(8, "2 fore q5 0 250 0 cyl(25) 3"), 8,
      r"q5 is not declared in \[states\]"),
     ("state used twice", edit(8, "2 fore q0 0 250 0 cyl(25) 3"), 8,
@@ -266,8 +266,8 @@ ERROR_CASES = [
     ("two roots", edit(8, "2 fore q1 0 250 0 cyl(25) -"), 9,
      r"the frames must form one tree with one root; found roots \[0, 3\]"),
     ("cycle apart from the tree", SIDE_CYCLE, 9, r"frame 3 is in a cycle"),
-    ("repeated geometry name", edit(8, "2 upper q1 0 250 0 cyl(25) 3"), 7,
-     r"geometry name 'upper' repeats"),
+    ("repeated geometry name", edit(8, "2 upper q1 0 250 0 cyl(25) 3"), 8,
+     r"geometry name 'upper' repeats \(first on line 7\)"),
 ]
 
 

@@ -42,7 +42,7 @@ R_PALM_DOWN = np.diag([-1.0, 1.0, -1.0])
 """World-from-palm rotation of a right hand lying palm-down with the fingers along world
 +y: palm x -> world -x (the thumb on the user's left), y -> +y, z (palmar) -> world -z."""
 
-SPREAD = {"index": -12.0, "middle": -3.0, "ring": 6.0, "little": 16.0}
+SPREAD = {"index": -20.0, "middle": -5.0, "ring": 8.0, "little": 22.0}
 """Abduction (degrees) of fingers held apart, so that neighbours do not touch (positive
 turns a finger towards the little-finger side, docs/models.md)."""
 
@@ -155,14 +155,21 @@ WHOLE_HAND_CENTRE = np.array([0.0, 0.0, 110.0])
 """Where the palm-down hand of ``whole-hand`` and ``fast`` hovers: its centre 110 mm above
 the table (world mm), so that flexed fingers stay clear of the table."""
 
-WHOLE_HAND_TURN = np.array([15.0, 8.0, 20.0])
-"""Largest palm rotation (degrees) about world x (pitch), y (roll: along the fingers) and z
-(yaw) in ``whole-hand``. Roll is kept small: it turns the hand edge-on to one camera,
-stacking the fingers and hiding the thumb behind the palm."""
+WHOLE_HAND_TURN_LOW = np.array([-15.0, -8.0, -20.0])
+WHOLE_HAND_TURN_HIGH = np.array([5.0, 8.0, 20.0])
+"""Range of the palm rotation (degrees) about world x (pitch; positive lifts the
+fingertips), y (roll, about the fingers) and z (yaw) in ``whole-hand``. Roll stays small
+because it turns the hand edge-on to one camera, stacking the fingers and hiding the thumb
+behind the palm; lifting the fingertips shows the thumb under the index finger."""
+
+WHOLE_HAND_FLEX = 0.65
+"""Largest common flexion (fraction of MCP 40, PIP 45, DIP 30 degrees) in ``whole-hand``;
+each finger adds +-0.1 of its own. Beyond about 0.7 (80 degrees from MCP to DIP) a finger
+seen from the cameras folds over itself and over its neighbours."""
 
 THUMB = ("thumb.cmc_flex", "thumb.cmc_abd", "thumb.mp_abd", "thumb.mp", "thumb.ip")
 THUMB_LOW = np.array([25.0, 0.0, -10.0, -15.0, -15.0])
-THUMB_HIGH = np.array([45.0, 20.0, 10.0, 10.0, 10.0])
+THUMB_HIGH = np.array([45.0, 15.0, 10.0, 10.0, 10.0])
 """Range (degrees) of the thumb joints in ``whole-hand`` and ``fast``: spread from the
 index finger, never crossing it."""
 
@@ -204,14 +211,14 @@ def whole_hand(seed: int = 0, n_frames: int | None = None) -> Scenario:
     def path(low, high):
         return random_keyframe_path(rng, n, low, high, 30, 50)
 
-    common = path([0.0, 0.0], [1.0, 1.0])
-    own = np.stack([path([-0.2, -0.2], [0.2, 0.2]) for _ in FINGERS], axis=1)
+    common = path([0.0, 0.0], [WHOLE_HAND_FLEX, WHOLE_HAND_FLEX])
+    own = np.stack([path([-0.1, -0.1], [0.1, 0.1]) for _ in FINGERS], axis=1)
     abd = np.stack([path([-4.0], [4.0])[:, 0] for _ in FINGERS], axis=1)
     thumb = path(THUMB_LOW, THUMB_HIGH)
     states = np.zeros((n, model.n_q))
     _set_fingers(model, states, common[:, None, :] + own, abd, thumb)
     offsets = path([-30, -25, -20], [30, 25, 20])
-    rotvecs = path(-WHOLE_HAND_TURN * DEG, WHOLE_HAND_TURN * DEG)
+    rotvecs = path(WHOLE_HAND_TURN_LOW * DEG, WHOLE_HAND_TURN_HIGH * DEG)
     _place_hand(model, states, R_PALM_DOWN, WHOLE_HAND_CENTRE, rotvecs, offsets)
     meta = {"thesis": "Rehg thesis Sec. 4.3.3, Figs. 4.5-4.8",
             "hand_centre_world_mm": WHOLE_HAND_CENTRE.tolist()}
