@@ -291,3 +291,28 @@ def test_hand_made_sequence_with_own_pattern_and_states_only(tmp_path, hand, rig
     assert seq.frame(1)[1][0, 0] == 20
     np.testing.assert_array_equal(seq.truth.states, states)
     assert seq.truth.keypoint_names == () and seq.truth.keypoints_3d.shape == (2, 0, 3)
+
+
+def test_full_disk_names_the_file(tmp_path, hand, rig, images_of, monkeypatch):
+    import digiteyes.io.dataset as dataset
+
+    writer = SequenceWriter(tmp_path / "s", hand, rig, hand.neutral(), 30)
+
+    def full(src, dst):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(dataset.os, "replace", full)
+    with pytest.raises(DatasetError, match=r"cam0/000000\.png: cannot write \(No space left"):
+        writer.write_frame(images_of(0))
+    monkeypatch.undo()
+    assert open_sequence(tmp_path / "s").n_frames == 0
+
+
+def test_video_of_another_size_than_rig_is_named(tmp_path, hand, rig, images_of):
+    folder = tmp_path / "v"
+    with SequenceWriter(folder, hand, rig, hand.neutral(), 30, video=True) as writer:
+        writer.write_frame([images_of(0)[1], images_of(0)[1]])
+    wide = Rig(tuple(Camera.create(c.name, c.K, 80, 48, c.T_cam_world) for c in rig.cameras))
+    save_rig(wide, folder / "rig.json")
+    with pytest.raises(DatasetError, match=r"cam0\.mkv: frame 0 is 64x48.*expects 80x48"):
+        open_sequence(folder)

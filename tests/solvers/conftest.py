@@ -7,7 +7,13 @@ import numpy as np
 import pytest
 
 from digiteyes.camera import Camera
-from digiteyes.kinematics import KinematicModel, forward_kinematics, load_model, point_jacobian
+from digiteyes.kinematics import (
+    KinematicModel,
+    forward_kinematics,
+    integrate,
+    load_model,
+    point_jacobian,
+)
 from digiteyes.trackers.parameterisation import StateParameterisation
 
 
@@ -101,12 +107,22 @@ def q_true(hand) -> np.ndarray:
     return q
 
 
-def perturb(model, q, rng, rotation=0.05, translation=5.0, joint=0.1):
-    """``q`` moved by a random tangent step of the given sizes (rad, mm, rad)."""
-    from digiteyes.kinematics import integrate
-
+def _perturb(model, q, rng, rotation=0.05, translation=5.0, joint=0.1):
     dv = np.zeros(model.n_v)
     dv[0:3] = rng.normal(scale=rotation, size=3)
     dv[3:6] = rng.normal(scale=translation, size=3)
     dv[6:] = rng.uniform(-joint, joint, size=model.n_v - 6)
     return integrate(model, q, dv)
+
+
+@pytest.fixture(scope="session")
+def perturb():
+    """``perturb(model, q, rng, rotation=0.05, translation=5.0, joint=0.1)``: ``q`` moved
+    by a random tangent step of those sizes (rad, mm, rad)."""
+    return _perturb
+
+
+@pytest.fixture(scope="session")
+def point_problem():
+    """The :class:`PointAlignmentProblem` class (test modules cannot import conftest)."""
+    return PointAlignmentProblem

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import PointAlignmentProblem, perturb
 
 from digiteyes.solvers import GaussNewtonOptions, gauss_newton, gradient_descent
 
@@ -40,8 +39,9 @@ def test_too_large_a_step_diverges():
 
 
 def test_hand_problem_descends_but_needs_far_more_iterations_than_gauss_newton(
-        hand, cameras, q_true):
-    problem = PointAlignmentProblem(hand, cameras, q_true)
+        hand, cameras, q_true, point_problem, perturb,
+):
+    problem = point_problem(hand, cameras, q_true)
     x0 = perturb(hand, q_true, np.random.default_rng(1), joint=0.05)
     _, J = problem.residuals(x0, True)
     step = 0.5 / np.maximum((J * J).sum(axis=0), 1e-9) / 10.0  # Jacobi-preconditioned
@@ -53,8 +53,8 @@ def test_hand_problem_descends_but_needs_far_more_iterations_than_gauss_newton(
     assert gn.cost_final < 1e-6 * gd.cost_final
 
 
-def test_no_residuals_and_validation(hand, cameras, q_true):
-    empty = PointAlignmentProblem(hand, cameras, q_true, rows=np.zeros(0, dtype=int),
+def test_no_residuals_and_validation(hand, cameras, q_true, point_problem):
+    empty = point_problem(hand, cameras, q_true, rows=np.zeros(0, dtype=int),
                                   points=np.zeros((0, 3)))
     x, summary = gradient_descent(empty, q_true, 1e-3, 5)
     assert summary.termination == "no residuals" and summary.iterations == 0

@@ -53,7 +53,7 @@ def test_point_jacobian_matches_the_retraction(form):
     rows = np.array([link.row for link in HAND.links])
     p_shape = rng.normal(scale=10.0, size=(len(rows), 3))
     _, Jp = point_jacobian(forward_kinematics(HAND, q), rows, p_shape, form=form)
-    w, dw = cam.project_with_jacobian(forward_kinematics(HAND, q).points(rows, p_shape))
+    _, dw = cam.project_with_jacobian(forward_kinematics(HAND, q).points(rows, p_shape))
     J = np.einsum("pij,pjk->pik", dw, Jp)
     h = 1e-6
     for i in range(param.n_v):

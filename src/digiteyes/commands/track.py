@@ -1,11 +1,125 @@
-"""``digiteyes track``: placeholder until its issue lands."""
+"""``digiteyes track``: run the DigitEyes feature tracker on a dataset folder or videos."""
 
 from __future__ import annotations
 
+from itertools import chain, islice
+from pathlib import Path
+
 import click
+import numpy as np
+
+from digiteyes.camera import load_rig
+from digiteyes.errors import CameraError, DatasetError
+from digiteyes.features import FeatureOptions
+from digiteyes.io import open_sequence, open_video_frames
+from digiteyes.kinematics import State
+from digiteyes.models import load_model
+from digiteyes.pipeline import TrackingRun, run_tracker
+from digiteyes.trackers import FeatureTracker, FeatureTrackerOptions, thesis_whole_hand_links
+
+HELP = """Track INPUT with the DigitEyes feature tracker (thesis Sec. 4.3).
+
+INPUT is a dataset folder (see docs/dataset.md; its model, rig and initial state are used
+unless overridden) or one video file per camera of the rig, in rig order (then --model,
+--rig and --init are required). Writes states.csv, overlay.mp4, views/, trajectory plots
+and summary.json into OUT. Ctrl-C keeps every frame tracked so far.
+"""
 
 
-@click.command()
-def track() -> None:
-    """Not implemented yet."""
-    raise click.ClickException("'digiteyes track' is not implemented yet")
+def tracker_options(iterations: int, window: float, links: str, model, robust: str | None,
+                    prediction: str) -> FeatureTrackerOptions:
+    """Tracker settings from the command-line choices (shared with ``digiteyes demo``)."""
+    chosen = thesis_whole_hand_links(model) if links == "thesis" else None
+    return FeatureTrackerOptions(
+        iterations_per_frame=iterations,
+        features=FeatureOptions(window_px=window),
+        links=chosen,
+        robust_loss=robust,
+        prediction=prediction,
+    )
+
+
+def print_run(run: TrackingRun) -> None:
+    """Headline figures of a run and where its files are."""
+    click.echo(f"tracked {run.n_frames} frame(s) in {run.tracker_seconds:.2f} s of tracker "
+               f"time ({run.tracker_fps:.1f} frames/s, {run.ms_per_iteration:.2f} ms per "
+               f"Gauss-Newton iteration)")
+    if run.n_lost:
+        click.echo(f"track flagged lost in {run.n_lost} frame(s), first at frame "
+                   f"{run.first_lost_frame}")
+    for key in ("states", "overlay", "trajectory-palm", "trajectory-joints", "summary"):
+        if key in run.files:
+            click.echo(f"  {key:<18} {run.files[key]}")
+    views = sorted(k for k in run.files if k.startswith("view-"))
+    if views:
+        click.echo(f"  {'3D views':<18} {run.files[views[0]].parent}/ ({len(views)} PNGs)")
+
+
+@click.command(help=HELP)
+@click.argument("inputs", nargs=-1, required=True, metavar="INPUT...")
+@click.option("--model", "model_name", help="Model name or .dh file (default: the dataset's).")
+@click.option("--rig", "rig_path", type=click.Path(dir_okay=False),
+              help="Rig file (JSON or OpenCV YAML; default: the dataset's).")
+@click.option("--init", "init_path", type=click.Path(dir_okay=False),
+              help="Initial state JSON (default: the dataset's).")
+@click.option("-o", "--output", required=True, type=click.Path(file_okay=False),
+              help="Output folder.")
+@click.option("--iterations", type=click.IntRange(min=1), default=5, show_default=True,
+              help="Gauss-Newton iterations per frame.")
+@click.option("--window", type=click.FloatRange(min=2.0), default=20.0, show_default=True,
+              help="Feature search window, pixels (thesis Table 4.2).")
+@click.option("--links", type=click.Choice(["all", "thesis"]), default="all", show_default=True,
+              help="Track every link and tip, or the thesis's set (Sec. 4.3.3).")
+@click.option("--robust", type=click.Choice(["huber", "tukey"]), default=None,
+              help="Robust loss on the feature residuals.")
+@click.option("--prediction", type=click.Choice(["constant-velocity", "none"]),
+              default="constant-velocity", show_default=True)
+@click.option("--frames", "max_frames", type=click.IntRange(min=1), default=None,
+              help="Track at most this many frames.")
+@click.option("--fps", type=click.FloatRange(min=0.1), default=None,
+              help="Frame rate of the overlay video (default: the dataset's, or 10).")
+@click.option("--no-overlay", is_flag=True, help="Skip the overlay video.")
+@click.option("--quiet", is_flag=True, help="No progress bar.")
+def track(inputs: tuple[str, ...], model_name: str | None, rig_path: str | None,
+          init_path: str | None, output: str, iterations: int, window: float, links: str,
+          robust: str | None, prediction: str, max_frames: int | None, fps: float | None,
+          no_overlay: bool, quiet: bool) -> None:
+    dataset = None
+    if len(inputs) == 1 and Path(inputs[0]).is_dir():
+        dataset = open_sequence(inputs[0])
+    elif any(Path(p).is_dir() for p in inputs):
+        raise DatasetError("give one dataset folder, or one video file per camera")
+    if dataset is None and not (model_name and rig_path and init_path):
+        raise click.UsageError("tracking videos needs --model, --rig and --init")
+    model = load_model(model_name) if model_name else dataset.model
+    rig = load_rig(rig_path) if rig_path else dataset.rig
+    if init_path:
+        initial = State.load_json(model, init_path).q
+    else:
+        initial = State(model, dataset.initial_state).q
+    if dataset is not None:
+        frames = iter(dataset)
+        total = dataset.n_frames
+        rate = fps or dataset.fps
+    else:
+        if len(inputs) != len(rig):
+            raise CameraError(f"the rig has {len(rig)} camera(s) ({', '.join(rig.names)}) but "
+                              f"{len(inputs)} video(s) were given")
+        frames = open_video_frames(list(inputs))
+        total = None
+        rate = fps or 10.0
+    if max_frames is not None:
+        frames = islice(frames, max_frames)
+        total = max_frames if total is None else min(total, max_frames)
+    first = next(frames, None)
+    if first is None:
+        raise DatasetError(f"{inputs[0]}: no frames to track")
+    rig.check_images(first)
+    options = tracker_options(iterations, window, links, model, robust, prediction)
+    tracker = FeatureTracker(model, rig, options)
+    run = run_tracker(tracker, model, rig, chain([first], frames), np.asarray(initial),
+                      output, fps=rate, total=total, overlay=not no_overlay,
+                      progress=not quiet)
+    print_run(run)
+    if run.interrupted:
+        raise KeyboardInterrupt

@@ -13,6 +13,7 @@ from digiteyes.features.measure import (
     FeatureMeasurement,
     FeatureOptions,
     measure_features,
+    project_features,
 )
 from digiteyes.features.residuals import ResidualLayout, feature_residuals
 from digiteyes.features.slices import prepare_image, sample_profiles
@@ -20,5 +21,5 @@ from digiteyes.features.slices import prepare_image, sample_profiles
 __all__ = [
     "LINK_REASONS", "TIP_REASONS", "FeatureMeasurement", "FeatureOptions", "LineFit",
     "ResidualLayout", "bisector", "feature_residuals", "fit_lines", "measure_features",
-    "prepare_image", "sample_profiles",
+    "prepare_image", "project_features", "sample_profiles",
 ]

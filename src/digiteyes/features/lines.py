@@ -8,21 +8,30 @@ Each fit is total least squares (the line minimising the sum of squared perpendi
 distances: through the weighted centroid, along the major axis of the weighted 2x2
 scatter matrix, in closed form) inside iteratively reweighted least squares (IRLS):
 
-1. fit with equal weights;
+1. start from the least-median-of-squares line: of the lines through every pair of
+   points, the one with the smallest median distance to all points (exhaustive, so
+   deterministic: 45 pairs for 10 points);
 2. residuals ``r``, robust scale ``sigma = max(1.4826 median|r|, min_scale)``;
 3. weights from Tukey's biweight (``(1 - (r / 4.685 sigma)^2)^2``, zero beyond) or
-   Huber's (``min(1, 1.345 sigma / |r|)``); refit; repeat a fixed number of times.
+   Huber's (``min(1, 1.345 sigma / |r|)``); weighted refit; repeat a fixed number of
+   times.
 
 Inliers are the points closer than Tukey's rejection distance ``4.685 sigma`` to the
 final line.
 
-Why IRLS and not RANSAC: a link gives only 8-12 edge points per side, with few outliers
-(a knuckle crease, a neighbouring finger's edge) because the search window already
-removed gross ones. IRLS is deterministic (no random numbers), its result moves smoothly
-with the data, and the equal-weight start is good enough for that outlier rate.
+Why this and not RANSAC: a link gives only 8-12 edge points per side, so trying every
+pair is cheaper than drawing random samples and needs no random numbers; the median
+criterion needs no inlier threshold; and the IRLS refinement uses all inliers with smooth
+weights, so the line moves smoothly with the data. An equal-weight start is not enough:
+outliers that cluster at one end of a link (a neighbouring finger's edge along part of
+it) tilt the first fit into a local minimum that reweighting cannot leave; the median
+start tolerates up to half the points being outliers. Tukey's weights redescend to zero,
+so the refinement ignores those outliers; Huber's do not, and a few high-leverage
+outliers pull a Huber fit back towards least squares (use it for mild, central outliers).
 
 The fits run in one compiled loop over all point sets (numba): with ~10 points per set
 the numpy version's cost was almost all call overhead of ~100 small array operations.
+With ``robust="none"`` the result is the plain total-least-squares line.
 """
 
 from __future__ import annotations
@@ -92,8 +101,20 @@ def _tls(points, weights, line):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _robust_scale(residual, mask, min_scale):  # pragma: no cover - compiled
-    values = np.empty(residual.shape[0])
+def _median(values, n):  # pragma: no cover - compiled
+    """Median of ``values[:n]`` (sorted in place by insertion: n is about 10)."""
+    for i in range(1, n):
+        v = values[i]
+        j = i - 1
+        while j >= 0 and values[j] > v:
+            values[j + 1] = values[j]
+            j -= 1
+        values[j + 1] = v
+    return 0.5 * (values[(n - 1) // 2] + values[n // 2])
+
+
+@njit(cache=True)
+def _robust_scale(residual, mask, min_scale, values):  # pragma: no cover - compiled
     n = 0
     for i in range(residual.shape[0]):
         if mask[i]:
@@ -101,7 +122,48 @@ def _robust_scale(residual, mask, min_scale):  # pragma: no cover - compiled
             n += 1
     if n == 0:
         return min_scale
-    return max(MAD_TO_SIGMA * np.median(values[:n]), min_scale)
+    return max(MAD_TO_SIGMA * _median(values, n), min_scale)
+
+
+@njit(cache=True)
+def _lmeds(points, mask, line, values):  # pragma: no cover - compiled
+    """Least-median-of-squares line over all pairs of masked points, into ``line``.
+
+    A pair can only improve on the best median so far if more than half of the distances
+    are below it, so the median is computed (by sorting) only for such pairs.
+    """
+    n_points = points.shape[0]
+    best = np.inf
+    for i in range(n_points):
+        if not mask[i]:
+            continue
+        for j in range(i + 1, n_points):
+            if not mask[j]:
+                continue
+            dx = points[j, 0] - points[i, 0]
+            dy = points[j, 1] - points[i, 1]
+            length = np.sqrt(dx * dx + dy * dy)
+            if length == 0.0:
+                continue
+            a = -dy / length
+            b = dx / length
+            rho = a * points[i, 0] + b * points[i, 1]
+            n = 0
+            below = 0
+            for k in range(n_points):
+                if mask[k]:
+                    values[n] = abs(a * points[k, 0] + b * points[k, 1] - rho)
+                    below += values[n] < best
+                    n += 1
+            if 2 * below <= n:
+                continue
+            median = _median(values, n)
+            if median < best:
+                best = median
+                line[0] = a
+                line[1] = b
+                line[2] = rho
+    return np.isfinite(best)
 
 
 @njit(cache=True)
@@ -110,17 +172,21 @@ def _fit_kernel(points, mask, normal, loss, iterations, min_scale, line, inlier,
     n_sets, n_points = mask.shape
     weights = np.empty(n_points)
     residual = np.empty(n_points)
+    scratch = np.empty(n_points)
     for b in range(n_sets):
         pts = points[b]
         n_used = 0
         for i in range(n_points):
             weights[i] = 1.0 if mask[b, i] else 0.0
             n_used += mask[b, i]
-        ok = n_used >= 2 and _tls(pts, weights, line[b])
-        for _ in range(iterations if ok else 0):
+        if loss != 0 and n_used >= 3:
+            ok = _lmeds(pts, mask[b], line[b], scratch)
+        else:
+            ok = n_used >= 2 and _tls(pts, weights, line[b])
+        for _ in range(iterations if ok and loss != 0 else 0):
             for i in range(n_points):
                 residual[i] = line[b, 0] * pts[i, 0] + line[b, 1] * pts[i, 1] - line[b, 2]
-            scale = _robust_scale(residual, mask[b], min_scale)
+            scale = _robust_scale(residual, mask[b], min_scale, scratch)
             for i in range(n_points):
                 if not mask[b, i]:
                     weights[i] = 0.0
@@ -143,7 +209,7 @@ def _fit_kernel(points, mask, normal, loss, iterations, min_scale, line, inlier,
             residual[i] = line[b, 0] * pts[i, 0] + line[b, 1] * pts[i, 1] - line[b, 2]
         cut = np.inf
         if loss != 0:
-            cut = TUKEY_C * _robust_scale(residual, mask[b], min_scale)
+            cut = TUKEY_C * _robust_scale(residual, mask[b], min_scale, scratch)
         total = 0.0
         for i in range(n_points):
             inlier[b, i] = mask[b, i] and abs(residual[i]) < cut

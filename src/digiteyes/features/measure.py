@@ -49,6 +49,8 @@ LINK_REASONS = {
     "off-image": "fewer than min_edge_points slices inside the image",
     "few-edges": "no side has min_edge_points edge points",
     "fit-residual": "no side line fits its edge points within max_fit_rms_px",
+    "inconsistent-sides": "the two side lines disagree in angle or in width",
+    "background-side": "one side found, but the other side's window shows background",
     "outside-window": "the measured axis leaves the search window",
 }
 TIP_REASONS = {
@@ -80,8 +82,12 @@ class FeatureOptions:
     end_margin : fraction of the link length skipped at each end.
     step_px : sampling step along slices.
     max_fit_rms_px : a side line whose inliers are farther than this (RMS) is rejected.
-    max_side_angle_deg : when the two side lines differ by more than this, only the side
-        with more inliers is used (one-edge fallback).
+    max_side_angle_deg : largest angle between the two side lines of a link.
+    max_width_error : largest difference between the measured distance of the two side
+        lines and the predicted width of the link, as a fraction of the predicted width.
+        Sides that disagree (in angle or width) mean that one of them followed something
+        else (a neighbouring finger, a shading ramp): the link is then invalid rather
+        than measured wrongly.
     min_axis_px : links whose projected axis is shorter are not measured.
     min_tip_edges : tip slices (of 3) that must find the silhouette end.
     max_tip_spread_px : largest disagreement of the tip slices' estimates.
@@ -103,6 +109,7 @@ class FeatureOptions:
     step_px: float = 1.0
     max_fit_rms_px: float = 1.5
     max_side_angle_deg: float = 20.0
+    max_width_error: float = 0.35
     min_axis_px: float = 5.0
     min_tip_edges: int = 2
     max_tip_spread_px: float = 3.0
@@ -110,7 +117,7 @@ class FeatureOptions:
 
     def __post_init__(self) -> None:
         positive = ("window_px", "tip_search_px", "step_px", "max_fit_rms_px",
-                    "max_side_angle_deg", "max_tip_spread_px")
+                    "max_side_angle_deg", "max_tip_spread_px", "max_width_error")
         for name in positive:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
@@ -343,12 +350,18 @@ def _measure_links(gray, camera, model, shapes, link_ids, opt) -> dict:
 
     side_ok = (fit.count >= opt.min_edge_points) & (fit.rms <= opt.max_fit_rms_px)
     cos_sides = np.abs(np.sum(fit.line[:, 0, :2] * fit.line[:, 1, :2], axis=-1))
-    both = side_ok.all(axis=1) & (cos_sides >= math.cos(math.radians(opt.max_side_angle_deg)))
-    prefer_1 = (fit.count[:, 1] > fit.count[:, 0]) | (
-        (fit.count[:, 1] == fit.count[:, 0]) & (fit.rms[:, 1] < fit.rms[:, 0]))
-    one_side = np.where(side_ok.all(axis=1), prefer_1, side_ok[:, 1]).astype(int)
-    single = np.take_along_axis(shifted, one_side[:, None, None], axis=1)[:, 0]
+    middle = w_slices[:, n_slices // 2]
+    width = (np.sum(fit.line[:, 0, :2] * middle, axis=-1) - fit.line[:, 0, 2]
+             - np.sum(fit.line[:, 1, :2] * middle, axis=-1) + fit.line[:, 1, 2])
+    predicted_width = contour[:, n_slices // 2, 1] - contour[:, n_slices // 2, 0]
+    agree = (cos_sides >= math.cos(math.radians(opt.max_side_angle_deg))) & (
+        np.abs(width - predicted_width) <= opt.max_width_error * predicted_width)
+    both = side_ok.all(axis=1)
+    found_side = side_ok[:, 1].astype(int)
+    single = np.take_along_axis(shifted, found_side[:, None, None], axis=1)[:, 0]
     line = np.where(both[:, None], bisector(fit.line[:, 0], fit.line[:, 1]), single)
+    merged = _missing_side_is_object(profiles, inside, offsets, position, fit.inlier,
+                                     contour_sides, found_side, polarity, opt)
 
     end_slices = w_slices[:, [0, -1]]
     distance = np.abs(np.sum(line[:, None, :2] * end_slices, axis=-1) - line[:, None, 2])
@@ -357,7 +370,9 @@ def _measure_links(gray, camera, model, shapes, link_ids, opt) -> dict:
     any_side = side_ok.any(axis=1)
     reason[usable & ~enough] = "few-edges"
     reason[usable & enough & ~any_side] = "fit-residual"
-    reason[usable & any_side & outside] = "outside-window"
+    reason[usable & both & ~agree] = "inconsistent-sides"
+    reason[usable & any_side & ~both & ~merged] = "background-side"
+    reason[usable & any_side & np.where(both, agree, merged) & outside] = "outside-window"
     valid = reason == "ok"
     half = 0.5 * opt.window_px
     span = np.stack([contour[..., 0] - half, contour[..., 1] + half], axis=-1)
@@ -375,6 +390,39 @@ def _measure_links(gray, camera, model, shapes, link_ids, opt) -> dict:
         "slice_ends": w_slices[..., None, :] + span[..., None] * normal[:, None, None],
         "contour_offsets": contour,
     }
+
+
+def _missing_side_is_object(profiles, inside, offsets, position, inlier, contour_sides,
+                            found_side, polarity, opt) -> np.ndarray:
+    """Whether the side without edges looks like the finger, per link (L,).
+
+    The one-edge fallback is right when the other silhouette edge vanished into a region
+    as bright as the finger (another finger, the palm). If instead the other side's search
+    window shows background, the found "edges" cannot be the finger's silhouette (the
+    true edge of that side would lie in the window): they are shading ramps or clutter
+    seen from a prediction that is off the finger. The intensity levels of finger and
+    background are read 3 px inside and outside the found edges.
+    """
+    n_samples = len(offsets)
+    step = offsets[1] - offsets[0]
+    outward = np.array([-1.0, 1.0])[None, :, None]  # side 0 lies towards -normal
+
+    def level(offset):  # mean profile value at per-edge offsets over the found side's inliers
+        j = np.rint((np.where(inlier, offset, offsets[0]) - offsets[0]) / step)
+        j = np.clip(j, 0, n_samples - 1).astype(int).transpose(0, 2, 1)  # (L, S, 2)
+        values = np.take_along_axis(profiles, j, axis=-1).transpose(0, 2, 1)  # (L, 2, S)
+        values = np.take_along_axis(values, found_side[:, None, None], axis=1)[:, 0]
+        used = np.take_along_axis(inlier, found_side[:, None, None], axis=1)[:, 0]
+        return np.sum(np.where(used, values, 0.0), axis=1) / np.maximum(used.sum(axis=1), 1)
+
+    finger = level(position - 3.0 * outward)
+    background = level(position + 3.0 * outward)
+    missing = 1 - found_side
+    centre = np.take_along_axis(contour_sides, missing[:, None, None], axis=1)[:, 0]  # (L, S)
+    window = inside & (np.abs(offsets - centre[..., None]) <= 0.5 * opt.window_px)
+    seen = np.sum(np.where(window, profiles, 0.0), axis=(1, 2)) / np.maximum(
+        window.sum(axis=(1, 2)), 1)
+    return polarity * (seen - 0.5 * (finger + background)) > 0.0
 
 
 def _tip_axes(model: KinematicModel, shapes: np.ndarray, tip_ids: np.ndarray):
@@ -463,3 +511,55 @@ def _measure_tips(gray, camera, model, shapes, tip_ids, link_ids, link_part, opt
         "tip_slice_ends": ends,
         "tip_edge_points": edge_points,
     }
+
+
+def project_features(
+    camera: Camera,
+    model: KinematicModel,
+    kin: Kinematics,
+    links: Sequence[str] | None = None,
+    tips: Sequence[str] | None = None,
+) -> FeatureMeasurement:
+    """The features a perfect measurement would return for the state of ``kin``.
+
+    Link lines are the projected axes, tips the projected tip centres; features behind a
+    perspective camera or with a degenerate (zero-length) projected axis are invalid.
+    No image is involved, so the slice and edge arrays are empty (S = 0). Use it to test
+    solvers on exact data and as the zero-residual reference of
+    :func:`~digiteyes.features.feature_residuals`.
+    """
+    shapes = _single_state_shapes(kin)
+    link_ids = select_links(model, links, "link")
+    tip_ids = select_links(model, tips, "tip")
+    rows = np.array([model.links[i].row for i in link_ids], dtype=int)
+    lengths = np.array([model.links[i].length for i in link_ids], dtype=float)
+    start = shapes[rows, :3, 3]
+    end = start + shapes[rows, :3, 0] * lengths[:, None]
+    w_ends = camera.project(np.stack([start, end], axis=1)).reshape(-1, 2, 2)
+    u, length_px = _unit2(w_ends[:, 1] - w_ends[:, 0])
+    normal = perpendicular(u)
+    rho = np.sum(normal * w_ends[:, 0], axis=-1)
+    tip_rows = np.array([model.links[i].row for i in tip_ids], dtype=int)
+    centre3 = shapes[tip_rows, :3, 3]
+    w_tip = camera.project(centre3).reshape(-1, 2)
+    link_ok = (length_px > 0) & np.isfinite(w_ends).all(axis=(1, 2))
+    tip_ok = np.isfinite(w_tip).all(axis=1)
+    if camera.projection == "perspective":
+        link_ok &= (camera.depth(np.stack([start, end], axis=1)) > 0).all(axis=1)
+        tip_ok &= camera.depth(centre3) > 0
+    n_links, n_tips = len(link_ids), len(tip_ids)
+    k = len(TIP_LATERAL)
+    return FeatureMeasurement(
+        camera=camera.name, link_ids=link_ids, predicted_axis=w_ends,
+        line=np.where(link_ok[:, None], np.column_stack([normal, rho]), np.nan),
+        link_valid=link_ok, link_reason=np.where(link_ok, "ok", "behind-camera"),
+        n_edges=np.zeros((n_links, 2), dtype=int), side_lines=np.full((n_links, 2, 3), np.nan),
+        edge_points=np.zeros((n_links, 2, 0, 2)), edge_inlier=np.zeros((n_links, 2, 0), bool),
+        slice_centres=np.zeros((n_links, 0, 2)), slice_normal=normal,
+        slice_ends=np.zeros((n_links, 0, 2, 2)), contour_offsets=np.zeros((n_links, 0, 2)),
+        tip_ids=tip_ids, predicted_tip=w_tip, measured_tip=np.where(tip_ok[:, None], w_tip, np.nan),
+        tip_valid=tip_ok, tip_reason=np.where(tip_ok, "ok", "behind-camera"),
+        tip_direction=np.tile([1.0, 0.0], (n_tips, 1)),
+        tip_slice_ends=np.full((n_tips, k, 2, 2), np.nan),
+        tip_edge_points=np.full((n_tips, k, 2), np.nan),
+    )

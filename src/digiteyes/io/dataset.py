@@ -19,6 +19,7 @@ reads and checks it. Images are ``uint8`` (or ``uint16`` for PNG) arrays, ``(H, 
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 from collections.abc import Callable, Iterator
@@ -97,6 +98,8 @@ def _atomic_write(path: Path, data: bytes) -> None:
             handle.write(data)
         os.replace(tmp, path)
     except OSError as exc:
+        with contextlib.suppress(OSError):
+            tmp.unlink(missing_ok=True)
         raise DatasetError(f"{path}: cannot write ({exc.strerror or exc})") from None
 
 
@@ -312,7 +315,7 @@ class SequenceWriter:
         except (TypeError, ValueError) as exc:
             raise DatasetError(f"{self.folder}: scenario must be plain JSON data ({exc})"
                                ) from None
-        self.codec = None if video is False else ("ffv1" if video is True else str(video))
+        self.codec = None if not video else ("ffv1" if video is True else str(video))
         if self.codec is not None and self.codec not in VIDEO_CODECS:
             raise DatasetError(f"unknown video codec {video!r}; expected True, "
                                f"{', '.join(map(repr, VIDEO_CODECS))} or False")
@@ -626,6 +629,8 @@ class Sequence:
                 if not path.is_file():
                     raise DatasetError(f"{path}: missing video file")
             self._gray = spec.get("color", "rgb") == "gray"
+            if self.n_frames:
+                self.frame(0)
         else:
             raise DatasetError(f"{where}: frames.kind must be 'png' or 'video', got {kind!r}")
 

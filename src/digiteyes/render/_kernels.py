@@ -29,9 +29,10 @@ from numba import njit
 BALL, CAPSULE, BOX = 0, 1, 2
 N_PARAMS = 15
 _NEAR = 1e-6
+_TIE = 1.0 - 1e-6  # a later primitive must be nearer by this factor to win a pixel
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _hit_ball(ox, oy, oz, dx, dy, dz, cx, cy, cz, r):  # pragma: no cover - compiled
     """Smallest root t > near of |o + t d - c| = r, or inf."""
     px, py, pz = ox - cx, oy - cy, oz - cz
@@ -44,7 +45,7 @@ def _hit_ball(ox, oy, oz, dx, dy, dz, cx, cy, cz, r):  # pragma: no cover - comp
     return t if t > _NEAR else np.inf
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _hit_capsule(ox, oy, oz, dx, dy, dz, P):  # pragma: no cover - compiled
     """Nearest hit with a capsule: the lateral cylinder surface between the end planes,
     or either end ball (the end discs lie inside the balls)."""
@@ -68,7 +69,7 @@ def _hit_capsule(ox, oy, oz, dx, dy, dz, P):  # pragma: no cover - compiled
     return min(t, _hit_ball(ox, oy, oz, dx, dy, dz, bx, by, bz, r))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _hit_box(ox, oy, oz, dx, dy, dz, P):  # pragma: no cover - compiled
     """Nearest hit with an oriented box (slab method), or inf."""
     t_near = -np.inf
@@ -90,35 +91,39 @@ def _hit_box(ox, oy, oz, dx, dy, dz, P):  # pragma: no cover - compiled
     return np.inf
 
 
-@njit(cache=True)
-def _surface(kind, P, x, y, z, label, far_label, out):  # pragma: no cover - compiled
-    """Outward unit normal at surface point (x, y, z) into ``out`` (3,); returns the
-    point's label (a capsule's far cap carries ``far_label``)."""
+@njit(cache=True, error_model="numpy")
+def _shade(kind, P, x, y, z, light):  # pragma: no cover - compiled
+    """Cosine between the outward unit normal at surface point (x, y, z) and ``light``."""
     if kind == BALL:
-        out[0], out[1], out[2] = (x - P[0]) / P[3], (y - P[1]) / P[3], (z - P[2]) / P[3]
-    elif kind == CAPSULE:
+        return ((x - P[0]) * light[0] + (y - P[1]) * light[1] + (z - P[2]) * light[2]) / P[3]
+    if kind == CAPSULE:
         ex, ey, ez = P[3] - P[0], P[4] - P[1], P[5] - P[2]
         s = ((x - P[0]) * ex + (y - P[1]) * ey + (z - P[2]) * ez) / (ex * ex + ey * ey + ez * ez)
-        if s > 1.0:
-            label = far_label
         s = min(max(s, 0.0), 1.0)
-        nx, ny, nz = x - P[0] - s * ex, y - P[1] - s * ey, z - P[2] - s * ez
-        norm = math.sqrt(nx * nx + ny * ny + nz * nz)
-        out[0], out[1], out[2] = nx / norm, ny / norm, nz / norm
-    else:
-        best = -1.0
-        for i in range(3):
-            wx, wy, wz = P[3 + 3 * i], P[4 + 3 * i], P[5 + 3 * i]
-            local = wx * (x - P[0]) + wy * (y - P[1]) + wz * (z - P[2])
-            rel = abs(local) / P[12 + i]
-            if rel > best:
-                best = rel
-                sign = 1.0 if local >= 0.0 else -1.0
-                out[0], out[1], out[2] = sign * wx, sign * wy, sign * wz
-    return label
+        return ((x - P[0] - s * ex) * light[0] + (y - P[1] - s * ey) * light[1]
+                + (z - P[2] - s * ez) * light[2]) / P[6]
+    best = -1.0
+    cosine = 0.0
+    for i in range(3):
+        wx, wy, wz = P[3 + 3 * i], P[4 + 3 * i], P[5 + 3 * i]
+        local = wx * (x - P[0]) + wy * (y - P[1]) + wz * (z - P[2])
+        rel = abs(local) / P[12 + i]
+        if rel > best:
+            best = rel
+            cosine = wx * light[0] + wy * light[1] + wz * light[2]
+            if local < 0.0:
+                cosine = -cosine
+    return cosine
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
+def _beyond_end(P, x, y, z):  # pragma: no cover - compiled
+    """Whether surface point (x, y, z) of a capsule lies beyond its end plane (far cap)."""
+    ex, ey, ez = P[3] - P[0], P[4] - P[1], P[5] - P[2]
+    return (x - P[3]) * ex + (y - P[4]) * ey + (z - P[5]) * ez > 0.0
+
+
+@njit(cache=True, error_model="numpy")
 def _extend(bounds, x, y, z, perspective, scale):  # pragma: no cover - compiled
     """Grow normalised-coordinate bounds by point (x, y, z); False if behind the camera."""
     if perspective:
@@ -134,7 +139,7 @@ def _extend(bounds, x, y, z, perspective, scale):  # pragma: no cover - compiled
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _extend_ball(bounds, cx, cy, cz, r, perspective, scale):  # pragma: no cover - compiled
     """Grow bounds by a ball's projection; perspective uses the tangent slopes
     (c_x c_z +- r sqrt(c_x^2 + c_z^2 - r^2)) / (c_z^2 - r^2) (likewise for y)."""
@@ -156,7 +161,7 @@ def _extend_ball(bounds, cx, cy, cz, r, perspective, scale):  # pragma: no cover
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _block(kind, P, intrinsics, perspective, scale, width, height, block):  # pragma: no cover
     """Inclusive pixel block (u0, u1, v0, v1) into ``block`` that holds the primitive's
     projection, clipped to the image; False if empty. The whole image if the primitive
@@ -190,7 +195,7 @@ def _block(kind, P, intrinsics, perspective, scale, width, height, block):  # pr
     return block[0] <= block[1] and block[2] <= block[3]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def cast_kernel(kinds, params, labels, far_labels, intrinsics, perspective, scale, light,
                 ambient, depth, label_image, shade):  # pragma: no cover - compiled
     """Ray cast primitives into the z-buffer ``depth`` (H, W) float32 (start at inf),
@@ -198,15 +203,18 @@ def cast_kernel(kinds, params, labels, far_labels, intrinsics, perspective, scal
     factor ``ambient + (1 - ambient) max(0, n . light)`` into ``shade`` (H, W) float32.
 
     ``intrinsics`` = (fx, s, cx, fy, cy); ``scale`` = 1 / Z0 for scaled orthographic,
-    1 otherwise; ``light`` (3,) unit vector towards the light.
+    1 otherwise; ``light`` (3,) unit vector towards the light. Surfaces that coincide (the
+    end ball of a link and the start ball of the next) go to the earlier primitive: a
+    later one must be nearer by a relative 1e-6 (float32 depth resolution is 6e-8), so
+    ties never speckle the label image.
     """
     fx, s, cx, fy, cy = intrinsics
     height, width = depth.shape
     block = np.empty(4, dtype=np.int64)
-    normal = np.empty(3)
     for k in range(kinds.shape[0]):
         kind = kinds[k]
         P = params[k]
+        near, far = labels[k], far_labels[k]
         if not _block(kind, P, intrinsics, perspective, scale, width, height, block):
             continue
         for v in range(block[2], block[3] + 1):
@@ -223,9 +231,10 @@ def cast_kernel(kinds, params, labels, far_labels, intrinsics, perspective, scal
                     t = _hit_capsule(ox, oy, 0.0, dx, dy, dz, P)
                 else:
                     t = _hit_box(ox, oy, 0.0, dx, dy, dz, P)
-                if t < depth[v, u]:
+                if t < depth[v, u] * _TIE:
+                    x, y, z = ox + t * dx, oy + t * dy, t * dz
                     depth[v, u] = t
-                    label_image[v, u] = _surface(kind, P, ox + t * dx, oy + t * dy, t * dz,
-                                                 labels[k], far_labels[k], normal)
-                    cosine = normal[0] * light[0] + normal[1] * light[1] + normal[2] * light[2]
+                    label_image[v, u] = far if kind == CAPSULE and \
+                        _beyond_end(P, x, y, z) else near
+                    cosine = _shade(kind, P, x, y, z, light)
                     shade[v, u] = ambient + (1.0 - ambient) * max(cosine, 0.0)

@@ -88,7 +88,7 @@ def _clutter(rng: np.random.Generator, width: int, height: int) -> np.ndarray:
             end = (centre[0] + int(rng.integers(-3 * extent, 3 * extent + 1)),
                    centre[1] + int(rng.integers(-3 * extent, 3 * extent + 1)))
             cv2.line(image, centre, end, color, int(rng.integers(1, 8)), cv2.LINE_AA)
-    grain = rng.normal(0.0, 6.0, size=(height, width, 1))
+    grain = rng.normal(0.0, 4.0, size=(height, width, 1))
     return np.clip(image + grain, 0, 255).astype(np.uint8)
 
 

@@ -61,7 +61,7 @@ def _warp(K_bytes: bytes, dist_bytes: bytes, width: int, height: int) -> Distort
     limit = np.array([_MAX_CANVAS_FACTOR * width, _MAX_CANVAS_FACTOR * height], dtype=float)
     low = np.clip(np.floor(ideal_px.min(axis=0)) - 1, -limit, 0).astype(int)
     high = np.clip(np.ceil(ideal_px.max(axis=0)) + 1, [width - 1, height - 1],
-                   limit + [width - 1, height - 1]).astype(int)
+                   limit + np.array([width - 1, height - 1])).astype(int)
     map_u = (ideal_px[:, 0] - low[0]).reshape(height, width).astype(np.float32)
     map_v = (ideal_px[:, 1] - low[1]).reshape(height, width).astype(np.float32)
     return DistortionWarp(map_u, map_v, int(low[0]), int(low[1]),

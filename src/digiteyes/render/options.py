@@ -37,7 +37,8 @@ class RenderOptions:
     background_seed : seed of the procedural backdrops (cloth folds, clutter). The backdrop
         is part of the scene, so it stays the same from frame to frame whatever ``rng`` the
         renderer gets; each camera of a rig sees its own pattern.
-    light_dir : world direction towards a distant light (normalised inside).
+    light_dir : world direction towards a distant light (normalised inside), or None for a
+        headlight: a light at each camera, shining along its optical axis.
     ambient : ambient fraction in [0, 1]; Lambert shading gives
         ``albedo * (ambient + (1 - ambient) * max(0, n . l))``.
     skin_albedo : grey-level albedo of the skin, in [0, 1].
@@ -52,7 +53,7 @@ class RenderOptions:
     background: str = "black"
     background_level: float = 0.08
     background_seed: int = 0
-    light_dir: tuple[float, float, float] = (0.3, -0.4, 1.0)
+    light_dir: tuple[float, float, float] | None = (0.3, -0.4, 1.0)
     ambient: float = 0.25
     skin_albedo: float = 0.85
     skin_rgb: tuple[float, float, float] = (0.90, 0.70, 0.58)
@@ -70,10 +71,11 @@ class RenderOptions:
             _check_range(name, getattr(self, name), 0.0, 1.0)
         for name in ("noise_sigma", "blur_sigma"):
             _check_range(name, getattr(self, name), 0.0, math.inf)
-        light = tuple(self.light_dir)
-        if len(light) != 3 or not all(math.isfinite(v) for v in light) or \
-                math.hypot(*light) == 0.0:
-            raise RenderError(f"light_dir must be a finite non-zero 3-vector, got {light}")
+        light = None if self.light_dir is None else tuple(self.light_dir)
+        if light is not None and (len(light) != 3 or not all(math.isfinite(v) for v in light)
+                                  or math.hypot(*light) == 0.0):
+            raise RenderError(
+                f"light_dir must be a finite non-zero 3-vector or None, got {light}")
         skin = tuple(self.skin_rgb)
         if len(skin) != 3 or not all(0.0 <= v <= 1.0 for v in skin):
             raise RenderError(f"skin_rgb must be three values in [0, 1], got {skin}")

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from itertools import product
 
 import numpy as np
+from scipy.optimize import brentq
 
 from digiteyes.camera import Camera, Rig
 from digiteyes.errors import DigitEyesError
@@ -59,7 +60,7 @@ class Scenario:
     model : the tracking model (the nominal model file). The images may be rendered from a
         perturbed copy (``perturb_model``) while ``states`` stay the same numbers.
     rig : the cameras (world = tabletop, z up, mm).
-    states : (T, n_q) ground-truth states, one per frame.
+    states : (T, n_q) ground-truth states, one per frame (read-only).
     fps : frames per second.
     seed : the seed that made the random parts of the motion.
     metadata : JSON-ready facts about the motion (thesis section, phases, per-frame image
@@ -143,6 +144,7 @@ def _finish(name: str, description: str, model: KinematicModel, rig: Rig,
         states = fit(states)
         per_frame = {key: fit(value) for key, value in per_frame.items()}
     states = np.clip(states, model.lower, model.upper)
+    states.setflags(write=False)  # the truth of a scenario does not change
     per_frame["image_speed_px"] = image_speed(model, states, rig)
     metadata = dict(metadata)
     for key, value in per_frame.items():
@@ -168,8 +170,8 @@ each finger adds +-0.1 of its own. Beyond about 0.7 (80 degrees from MCP to DIP)
 seen from the cameras folds over itself and over its neighbours."""
 
 THUMB = ("thumb.cmc_flex", "thumb.cmc_abd", "thumb.mp_abd", "thumb.mp", "thumb.ip")
-THUMB_LOW = np.array([25.0, 0.0, -10.0, -15.0, -15.0])
-THUMB_HIGH = np.array([45.0, 15.0, 10.0, 10.0, 10.0])
+THUMB_LOW = np.array([30.0, 0.0, -10.0, -5.0, -5.0])
+THUMB_HIGH = np.array([45.0, 10.0, 10.0, 15.0, 15.0])
 """Range (degrees) of the thumb joints in ``whole-hand`` and ``fast``: spread from the
 index finger, never crossing it."""
 
@@ -196,13 +198,16 @@ def _set_fingers(model: KinematicModel, q: np.ndarray, flex: np.ndarray,
 def whole_hand(seed: int = 0, n_frames: int | None = None) -> Scenario:
     """Thesis Sec. 4.3.3: the full hand, palm-down above the table, seen by two cameras.
 
-    Palm: smooth translation (+-30 mm across, +-25 mm along, +-20 mm up) and rotation
-    (+-20 degrees about each world axis, about the hand centre); fingers spread, MCP up to
-    40, PIP up to 45 and DIP two thirds of PIP (degrees), mostly in step; abduction changes
-    of +-4 degrees; the thumb moves in all five joints. Minimum-jerk moves between random
-    keyframes every 3-5 s; 200 frames at 10 Hz (the thesis sequence lasted 20 s). No link
-    hides another, except where the proximal phalanges of the middle and ring fingers meet
-    at their bases (the thesis tracked no features there).
+    Two cameras 450 mm apart, 550 mm from the hand, optical axes at 45 degrees to the table,
+    in front of the fingertips (:func:`stereo_rig`). Palm: smooth translation (+-30 mm
+    across, +-25 mm along, +-20 mm up) and rotation about the hand centre (yaw +-20, pitch
+    -15..5, roll +-8 degrees, :data:`WHOLE_HAND_TURN_LOW`); fingers spread and flexing
+    mostly in step, MCP up to 30, PIP up to 34 and DIP up to 22 degrees
+    (:data:`WHOLE_HAND_FLEX`); abduction changes of +-4 degrees; the thumb moves in all five
+    joints. Minimum-jerk moves between random keyframes every 3-5 s; 200 frames at 10 Hz
+    (the thesis sequence lasted 20 s); at most about 6 px of image motion per frame. No
+    link hides the axis of another, except where the proximal phalanges of the middle and
+    ring fingers meet at their bases (the thesis tracked no features there).
     """
     rng = np.random.default_rng(seed)
     model = load_model("hand")
@@ -229,20 +234,23 @@ def whole_hand(seed: int = 0, n_frames: int | None = None) -> Scenario:
 
 # --------------------------------------------------------------------------- fast
 def _periodic_hand(model: KinematicModel, phase: np.ndarray, lags: np.ndarray) -> np.ndarray:
-    """States (T, n_q) of the periodic whole-hand motion of ``fast`` at ``phase`` (T,)
-    radians; ``lags`` (16,) random phase offsets. The fingers flex with lags of a fifth of a
-    period from one to the next, so that at any phase some finger is moving fast."""
+    """States (T, n_q) of the periodic motion of ``fast`` at ``phase`` (T,) radians, inside
+    the envelope of ``whole-hand`` (flexion, thumb, palm turn); ``lags`` (13,) random phase
+    offsets. The palm circles, so that image speed is about uniform along the path."""
     p = np.asarray(phase, dtype=float)[:, None]
-    finger_lag = 2 * np.pi * np.arange(4) / 5
-    mcp = 0.5 + 0.45 * np.sin(p + lags[0] + finger_lag)
-    pip = 0.5 + 0.45 * np.sin(p + lags[0] + finger_lag - 0.8)
+    finger_lag = 0.3 * np.arange(4)
+    half = WHOLE_HAND_FLEX / 2
+    mcp = half + half * np.sin(p + lags[0] + finger_lag)
+    pip = half + half * np.sin(p + lags[0] + finger_lag - 0.8)
     abd = 3.0 * np.sin(0.5 * p + lags[1] + finger_lag)
     thumb = (THUMB_LOW + THUMB_HIGH) / 2 + (THUMB_HIGH - THUMB_LOW) / 2 * np.sin(
         0.8 * p + lags[2:7])
     q = np.zeros((len(p), model.n_q))
     _set_fingers(model, q, np.stack([mcp, pip], axis=2), abd, thumb)
     offsets = np.array([30.0, 25.0, 15.0]) * np.sin(np.array([1.0, 0.7, 0.5]) * p + lags[7:10])
-    rotvecs = 15 * DEG * np.sin(np.array([0.6, 0.4, 0.5]) * p + lags[10:13])
+    mid, amp = (WHOLE_HAND_TURN_HIGH + WHOLE_HAND_TURN_LOW) / 2, \
+        (WHOLE_HAND_TURN_HIGH - WHOLE_HAND_TURN_LOW) / 2
+    rotvecs = DEG * (mid + amp * np.sin(np.array([0.6, 0.4, 0.5]) * p + lags[10:13]))
     _place_hand(model, q, R_PALM_DOWN, WHOLE_HAND_CENTRE, rotvecs, offsets)
     return q
 
@@ -251,9 +259,10 @@ def fast(seed: int = 0, n_frames: int | None = None, start_px: float = 2.0,
          end_px: float = 36.0) -> Scenario:
     """The whole-hand motion, re-timed so that image speed grows linearly over the sequence.
 
-    A periodic path (palm circling and turning, fingers flexing in turn) is stepped frame by
-    frame so that the largest keypoint displacement in either camera from frame t-1 to t is
-    ``start_px + (end_px - start_px) t / (T - 1)`` pixels, from well inside to well past a
+    A periodic path (palm circling and turning, fingers flexing, all within the ranges of
+    :func:`whole_hand`) is stepped frame by frame so that the largest keypoint displacement
+    in either camera from frame t-1 to t is ``start_px + (end_px - start_px) t / (T - 1)``
+    pixels, from well inside to well past a
     20 px search window: the frame where a tracker loses the hand measures its track life
     against speed (thesis Sec. 4.3.2). ``n_frames`` (default 200) stretches the ramp;
     ``metadata["image_speed_px"]`` holds the speeds reached. 10 Hz.
@@ -262,17 +271,19 @@ def fast(seed: int = 0, n_frames: int | None = None, start_px: float = 2.0,
     model = load_model("hand")
     n = n_frames or 200
     rig = stereo_rig(WHOLE_HAND_CENTRE)
-    lags = rng.uniform(0, 2 * np.pi, 16)
+    lags = rng.uniform(0, 2 * np.pi, 13)
     targets = start_px + (end_px - start_px) * np.arange(n) / max(n - 1, 1)
     phases = np.zeros(n)
     step = 0.01
     for t in range(1, n):
-        for _ in range(8):  # rescale the phase step until the image step hits the target
-            pair = _periodic_hand(model, phases[t - 1] + np.array([0.0, step]), lags)
-            moved = image_speed(model, pair, rig)[1]
-            step *= targets[t] / max(moved, 1e-9)
-            if abs(moved - targets[t]) < 0.005 * targets[t]:
-                break
+        def excess(dp: float, t: int = t) -> float:
+            pair = _periodic_hand(model, phases[t - 1] + np.array([0.0, dp]), lags)
+            return image_speed(model, pair, rig)[1] - targets[t]
+
+        low, high = 0.0, step
+        while excess(high) < 0:
+            low, high = high, 1.5 * high
+        step = brentq(excess, low, high, xtol=1e-7, rtol=1e-4)
         phases[t] = phases[t - 1] + step
     meta = {"thesis": "Rehg thesis Sec. 4.3.2 (track loss when features leave the search "
                       "window), with the motion of Sec. 4.3.3",
@@ -290,6 +301,10 @@ MOUSE_PHASES = ((0, 150, "index finger raised and lowered twice"),
                 (350, 500, "all states together"))
 """The four phases of the thesis's 500-frame 3D-mouse sequence (Sec. 4.3.4, Fig. 4.12)."""
 
+MOUSE_TARGET = np.array([-30.0, 40.0, 15.0])
+"""Where the 3D-mouse camera looks (world mm): between the resting hand and its thumb, so
+that the whole palm travel stays in the image."""
+
 MOUSE_RAISE = np.array([-28.0, 8.0, 4.0])
 """Index MCP, PIP, DIP (degrees) of a fully raised finger (the pole at its highest): the
 MCP extends (negative lifts the tip off the table in mouse-hand.dh) while PIP and DIP
@@ -303,10 +318,10 @@ def mouse(seed: int = 0, n_frames: int | None = None) -> Scenario:
     pole height, the second lower) and raised again by frame 150; 150-200 it stays up while
     the thumb abducts 25 degrees and returns (the "button event"); 200-350 the palm slides
     (moves of up to 100 mm, at most 47 mm/s, below the 2.5 in/s at which the thesis's
-    tracker began to lose track) with everything else still; 350-500 palm position and rotation, index,
-    little finger and thumb all move (random keyframes, the only part that depends on the
-    seed). 10 Hz. ``metadata["index_tip_height_mm"]`` is the height of the index tip
-    centre above the table per frame, the truth for the pole height.
+    tracker began to lose track) with everything else still; 350-500 palm position and
+    rotation, index, little finger and thumb all move (random keyframes, the only part
+    that depends on the seed). 10 Hz. ``metadata["index_tip_height_mm"]`` is the height of
+    the index tip centre above the table per frame, the truth for the pole height.
     """
     rng = np.random.default_rng(seed)
     model = load_model("mouse-hand")
@@ -344,8 +359,7 @@ def mouse(seed: int = 0, n_frames: int | None = None) -> Scenario:
         _set(model, states, name, value * DEG * lift)
     _set(model, states, "little.abd", keyed(little_keys)[:, 0] * DEG)
     _set(model, states, "thumb.abd", keyed(thumb_keys)[:, 0] * DEG)
-    target = np.array([0.0, 50.0, 15.0])
-    rig = Rig((tabletop_camera("cam0", target, 450.0, -70.0, 45.0),))
+    rig = Rig((tabletop_camera("cam0", MOUSE_TARGET, 420.0, -65.0, 45.0),))
     kin = forward_kinematics(model, states)
     tip_row = model.link("index.tip").row
     height = kin.T_world_shape[:, tip_row, 2, 3]
@@ -357,27 +371,30 @@ def mouse(seed: int = 0, n_frames: int | None = None) -> Scenario:
 
 
 # --------------------------------------------------------------------------- two fingers
-TWO_FINGER_CURL = np.array([70.0, 90.0, 60.0])
+TWO_FINGER_CURL = np.array([65.0, 85.0, 55.0])
 """Index MCP, PIP, DIP (degrees) when curled into the palm."""
+
+TWO_FINGER_TARGET = np.array([20.0, 45.0, 15.0])
+"""Where the camera of ``two-finger-occlusion`` looks (world mm): the middle of the hand."""
 
 
 def two_finger_occlusion(seed: int = 0, n_frames: int | None = None) -> Scenario:
     """Thesis Sec. 4.4.2: the index finger curls into the palm past the middle finger.
 
     The two-finger model (palm translation only, its palm frame parallel to the world)
-    lies palm up, 12 mm above the table; one camera at 45 degrees to the table, on the
-    index-finger side and towards the fingertips, looks into the palm, so the index finger
-    passes in front of the middle finger and the palm. The index curls in over frames
-    4-52 to MCP/PIP/DIP = 70/90/60 degrees, holds, and half opens again over frames
-    58-79; the middle finger flexes 6 degrees and back around frames 25-50 (the thesis saw
-    such a small motion and recovered it); the palm does not move. 80 frames at 15 Hz;
-    the index tip moves about 3 px per frame on average. The motion is fixed (``seed`` is
-    kept for the record only).
+    lies palm up, 12 mm above the table; one camera 500 mm away at 45 degrees to the table,
+    beyond the fingertips and 40 degrees towards the index side, looks into the palm, so
+    the curling index finger passes in front of the middle finger and the palm. The index
+    curls in over frames 3-76 to MCP/PIP/DIP = 65/85/55 degrees (minimum-jerk); the middle
+    finger flexes 6 degrees and back around frames 25-50 (the thesis saw such a small
+    motion and recovered it); the palm does not move. 80 frames at 15 Hz; the index tip
+    moves about 3 px per frame on average (``metadata["index_tip_speed_px"]``). The motion
+    is fixed (``seed`` is kept for the record only).
     """
     model = load_model("two-finger")
     n = 80
     t = np.arange(n)
-    curl = keyframe_path([0, 4, 52, 58, 79], [0, 0, 1, 1, 0.5], t)
+    curl = keyframe_path([0, 3, 76, 79], [0, 0, 1, 1], t)
     middle = keyframe_path([0, 25, 37, 50], [0, 0, 1, 0], t)
     states = np.zeros((n, model.n_q))
     _set(model, states, "palm.z", 12.0)
@@ -385,8 +402,7 @@ def two_finger_occlusion(seed: int = 0, n_frames: int | None = None) -> Scenario
                            strict=True):
         _set(model, states, name, value * DEG * curl)
     _set(model, states, "middle.mcp", 6.0 * DEG * middle)
-    target = np.array([20.0, 50.0, 20.0])
-    rig = Rig((tabletop_camera("cam0", target, 420.0, 60.0, 45.0),))
+    rig = Rig((tabletop_camera("cam0", TWO_FINGER_TARGET, 500.0, 40.0, 45.0),))
     kin = forward_kinematics(model, states)
     tip = kin.T_world_shape[:, model.link("index.tip").row, :3, 3]
     w = rig[0].project(tip)
@@ -476,8 +492,7 @@ def natural(seed: int = 0, n_frames: int | None = None) -> Scenario:
     rotvecs = random_keyframe_path(rng, n, [-20 * DEG] * 3, [20 * DEG] * 3, 60, 100)
     _place_hand(model, states, R_PALM_TO_CAMERAS, NATURAL_CENTRE, rotvecs, offsets)
     meta = {"thesis": "Huang, Wu & Lin Sec. 2 (basis configurations, linear manifolds)",
-            "basis_configurations": {b: np.round(basis_joint_angles(model, b), 6).tolist()
-                                     for b in names},
+            "basis_configurations": {b: basis_joint_angles(model, b).tolist() for b in names},
             "basis_moves": [m for m in moves if m[0] < (n_frames or 200)],
             "hand_centre_world_mm": NATURAL_CENTRE.tolist()}
     return _finish("natural", "Natural articulation: straight joint-space paths between "

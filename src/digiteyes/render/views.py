@@ -14,6 +14,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from digiteyes.camera import Camera, Rig
@@ -124,8 +125,11 @@ def _render_camera(world: Scene, points: np.ndarray, names: tuple[str, ...],
                    owners: np.ndarray, cam: Camera, index: int, options: RenderOptions,
                    rng: np.random.Generator) -> RenderedView:
     scene = world.transformed(cam.T_cam_world)
-    light = np.asarray(options.light_dir, dtype=float)
-    light_cam = cam.T_cam_world[:3, :3] @ (light / np.linalg.norm(light))
+    if options.light_dir is None:
+        light_cam = np.array([0.0, 0.0, -1.0])  # headlight: towards the camera
+    else:
+        light = np.asarray(options.light_dir, dtype=float)
+        light_cam = cam.T_cam_world[:3, :3] @ (light / np.linalg.norm(light))
     grid = PixelGrid.from_camera(cam)
     warp = distortion_warp(cam)
     if warp is not None:
@@ -167,5 +171,7 @@ def _render_camera(world: Scene, points: np.ndarray, names: tuple[str, ...],
 
 
 def _block_mean(image: np.ndarray, factor: int) -> np.ndarray:
-    h, w = image.shape[0] // factor, image.shape[1] // factor
-    return image.reshape(h, factor, w, factor).mean(axis=(1, 3), dtype=np.float32)
+    """Mean of each factor x factor block (OpenCV's area resampling is exactly that for an
+    integer factor)."""
+    size = (image.shape[1] // factor, image.shape[0] // factor)
+    return cv2.resize(image, size, interpolation=cv2.INTER_AREA)

@@ -11,10 +11,11 @@ With ``damping="fixed"`` every step is taken, as in the thesis; with
 ``"levenberg-marquardt"`` the cost is evaluated at the candidate and a step that raises it
 is rejected and retried with a larger ``lambda`` (Nielsen's update of ``lambda``).
 
-The linear system is Jacobi-scaled and solved through a symmetric eigendecomposition;
-eigenvalues below ``1e-10`` of the largest are dropped, so an exactly singular system
-(a kinematic singularity without conditioning, or the scale direction of the raw
-quaternion form) gets the minimum-norm pseudo-inverse step of thesis Sec. 4.3.2 step 6.
+The linear system is Jacobi-scaled and solved by Cholesky; when the scaled matrix is
+(numerically) singular, a symmetric eigendecomposition drops eigenvalues below ``1e-10``
+of the largest, so an exactly singular system (a kinematic singularity without
+conditioning, or the scale direction of the raw quaternion form) gets the minimum-norm
+pseudo-inverse step of thesis Sec. 4.3.2 step 6.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+import scipy.linalg
 
 from digiteyes.solvers.options import GaussNewtonOptions
 from digiteyes.solvers.problem import LeastSquaresProblem, SolverSummary, project_if_defined
@@ -56,17 +58,27 @@ def solve_normal_equations(A: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, bo
     """Solve ``A x = g`` for symmetric positive semi-definite ``A`` (n, n).
 
     Returns the solution and whether eigenvalues were dropped (pseudo-inverse). The system
-    is Jacobi-scaled first so that mixed units (rad, mm) do not decide the rank.
+    is Jacobi-scaled first so that mixed units (rad, mm) do not decide the rank. A Cholesky
+    factorisation serves well-conditioned systems; when a pivot of the scaled matrix falls
+    below the eigenvalue floor, a symmetric eigendecomposition gives the pseudo-inverse.
     """
     diag = np.diag(A)
     d = np.where(diag > 0, 1.0 / np.sqrt(np.where(diag > 0, diag, 1.0)), 0.0)
     A_scaled = A * d[:, None] * d[None, :]
+    g_scaled = d * g
+    if (diag > 0).all():
+        try:
+            factor = scipy.linalg.cho_factor(A_scaled, lower=True, check_finite=False)
+        except np.linalg.LinAlgError:
+            factor = None
+        if factor is not None and np.diag(factor[0]).min() ** 2 > RELATIVE_EIGENVALUE_FLOOR:
+            return d * scipy.linalg.cho_solve(factor, g_scaled, check_finite=False), False
     eigenvalues, V = np.linalg.eigh(A_scaled)
     floor = RELATIVE_EIGENVALUE_FLOOR * max(float(eigenvalues[-1]), 0.0)
     keep = eigenvalues > floor
     inverse = np.zeros_like(eigenvalues)
     inverse[keep] = 1.0 / eigenvalues[keep]
-    x_scaled = V @ (inverse * (V.T @ (d * g)))
+    x_scaled = V @ (inverse * (V.T @ g_scaled))
     return d * x_scaled, bool((~keep).any())
 
 

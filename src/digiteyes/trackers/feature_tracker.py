@@ -71,6 +71,8 @@ class FeatureTrackerOptions:
     features : feature-search settings (window size, slices, contrast).
     links : names of the cylinder links and tips to measure; ``None`` for all of them.
         :func:`thesis_whole_hand_links` gives the thesis's whole-hand set.
+    axis_points : residual points per link along its axis (2: base and end; 1: base only,
+        as the thesis, Sec. 4.3.1).
     conditioning : weights of ``S`` for (quaternion/rotation, translation, joint angle),
         thesis eq. 2.22 and Table 4.2: 1, 10, 1000 (px^2 per squared step unit).
     use_conditioning : False drops ``S`` (plain Gauss-Newton; an ablation).
@@ -93,6 +95,7 @@ class FeatureTrackerOptions:
     iterations_per_frame: int = 5
     features: FeatureOptions = field(default_factory=FeatureOptions)
     links: tuple[str, ...] | None = None
+    axis_points: int = 2
     conditioning: tuple[float, float, float] = (1.0, 10.0, 1000.0)
     use_conditioning: bool = True
     damping: Damping = "fixed"
@@ -114,6 +117,9 @@ class FeatureTrackerOptions:
                 f"iterations_per_frame must be a positive integer, got "
                 f"{self.iterations_per_frame!r}"
             )
+        if isinstance(self.axis_points, bool) or not isinstance(
+                self.axis_points, int | np.integer) or self.axis_points < 1:
+            raise ValueError(f"axis_points must be a positive integer, got {self.axis_points!r}")
         if not isinstance(self.features, FeatureOptions):
             raise ValueError(f"features must be a FeatureOptions, got {type(self.features)}")
         if self.links is not None:
@@ -199,7 +205,8 @@ class _FeatureProblem:
             timings["feature_detection"] += time.perf_counter() - start
             start = time.perf_counter()
             r, J, layout = feature_residuals(meas, camera, kin, jacobian=jacobian,
-                                             form=self.param.form)
+                                             form=self.param.form,
+                                             axis_points=tracker.options.axis_points)
             rs.append(r)
             Js.append(J)
             measurements.append(meas)
@@ -262,7 +269,7 @@ class FeatureTracker:
             damping=opts.damping, robust_loss=opts.robust_loss,
             scale_px=opts.robust_scale_px, step_tolerance=0.0, cost_tolerance=0.0)
         self.predictor = StatePredictor(model, opts.prediction, opts.clip_to_limits)
-        self._rms_history: deque[float] = deque(maxlen=opts.growth_frames + 1)
+        self._rms_history: deque[float] = deque(maxlen=opts.growth_frames)
         self._frame_index = 0
         self.state: np.ndarray | None = None
 
@@ -337,7 +344,12 @@ class FeatureTracker:
         rms = float(np.sqrt(np.mean(r * r))) if len(r) else float("nan")
         n_links = int(sum(int(np.sum(m.link_valid)) for m in final.measurements))
         n_tips = int(sum(int(np.sum(m.tip_valid)) for m in final.measurements))
-        reasons = self._loss_reasons(rms, n_links + n_tips, len(r))
+        reasons = track_loss_reasons(rms, n_links + n_tips, self.n_features,
+                                     list(self._rms_history), self.options)
+        if np.isfinite(rms):
+            self._rms_history.append(rms)
+        else:
+            self._rms_history.clear()
         return TrackResult(
             state=q, residual_rms_px=rms, cost=summary.cost_final, lost=bool(reasons),
             loss_reason="; ".join(reasons), iterations=summary.iterations, summary=summary,
@@ -345,24 +357,34 @@ class FeatureTracker:
             n_valid_links=n_links, n_valid_tips=n_tips, n_features=self.n_features,
             predicted_state=predicted, frame_index=self._frame_index, timings=timings)
 
-    def _loss_reasons(self, rms: float, n_valid: int, n_residuals: int) -> list[str]:
-        opts = self.options
-        if n_residuals == 0 or n_valid == 0:
-            self._rms_history.clear()
-            return ["no features measured"]
-        reasons = []
-        invalid = 1.0 - n_valid / self.n_features
-        if invalid > opts.max_invalid_fraction:
-            reasons.append(f"{invalid:.0%} of the features invalid "
-                           f"(limit {opts.max_invalid_fraction:.0%})")
-        if rms > opts.residual_limit_px:
-            reasons.append(f"residual RMS {rms:.2f} px > {opts.residual_limit_px:.2f} px")
-        history = self._rms_history
-        history.append(rms)
-        if len(history) == history.maxlen:
-            values = np.array(history)
-            if (np.all(np.diff(values) > 0) and rms > opts.growth_factor * values[0]
-                    and rms > opts.growth_min_px):
-                reasons.append(f"residual RMS grew from {values[0]:.2f} to {rms:.2f} px over "
-                               f"{opts.growth_frames} frames")
-        return reasons
+
+def track_loss_reasons(rms: float, n_valid: int, n_features: int, previous_rms: Sequence[float],
+                       options: FeatureTrackerOptions) -> list[str]:
+    """The track-loss rules (module docstring) for one frame; empty when the track holds.
+
+    Parameters
+    ----------
+    rms : final residual RMS of the frame, px (NaN without residuals).
+    n_valid : valid features (links + tips, all cameras) at the final state.
+    n_features : features asked for (links + tips, times cameras).
+    previous_rms : residual RMS of the preceding frames, oldest first (the growth rule
+        looks at the last ``options.growth_frames`` of them).
+    options : the thresholds.
+    """
+    if n_valid == 0 or not np.isfinite(rms):
+        return ["no features measured"]
+    reasons = []
+    invalid = 1.0 - n_valid / n_features
+    if invalid > options.max_invalid_fraction:
+        reasons.append(f"{invalid:.0%} of the features invalid "
+                       f"(limit {options.max_invalid_fraction:.0%})")
+    if rms > options.residual_limit_px:
+        reasons.append(f"residual RMS {rms:.2f} px > {options.residual_limit_px:.2f} px")
+    k = options.growth_frames
+    if len(previous_rms) >= k:
+        values = np.append(np.asarray(previous_rms, dtype=float)[-k:], rms)
+        if (np.all(np.diff(values) > 0) and rms > options.growth_factor * values[0]
+                and rms > options.growth_min_px):
+            reasons.append(f"residual RMS grew from {values[0]:.2f} to {rms:.2f} px over "
+                           f"{k} frames")
+    return reasons

@@ -20,17 +20,30 @@ TRUTH_STYLE = {"linestyle": "--", "linewidth": 1.0, "alpha": 0.8}
 
 
 def new_figure(width_in: float = 8.0, height_in: float = 4.5) -> Figure:
-    """A figure with an Agg canvas (safe in threads and without a display)."""
-    fig = Figure(figsize=(width_in, height_in), layout="constrained")
+    """A figure with an Agg canvas (safe in threads and without a display).
+
+    Margins are fixed (no layout engine: constrained layout doubles the drawing time).
+    """
+    fig = Figure(figsize=(width_in, height_in))
     FigureCanvasAgg(fig)
     return fig
 
 
-def save_figure(fig: Figure, path: str | Path, dpi: int = 110) -> Path:
+def save_figure(fig: Figure, path: str | Path, dpi: int = 100) -> Path:
     """Write ``fig`` as PNG and return the path."""
     path = Path(path)
     fig.savefig(path, dpi=dpi)
     return path
+
+
+def _min_span(ax, curves: Sequence[np.ndarray | None], span: float) -> None:
+    """Show at least ``span`` on the y axis, so near-constant curves are not drawn at the
+    scale of rounding noise."""
+    values = np.concatenate([np.ravel(c) for c in curves if c is not None])
+    values = values[np.isfinite(values)]
+    if len(values) and np.ptp(values) < span:
+        mid = 0.5 * (values.min() + values.max())
+        ax.set_ylim(mid - 0.5 * span, mid + 0.5 * span)
 
 
 def _mark_lost(ax, t: np.ndarray, lost: np.ndarray | None) -> None:
@@ -48,6 +61,7 @@ def plot_error_series(t: np.ndarray, series: Mapping[str, np.ndarray], *, ylabel
     marks the first frame the tracker flagged lost.
     """
     fig = new_figure(8.0, 3.6)
+    fig.subplots_adjust(left=0.09, right=0.98, bottom=0.14, top=0.9)
     ax = fig.add_subplot()
     t = np.asarray(t, dtype=float)
     for name, values in series.items():
@@ -80,6 +94,7 @@ def plot_palm_trajectory(t: np.ndarray, est_quat: np.ndarray, true_quat: np.ndar
         flip = np.sum(est_quat * true_quat, axis=1) < 0
         est_quat[flip] *= -1
     fig = new_figure(9.0, 7.0)
+    fig.subplots_adjust(left=0.09, right=0.98, bottom=0.08, top=0.93, wspace=0.25)
     axes = fig.subplots(4, 2, sharex=True, squeeze=False)
     for j, label in enumerate(("Qw", "Qx", "Qy", "Qz")):
         ax = axes[j, 0]
@@ -88,6 +103,7 @@ def plot_palm_trajectory(t: np.ndarray, est_quat: np.ndarray, true_quat: np.ndar
             ax.plot(t, true_quat[:, j], color="k", label="truth", **TRUTH_STYLE)
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
+        _min_span(ax, [est_quat[:, j], None if true_quat is None else true_quat[:, j]], 0.1)
     for j, label in enumerate(("Tx (mm)", "Ty (mm)", "Tz (mm)")):
         ax = axes[j, 1]
         ax.plot(t, est_trans[:, j], color="tab:orange", label="estimate", **ESTIMATE_STYLE)
@@ -95,6 +111,7 @@ def plot_palm_trajectory(t: np.ndarray, est_quat: np.ndarray, true_quat: np.ndar
             ax.plot(t, true_trans[:, j], color="k", label="truth", **TRUTH_STYLE)
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
+        _min_span(ax, [est_trans[:, j], None if true_trans is None else true_trans[:, j]], 2.0)
     axes[3, 1].axis("off")
     axes[0, 0].legend(fontsize="small")
     axes[0, 1].legend(fontsize="small")
@@ -115,7 +132,10 @@ def plot_joint_angles(t: np.ndarray, groups: Mapping[str, Sequence[str]],
     ``true_deg`` map state names to (T,) angle series in degrees.
     """
     t = np.asarray(t, dtype=float)
-    fig = new_figure(9.0, 3.2 * max(1, len(groups)))
+    rows = max(1, len(groups))
+    height = 0.6 + 2.8 * rows
+    fig = new_figure(9.0, height)
+    fig.subplots_adjust(left=0.09, right=0.98, bottom=0.45 / height, top=1 - 0.4 / height)
     axes = fig.subplots(max(1, len(groups)), 1, sharex=True, squeeze=False)[:, 0]
     colors = [f"C{i}" for i in range(10)]
     for ax, (finger, names) in zip(axes, groups.items(), strict=False):
@@ -124,6 +144,8 @@ def plot_joint_angles(t: np.ndarray, groups: Mapping[str, Sequence[str]],
             ax.plot(t, estimated_deg[name], color=color, label=name, **ESTIMATE_STYLE)
             if true_deg is not None:
                 ax.plot(t, true_deg[name], color=color, **TRUTH_STYLE)
+        _min_span(ax, [*(estimated_deg[n] for n in names),
+                       *((true_deg[n] for n in names) if true_deg is not None else ())], 2.0)
         ax.set_ylabel(f"{finger} (deg)")
         ax.grid(alpha=0.3)
         ax.legend(fontsize="small", ncol=len(names), loc="upper left")
@@ -137,6 +159,7 @@ def plot_error_bars(groups: Mapping[str, Mapping[str, float | None]], *,
                     title: str = "") -> Figure:
     """Grouped bars: for each group (a finger), one bar per statistic in ``keys``."""
     fig = new_figure(7.0, 3.6)
+    fig.subplots_adjust(left=0.1, right=0.98, bottom=0.12, top=0.9)
     ax = fig.add_subplot()
     names = list(groups)
     x = np.arange(len(names))

@@ -1,0 +1,151 @@
+"""Renderer benchmark: synthetic frames per second of the full hand at 640x480.
+
+Measured with :func:`~digiteyes.render.render_views` on the Appendix A hand in a relaxed
+pose (fingers spread and slightly bent, thumb out, palm turned 30 degrees), filling about
+a third of the image, one frame = all images of the rig plus their ground truth:
+
+* ``render_fps_gray_640x480``: one grey-level camera, black cloth backdrop (defaults);
+* ``render_fps_color_clutter_640x480``: one colour camera, clutter backdrop;
+* ``render_fps_gray_rig2_640x480``: a two-camera rig (thesis Sec. 4.3.3 style), grey;
+* ``render_fps_color_clutter_ss2_noise_640x480``: colour clutter with 2x2 supersampling,
+  a 0.8 px blur and noise of 3 grey levels (the most expensive options together).
+
+OpenCV is held to one thread, and numba code is not parallel, so the figures are for one
+core. Each figure is the best of several repeats (the least disturbed by other processes);
+the table also shows the median. The first call (numba compilation) is not timed. Run it
+with ``digiteyes bench render [--json FILE] [--quick]``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import statistics
+import timeit
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from digiteyes.camera import Camera
+from digiteyes.kinematics import KinematicModel, load_model
+from digiteyes.render import RenderOptions, render_views
+
+WIDTH, HEIGHT = 640, 480
+
+
+def relaxed_hand_state(model: KinematicModel) -> np.ndarray:
+    """A natural open-hand state of the Appendix A hand, palm turned 30 degrees about y."""
+    q = model.neutral()
+    angle = np.radians(30.0)
+    q[0:4] = (np.cos(angle / 2), 0.0, np.sin(angle / 2), 0.0)
+    degrees = {"index.abd": -8, "middle.abd": 0, "ring.abd": 8, "little.abd": 16,
+               "thumb.cmc_abd": 45, "thumb.cmc_flex": 15, "thumb.mp": 10, "thumb.ip": 15}
+    for finger in ("index", "middle", "ring", "little"):
+        degrees |= {f"{finger}.mcp": 15, f"{finger}.pip": 20, f"{finger}.dip": 10}
+    for name, value in degrees.items():
+        q[model.state_index(name)] = np.radians(value)
+    return q
+
+
+def _cameras() -> list[Camera]:
+    target = (0.0, 40.0, 0.0)
+    return [Camera.look_at("left", (-150.0, 40.0, 520.0), target, up=(0, 1, 0)),
+            Camera.look_at("right", (150.0, 40.0, 520.0), target, up=(0, 1, 0))]
+
+
+def _frames_per_second(fn, repeat: int, min_time: float) -> tuple[float, float]:
+    """(best, median) calls per second of ``fn`` over ``repeat`` runs of >= min_time s."""
+    fn()  # warm up: numba compilation, cached backdrops
+    timer = timeit.Timer(fn)
+    number = 1
+    while (elapsed := timer.timeit(number)) < min_time:
+        number = max(number * 2, int(number * 1.2 * min_time / max(elapsed, 1e-9)))
+    rates = [number / t for t in timer.repeat(repeat=repeat, number=number)]
+    return max(rates), statistics.median(rates)
+
+
+def _machine() -> dict[str, object]:
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as handle:
+            cpu = next((line.split(":", 1)[1].strip() for line in handle
+                        if line.startswith("model name")), cpu)
+    except OSError:
+        pass
+    import numba
+
+    return {"cpu": cpu, "cores": os.cpu_count(), "platform": platform.platform(),
+            "python": platform.python_version(), "numpy": np.__version__,
+            "numba": numba.__version__, "opencv": cv2.__version__}
+
+
+CASES = {
+    "render_fps_gray_640x480": ("grey, black cloth, 1 camera", 1, RenderOptions()),
+    "render_fps_color_clutter_640x480": (
+        "colour, clutter, 1 camera", 1, RenderOptions(color=True, background="clutter")),
+    "render_fps_gray_rig2_640x480": ("grey, black cloth, 2-camera rig", 2, RenderOptions()),
+    "render_fps_color_clutter_ss2_noise_640x480": (
+        "colour, clutter, 2x2 AA, blur, noise, 1 camera", 1,
+        RenderOptions(color=True, background="clutter", supersample=2, blur_sigma=0.8,
+                      noise_sigma=3.0)),
+}
+
+
+def run(json_path: str | None = None, quick: bool = False) -> dict:
+    """Time the renderer, print a table, optionally write JSON.
+
+    Returns a dict with one frames-per-second figure per entry of :data:`CASES` (best of
+    the repeats), ``median`` (the same as medians), ``repeats``, ``model_pixels`` (pixels
+    covered by the hand in the one-camera view) and ``machine``.
+    """
+    repeat, min_time = (3, 0.1) if quick else (7, 0.5)
+    model = load_model("hand")
+    q = relaxed_hand_state(model)
+    cameras = _cameras()
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        rates = {}
+        for key, (_, n_cameras, options) in CASES.items():
+            rng = np.random.default_rng(0)
+            rates[key] = _frames_per_second(
+                lambda o=options, n=n_cameras, r=rng: render_views(model, q, cameras[:n], o, r),
+                repeat, min_time)
+    finally:
+        cv2.setNumThreads(threads)
+    covered = int((render_views(model, q, cameras[:1])[0].labels >= 0).sum())
+    result = {
+        "benchmark": "render",
+        "model": model.name,
+        "image": f"{WIDTH}x{HEIGHT}",
+        "model_pixels": covered,
+        "statistic": "best",
+        "repeats": repeat,
+        **{key: best for key, (best, _) in rates.items()},
+        "median": {key: med for key, (_, med) in rates.items()},
+        "machine": _machine(),
+    }
+    print(format_table(result))
+    if json_path is not None:
+        Path(json_path).write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
+    return result
+
+
+def format_table(result: dict) -> str:
+    """The plain-text report of :func:`run`'s result."""
+    m = result["machine"]
+    lines = [
+        f"render benchmark: model {result['model']}, {result['image']} images, the hand "
+        f"covers {result['model_pixels']} pixels per view; one core",
+        f"machine: {m['cpu']}, {m['cores']} cores, {m['platform']}",
+        f"         Python {m['python']}, numpy {m['numpy']}, numba {m['numba']}, "
+        f"OpenCV {m['opencv']}",
+        f"figures: best of {result['repeats']} repeats (median in brackets)",
+        "",
+        f"{'case':<48} {'frames/s':>18}",
+    ]
+    for key, (label, _, _) in CASES.items():
+        lines.append(f"{label:<48} {result[key]:>8.1f} ({result['median'][key]:>6.1f})")
+    return "\n".join(lines)

@@ -1,0 +1,207 @@
+"""Run a tracker over a stream of frames and write everything a user looks at afterwards.
+
+This is the layer between :mod:`digiteyes.io` (frames in, logs out) and
+:mod:`digiteyes.trackers` (which never touch files), shared by ``digiteyes track``,
+``digiteyes demo`` and the tracker benchmark. Outputs in ``out_dir``:
+
+* ``states.csv``: the state log (named columns, one row per frame, flushed per row);
+* ``overlay.mp4``: every camera's image with the T-shaped trackers, edge points, feature
+  lines and residual vectors (report Fig. 4), cameras side by side;
+* ``views/estimate-NNNNNN.png``: the estimated model rendered from another viewpoint
+  (thesis Fig. 4.6) every ``views_every`` frames and at the last frame;
+* ``trajectory-palm.png`` and ``trajectory-joints.png``: the estimated palm pose and the
+  index and thumb joint angles over time (thesis Figs. 4.7, 4.8);
+* ``summary.json``: frames, losses, timings per stage (thesis Table 4.1 rows).
+
+Ctrl-C stops the loop; every frame tracked so far is already in ``states.csv`` and the
+other outputs are written before the interruption is reported (``interrupted=True``).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from digiteyes.camera import Rig
+from digiteyes.io import StateLogWriter, VideoWriter
+from digiteyes.kinematics import KinematicModel
+from digiteyes.trackers import Tracker, TrackResult
+from digiteyes.viz.model_view import write_model_png
+from digiteyes.viz.overlay import draw_features
+from digiteyes.viz.plots import plot_joint_angles, plot_palm_trajectory, save_figure
+
+STAGES = ("forward_kinematics", "feature_detection", "jacobian", "linear_solve")
+
+
+@dataclass
+class TrackingRun:
+    """What a run produced: counts, timings (seconds) and the files written."""
+
+    out_dir: Path
+    n_frames: int = 0
+    n_lost: int = 0
+    first_lost_frame: int | None = None
+    interrupted: bool = False
+    tracker_seconds: float = 0.0
+    wall_seconds: float = 0.0
+    iterations: int = 0
+    stage_seconds: dict[str, float] = field(default_factory=lambda: dict.fromkeys(STAGES, 0.0))
+    files: dict[str, Path] = field(default_factory=dict)
+
+    @property
+    def tracker_fps(self) -> float:
+        """Frames per second of the tracker alone (``step`` calls), NaN before any frame."""
+        return self.n_frames / self.tracker_seconds if self.tracker_seconds > 0 else float("nan")
+
+    @property
+    def ms_per_iteration(self) -> float:
+        """Mean milliseconds per Gauss-Newton iteration inside ``step``."""
+        if not self.iterations:
+            return float("nan")
+        return 1e3 * self.tracker_seconds / self.iterations
+
+    def to_json(self) -> dict:
+        per_iteration = {k: 1e3 * v / self.iterations if self.iterations else None
+                         for k, v in self.stage_seconds.items()}
+        return {
+            "frames": self.n_frames,
+            "lost_frames": self.n_lost,
+            "first_lost_frame": self.first_lost_frame,
+            "interrupted": self.interrupted,
+            "iterations": self.iterations,
+            "tracker_seconds": self.tracker_seconds,
+            "wall_seconds": self.wall_seconds,
+            "tracker_fps": None if np.isnan(self.tracker_fps) else self.tracker_fps,
+            "ms_per_iteration": None if np.isnan(self.ms_per_iteration)
+            else self.ms_per_iteration,
+            "ms_per_iteration_by_stage": per_iteration,
+            "files": {k: str(v) for k, v in self.files.items()},
+        }
+
+
+def overlay_image(images: Sequence[np.ndarray], result: TrackResult, rig: Rig) -> np.ndarray:
+    """Cameras side by side, each with its features drawn (RGB uint8, even size for h264)."""
+    panels = [draw_features(image, meas, cam, layout)
+              for image, meas, layout, cam in zip(images, result.measurements,
+                                                  result.residual_layouts, rig, strict=True)]
+    height = max(p.shape[0] for p in panels)
+    panels = [np.pad(p, ((0, height - p.shape[0]), (0, 0), (0, 0))) for p in panels]
+    tiled = np.concatenate(panels, axis=1)
+    pad_h, pad_w = tiled.shape[0] % 2, tiled.shape[1] % 2
+    return np.pad(tiled, ((0, pad_h), (0, pad_w), (0, 0)))
+
+
+def run_tracker(
+    tracker: Tracker,
+    model: KinematicModel,
+    rig: Rig,
+    frames: Iterable[Sequence[np.ndarray]],
+    initial_state: np.ndarray,
+    out_dir: str | Path,
+    *,
+    fps: float = 10.0,
+    total: int | None = None,
+    overlay: bool = True,
+    views_every: int = 50,
+    view: str = "bottom",
+    progress: bool = True,
+) -> TrackingRun:
+    """Track ``frames`` (one list of images per time step, rig order) from
+    ``initial_state`` and write the outputs listed in the module docstring."""
+    out = Path(out_dir)
+    (out / "views").mkdir(parents=True, exist_ok=True)
+    run = TrackingRun(out)
+    states: list[np.ndarray] = []
+    tracker.reset(np.asarray(initial_state, dtype=float))
+    started = time.perf_counter()
+    log_path = out / "states.csv"
+    video = VideoWriter(out / "overlay.mp4", fps, codec="h264") if overlay else None
+    bar = tqdm(frames, total=total, unit="frame", desc="tracking", disable=not progress)
+    try:
+        with StateLogWriter(log_path, model) as log:
+            for index, images in enumerate(bar):
+                t0 = time.perf_counter()
+                result = tracker.step(list(images))
+                seconds = time.perf_counter() - t0
+                log.append(index, result.state, time_s=seconds, lost=result.lost,
+                           residual_rms_px=result.residual_rms_px,
+                           iterations=result.iterations)
+                _account(run, result, index, seconds)
+                states.append(result.state)
+                if video is not None:
+                    video.write(overlay_image(images, result, rig))
+                if views_every and index % views_every == views_every - 1:
+                    _write_view(model, result.state, out, index, view, run)
+                bar.set_postfix(rms_px=f"{result.residual_rms_px:.2f}", lost=run.n_lost)
+    except KeyboardInterrupt:
+        run.interrupted = True
+    finally:
+        bar.close()
+        if video is not None:
+            video.close()
+            if video.n_written:
+                run.files["overlay"] = video.path
+    run.files["states"] = log_path
+    if states:
+        last_view_written = bool(views_every) and run.n_frames % views_every == 0
+        if not last_view_written:
+            _write_view(model, states[-1], out, run.n_frames - 1, view, run)
+        run.files.update(write_trajectory_plots(model, np.array(states), out))
+    run.wall_seconds = time.perf_counter() - started
+    summary = out / "summary.json"
+    summary.write_text(json.dumps(run.to_json(), indent=2) + "\n", encoding="utf-8")
+    run.files["summary"] = summary
+    return run
+
+
+def _account(run: TrackingRun, result: TrackResult, index: int, seconds: float) -> None:
+    run.n_frames += 1
+    run.tracker_seconds += seconds
+    run.iterations += result.iterations
+    for stage in STAGES:
+        run.stage_seconds[stage] += result.timings.get(stage, 0.0)
+    if result.lost:
+        run.n_lost += 1
+        if run.first_lost_frame is None:
+            run.first_lost_frame = index
+
+
+def _write_view(model: KinematicModel, q: np.ndarray, out: Path, index: int, view: str,
+                run: TrackingRun) -> None:
+    path = write_model_png(model, q, out / "views" / f"estimate-{index:06d}.png", view=view,
+                           width=480, height=360)
+    run.files[f"view-{index:06d}"] = path
+
+
+def write_trajectory_plots(model: KinematicModel, states: np.ndarray, out: Path,
+                           truth: np.ndarray | None = None) -> dict[str, Path]:
+    """Palm pose (Fig. 4.7 style, pose-base models only) and joint angles of the index
+    finger and thumb (Fig. 4.8 style) over frames; ``truth`` (T, n_q) is drawn dashed."""
+    files: dict[str, Path] = {}
+    t = np.arange(len(states))
+    if model.base_state is not None:
+        k = model.base_state
+        fig = plot_palm_trajectory(
+            t, states[:, k:k + 4], None if truth is None else truth[:, k:k + 4],
+            states[:, k + 4:k + 7], None if truth is None else truth[:, k + 4:k + 7],
+            title="Estimated palm rotation and translation")
+        files["trajectory-palm"] = save_figure(fig, out / "trajectory-palm.png")
+    groups: dict[str, list[str]] = {}
+    for i, name in enumerate(model.state_names):
+        finger = name.split(".")[0]
+        if model.state_kinds[i] == "angle" and finger in ("index", "thumb"):
+            groups.setdefault(finger, []).append(name)
+    if groups:
+        est = {n: np.degrees(states[:, model.state_index(n)]) for g in groups.values()
+               for n in g}
+        true = None if truth is None else {
+            n: np.degrees(truth[:, model.state_index(n)]) for g in groups.values() for n in g}
+        fig = plot_joint_angles(t, groups, est, true, title="Joint angles, index and thumb")
+        files["trajectory-joints"] = save_figure(fig, out / "trajectory-joints.png")
+    return files

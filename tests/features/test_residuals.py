@@ -1,0 +1,135 @@
+"""Feature residuals and their analytic Jacobians (thesis eq. 2.17-2.20, report eq. 2-3,
+6-10) against central finite differences stepped through ``integrate``."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from digiteyes import load_model
+from digiteyes.camera import Camera
+from digiteyes.errors import StateError
+from digiteyes.features import feature_residuals, project_features
+from digiteyes.kinematics import forward_kinematics, integrate
+from digiteyes.kinematics.rotations import quaternion_from_rotvec
+
+CAMERAS = {
+    "perspective": Camera.create(
+        "persp", [[800.0, 0.0, 319.5], [0.0, 790.0, 239.5], [0.0, 0.0, 1.0]], 640, 480,
+        Camera.look_at("x", [150.0, -450.0, 400.0], [0.0, 40.0, 0.0]).T_cam_world,
+        dist=[-0.12, 0.05, 0.001, -0.002, 0.0]),
+    "orthographic": Camera.look_at("ortho", [150.0, -450.0, 400.0], [0.0, 40.0, 0.0],
+                                   projection="orthographic"),
+    "scaled-orthographic": Camera.look_at("sortho", [150.0, -450.0, 400.0], [0.0, 40.0, 0.0],
+                                          projection="scaled-orthographic"),
+}
+
+
+@pytest.fixture(scope="module")
+def hand():
+    return load_model("hand")
+
+
+def random_hand_state(model, rng) -> np.ndarray:
+    q = model.neutral()
+    q[0:4] = quaternion_from_rotvec(rng.normal(0.0, 0.6, 3))
+    q[4:7] = rng.uniform(-20.0, 20.0, 3)
+    low, high = model.lower[7:], model.upper[7:]
+    q[7:] = rng.uniform(low, high)
+    return q
+
+
+def perturbed_measurement(model, camera, q, rng):
+    """Exact features of a nearby state: residuals at q are non-zero but small."""
+    q_meas = integrate(model, q, rng.normal(0.0, 0.03, model.n_v))
+    return project_features(camera, model, forward_kinematics(model, q_meas))
+
+
+def residual(meas, camera, model, q):
+    return feature_residuals(meas, camera, forward_kinematics(model, q), jacobian=False)[0]
+
+
+@pytest.mark.parametrize("name", list(CAMERAS))
+def test_tangent_jacobian_matches_finite_differences(hand, name):
+    camera = CAMERAS[name]
+    rng = np.random.default_rng(10)
+    for _ in range(3):
+        q = random_hand_state(hand, rng)
+        meas = perturbed_measurement(hand, camera, q, rng)
+        assert meas.n_valid == 20
+        r, J, layout = feature_residuals(meas, camera, forward_kinematics(hand, q))
+        assert r.shape == (40,) and J.shape == (40, hand.n_v)
+        assert np.abs(r).max() > 0.5
+        h = 1e-6
+        J_fd = np.empty_like(J)
+        for i in range(hand.n_v):
+            step = np.zeros(hand.n_v)
+            step[i] = h
+            J_fd[:, i] = (residual(meas, camera, hand, integrate(hand, q, step))
+                          - residual(meas, camera, hand, integrate(hand, q, -step))) / (2 * h)
+        assert np.linalg.norm(J - J_fd) / np.linalg.norm(J) < 1e-6
+
+
+def test_quaternion_jacobian_matches_finite_differences(hand):
+    camera = CAMERAS["perspective"]
+    rng = np.random.default_rng(11)
+    q = random_hand_state(hand, rng)
+    q[0:4] *= 1.3  # forward kinematics normalises: derivatives of the normalised rotation
+    meas = perturbed_measurement(hand, camera, q / np.r_[1.3 * np.ones(4), np.ones(24)], rng)
+    r, J, _ = feature_residuals(meas, camera, forward_kinematics(hand, q), form="quaternion")
+    assert J.shape == (len(r), hand.n_q)
+    h = 1e-6
+    J_fd = np.stack([(residual(meas, camera, hand, q + h * e) - residual(meas, camera, hand,
+                                                                           q - h * e)) / (2 * h)
+                     for e in np.eye(hand.n_q)], axis=1)
+    assert np.linalg.norm(J - J_fd) / np.linalg.norm(J) < 1e-6
+
+
+@pytest.mark.parametrize("name", list(CAMERAS))
+def test_exact_features_give_zero_residuals(hand, name):
+    camera = CAMERAS[name]
+    q = random_hand_state(hand, np.random.default_rng(12))
+    kin = forward_kinematics(hand, q)
+    meas = project_features(camera, hand, kin)
+    # Link base and end lie on the measured line even with lens distortion ...
+    assert np.abs(feature_residuals(meas, camera, kin)[0]).max() < 1e-9
+    # ... points in between only without it (distortion bends the projected axis).
+    camera = dataclasses.replace(camera, dist=np.zeros(5))
+    meas = project_features(camera, hand, kin)
+    r, J, layout = feature_residuals(meas, camera, kin, axis_points=4)
+    assert r.shape == (15 * 4 + 5 * 2,)
+    assert np.abs(r).max() < 1e-9
+    r_only, J_none, _ = feature_residuals(meas, camera, kin, jacobian=False, axis_points=4)
+    assert J_none is None
+    np.testing.assert_allclose(r_only, r)
+
+
+def test_layout_and_invalid_features(hand):
+    camera = CAMERAS["orthographic"]
+    kin = forward_kinematics(hand, random_hand_state(hand, np.random.default_rng(13)))
+    meas = project_features(camera, hand, kin)
+    valid = meas.link_valid.copy()
+    valid[[2, 5]] = False
+    tips = meas.tip_valid.copy()
+    tips[0] = False
+    meas = dataclasses.replace(meas, link_valid=valid, tip_valid=tips)
+    r, J, layout = feature_residuals(meas, camera, kin, axis_points=3)
+    assert layout.n_rows == len(r) == 13 * 3 + 4 * 2
+    assert layout.camera == camera.name
+    links = layout.rows("link")
+    assert len(links) == 39 and not np.isin(layout.feature[links], [2, 5]).any()
+    np.testing.assert_array_equal(layout.component[links][:3], [0, 1, 2])
+    tip_rows = layout.rows("tip")
+    np.testing.assert_array_equal(layout.component[tip_rows][:2], [0, 1])
+    assert 0 not in layout.feature[tip_rows]
+    np.testing.assert_array_equal(layout.link_index[tip_rows][::2], meas.tip_ids[1:])
+    np.testing.assert_allclose(layout.points_px[tip_rows][::2], meas.predicted_tip[1:])
+    with pytest.raises(ValueError, match="form"):
+        feature_residuals(meas, camera, kin, form="euler")
+    with pytest.raises(ValueError, match="axis_points"):
+        feature_residuals(meas, camera, kin, axis_points=0)
+    batch = forward_kinematics(hand, np.stack([hand.neutral()] * 2))
+    with pytest.raises(StateError, match="one state"):
+        feature_residuals(meas, camera, batch)

@@ -1,0 +1,211 @@
+"""The DigitEyes feature tracker on rendered two-camera sequences with known truth."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from digiteyes.camera import Camera, Rig
+from digiteyes.errors import CameraError, StateError
+from digiteyes.kinematics import forward_kinematics, load_model
+from digiteyes.kinematics.rotations import quaternion_from_matrix
+from digiteyes.render import RenderOptions, render_views
+from digiteyes.trackers import (
+    TIMING_STAGES,
+    FeatureTracker,
+    FeatureTrackerOptions,
+    Tracker,
+    thesis_whole_hand_links,
+)
+from digiteyes.trackers.feature_tracker import track_loss_reasons
+
+HAND = load_model("hand")
+N_FRAMES = 20
+
+
+def table_camera(name: str, azimuth_deg: float) -> Camera:
+    """640x480 camera 550 mm from the hand, 70 degrees above the table."""
+    target = np.array([0.0, 50.0, 25.0])
+    az, el = np.radians(azimuth_deg), np.radians(70.0)
+    direction = np.array([np.cos(el) * np.sin(az), np.cos(el) * np.cos(az), np.sin(el)])
+    return Camera.look_at(name, target + 550.0 * direction, target, width=640, height=480,
+                          focal_px=800.0)
+
+
+@pytest.fixture(scope="module")
+def rig() -> Rig:
+    return Rig((table_camera("left", -40.0), table_camera("right", 40.0)))
+
+
+@pytest.fixture(scope="module")
+def true_states() -> np.ndarray:
+    """A right hand palm-down on a table (world z up), fingers spread and slightly bent;
+    over 20 frames the index finger flexes (MCP +34 deg, PIP +29 deg) while the palm
+    slides 20 mm along x and 10 mm along y."""
+    q = HAND.neutral()
+    palm_down = np.diag([-1.0, 1.0, -1.0])  # palm x -> -x, fingers +y, palmar side down
+    q[0:4] = quaternion_from_matrix(palm_down)
+    q[4:7] = (0.0, 0.0, 25.0)
+    for finger, spread in {"index": -18, "middle": -4.5, "ring": 9, "little": 24}.items():
+        q[HAND.state_index(f"{finger}.abd")] = np.radians(spread)
+        q[HAND.state_index(f"{finger}.mcp")] = 0.2
+        q[HAND.state_index(f"{finger}.pip")] = 0.3
+        q[HAND.state_index(f"{finger}.dip")] = 0.1
+    q[HAND.state_index("thumb.cmc_abd")] = -0.5
+    q[HAND.state_index("thumb.cmc_flex")] = 0.3
+    q[HAND.state_index("thumb.mp")] = 0.2
+    states = np.repeat(q[None], N_FRAMES, axis=0)
+    t = np.linspace(0.0, 1.0, N_FRAMES)
+    states[:, HAND.state_index("index.mcp")] += 0.6 * t
+    states[:, HAND.state_index("index.pip")] += 0.5 * t
+    states[:, 4] += 20.0 * t
+    states[:, 5] += 10.0 * t
+    return states
+
+
+@pytest.fixture(scope="module")
+def frames(rig, true_states) -> list[list[np.ndarray]]:
+    options = RenderOptions(noise_sigma=2.0)
+    return [[view.image for view in render_views(HAND, q, rig, options, rng=k)]
+            for k, q in enumerate(true_states)]
+
+
+def track(tracker, true_states, frames):
+    tracker.reset(true_states[0])
+    return [tracker.step(f) for f in frames]
+
+
+def errors(results, true_states):
+    """Joint-angle errors (deg, frames x 21), fingertip errors (mm, frames x 5), palm
+    position errors (mm, frames)."""
+    est = np.array([r.state for r in results])
+    joints = np.degrees(np.abs(est[:, 7:] - true_states[:, 7:]))
+    tips = np.linalg.norm(forward_kinematics(HAND, est).tip_centres()[0]
+                          - forward_kinematics(HAND, true_states).tip_centres()[0], axis=-1)
+    palm = np.linalg.norm(est[:, 4:7] - true_states[:, 4:7], axis=-1)
+    return joints, tips, palm
+
+
+@pytest.mark.parametrize("form", ["tangent", "quaternion"])
+def test_tracks_finger_flexion_and_palm_motion(rig, true_states, frames, form):
+    results = track(FeatureTracker(HAND, rig, FeatureTrackerOptions(form=form)), true_states,
+                    frames)
+    joints, tips, palm = errors(results, true_states)
+    assert np.sqrt(np.mean(joints**2)) < 5.0  # degrees, all 21 joints, all frames
+    index = [HAND.state_index(n) - 7 for n in ("index.mcp", "index.pip")]
+    assert joints[:, index].max() < 10.0
+    assert np.sqrt(np.mean(tips**2)) < 4.0  # mm
+    assert tips.max() < 10.0
+    assert palm.max() < 5.0
+    assert not any(r.lost for r in results)
+    assert max(r.residual_rms_px for r in results) < 2.0
+    # the flexion really was followed: the estimate moved by most of the true motion
+    mcp = HAND.state_index("index.mcp")
+    moved = results[-1].state[mcp] - results[0].state[mcp]
+    assert moved == pytest.approx(true_states[-1, mcp] - true_states[0, mcp], abs=np.radians(8))
+
+
+def test_blank_frames_flag_loss_and_tracking_resumes(rig, true_states, frames):
+    tracker = FeatureTracker(HAND, rig)
+    blank = [np.zeros((480, 640), dtype=np.uint8)] * 2
+    sequence = frames[:6] + [blank] * 3 + frames[9:]
+    results = track(tracker, true_states, sequence)
+    assert not any(r.lost for r in results[:6])
+    for r in results[6:9]:
+        assert r.lost and r.loss_reason == "no features measured"
+        assert r.n_valid_links == r.n_valid_tips == 0 and np.isnan(r.residual_rms_px)
+        assert r.summary.termination == "no residuals"
+    # after the first blank frame the velocity is dropped: the estimate holds still
+    np.testing.assert_array_equal(results[7].state, results[6].state)
+    np.testing.assert_array_equal(results[8].state, results[7].state)
+    assert not any(r.lost for r in results[11:])
+    joints, tips, _ = errors(results[12:], true_states[12:])
+    assert np.sqrt(np.mean(joints**2)) < 5.0
+    assert np.sqrt(np.mean(tips**2)) < 4.0 and tips.max() < 10.0
+
+
+def test_result_fields_and_timings(rig, true_states, frames):
+    options = FeatureTrackerOptions(iterations_per_frame=3, links=thesis_whole_hand_links(HAND))
+    tracker = FeatureTracker(HAND, rig, options)
+    assert isinstance(tracker, Tracker)
+    tracker.reset(true_states[0])
+    first, second = tracker.step(frames[0]), tracker.step(frames[1])
+    np.testing.assert_array_equal(first.predicted_state, true_states[0])
+    assert (first.frame_index, second.frame_index) == (0, 1)
+    for result in (first, second):
+        assert result.iterations == result.summary.iterations == 3
+        assert result.n_features == 2 * 18
+        assert len(result.measurements) == len(result.residual_layouts) == 2
+        assert [m.camera for m in result.measurements] == ["left", "right"]
+        assert len(result.residuals) == sum(lay.n_rows for lay in result.residual_layouts)
+        assert result.n_valid_links == sum(int(m.link_valid.sum()) for m in result.measurements)
+        assert result.n_valid_tips == sum(int(m.tip_valid.sum()) for m in result.measurements)
+        assert result.residual_rms_px == pytest.approx(np.sqrt(np.mean(result.residuals**2)))
+        assert result.cost == pytest.approx(0.5 * result.residuals @ result.residuals)
+        assert set(result.timings) == set(TIMING_STAGES)
+        stages = [result.timings[k] for k in TIMING_STAGES if k != "total"]
+        assert all(t > 0 for t in stages)
+        assert sum(stages) <= result.timings["total"]
+        names = {HAND.links[i].name for m in result.measurements for i in m.link_ids}
+        assert "middle.proximal" not in names and "index.proximal" in names
+
+
+def test_thesis_whole_hand_links():
+    names = thesis_whole_hand_links(HAND)
+    assert len(names) == 18  # 13 phalanges + 5 tips (thesis Sec. 4.3.3)
+    assert "ring.proximal" not in names and "middle.proximal" not in names
+    assert sum(n.endswith(".tip") for n in names) == 5
+
+
+def test_track_loss_rules():
+    options = FeatureTrackerOptions(max_invalid_fraction=0.5, growth_frames=3,
+                                    growth_factor=2.0, growth_min_px=1.0)
+    assert options.residual_limit_px == 10.0  # half the 20 px window
+    assert track_loss_reasons(0.8, 30, 40, [0.7, 0.8], options) == []
+    assert track_loss_reasons(np.nan, 0, 40, [], options) == ["no features measured"]
+    (reason,) = track_loss_reasons(0.8, 19, 40, [], options)
+    assert "invalid" in reason
+    (reason,) = track_loss_reasons(10.5, 30, 40, [], options)
+    assert "residual RMS 10.50 px > 10.00 px" in reason
+    (reason,) = track_loss_reasons(2.5, 30, 40, [0.9, 1.2, 1.6, 2.0], options)
+    assert "grew from 1.20 to 2.50" in reason
+    assert track_loss_reasons(2.5, 30, 40, [1.2, 1.6, 1.5], options) == []  # not monotone
+    assert track_loss_reasons(0.9, 30, 40, [0.1, 0.2, 0.4], options) == []  # under 1 px
+    assert len(track_loss_reasons(11.0, 10, 40, [], options)) == 2
+
+
+def test_errors(rig, true_states, frames):
+    tracker = FeatureTracker(HAND, rig)
+    with pytest.raises(StateError, match="reset"):
+        tracker.step(frames[0])
+    with pytest.raises(StateError, match="28 numbers"):
+        tracker.reset(np.zeros(5))
+    tracker.reset(true_states[0])
+    with pytest.raises(CameraError, match="2 camera"):
+        tracker.step(frames[0][:1])
+    with pytest.raises(CameraError, match="640x480"):
+        tracker.step([np.zeros((240, 320), np.uint8)] * 2)
+    with pytest.raises(ValueError, match=r"'index\.nail'"):
+        FeatureTracker(HAND, rig, FeatureTrackerOptions(links=("index.distal", "index.nail")))
+    with pytest.raises(ValueError, match="no cylinder link or tip"):
+        FeatureTracker(HAND, rig, FeatureTrackerOptions(links=("palm",)))
+
+
+@pytest.mark.parametrize(("kwargs", "match"), [
+    ({"iterations_per_frame": 0}, "iterations_per_frame"),
+    ({"links": "index.tip"}, "links"),
+    ({"axis_points": 0}, "axis_points"),
+    ({"conditioning": (1.0, 10.0)}, "conditioning"),
+    ({"conditioning": (1.0, -10.0, 1.0)}, "conditioning"),
+    ({"damping": "dogleg"}, "damping"),
+    ({"prediction": "kalman"}, "prediction"),
+    ({"form": "euler"}, "form"),
+    ({"robust_loss": "cauchy"}, "robust_loss"),
+    ({"max_invalid_fraction": 1.5}, "max_invalid_fraction"),
+    ({"max_residual_rms_px": 0.0}, "max_residual_rms_px"),
+    ({"growth_frames": 0}, "growth_frames"),
+    ({"features": {"window_px": 20}}, "FeatureOptions"),
+])
+def test_options_are_validated(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        FeatureTrackerOptions(**kwargs)
