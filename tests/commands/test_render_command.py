@@ -94,6 +94,10 @@ def test_perturbed_truth_keeps_the_nominal_model_file(tmp_path):
     assert moved.max() > 2.0, "truth keypoints come from the perturbed hand"
     info = seq.scenario["truth_model"]
     assert info["perturb_model"] == {"model": "two-finger", "link_length": 0.1, "rng": 2}
+    truth_model = digiteyes.kinematics.model_from_file(out / info["file"])
+    true_keypoints = keypoints(truth_model, digiteyes.forward_kinematics(truth_model,
+                                                                         scenario.states))[1]
+    np.testing.assert_allclose(seq.truth.keypoints_3d, true_keypoints, atol=1e-9)
     lengths = {n: v["length_mm"] for n, v in info["links"].items() if "length_mm" in v}
     nominal_len = {link.name: link.length for link in scenario.model.links
                    if link.kind == "link"}

@@ -355,8 +355,8 @@ def test_camera_behind_the_hand_sees_nothing(hand, relaxed):
 
 
 def test_headlight_lights_the_side_facing_the_camera(hand, relaxed):
-    """The default light shines on the palmar side; seen from the back the hand shows only
-    mostly its ambient level, while a headlight (light_dir=None) lights whatever faces the camera."""
+    """A light from the palmar side leaves the back of the hand mostly at its ambient level;
+    a headlight (light_dir=None) lights whatever faces the camera."""
     cam = CAMERAS["back"]
     fixed = render_views(hand, relaxed, cam, RenderOptions(light_dir=(0.0, 0.0, 1.0)))[0]
     head = render_views(hand, relaxed, cam, RenderOptions(light_dir=None))[0]
@@ -365,3 +365,24 @@ def test_headlight_lights_the_side_facing_the_camera(hand, relaxed):
     assert dark.mean() > 0.8  # surfaces seen from the back mostly face away from +z
     lit = head.image[head.labels >= 0].astype(float)
     assert np.median(lit) > 0.85 * 0.9 * 255
+
+
+def test_fingertip_caps_carry_the_tip_labels(hand):
+    """The distal capsule's far hemisphere is the fingertip: it takes the tip's label even
+    where the tip ball is smaller than the distal link (middle: tip 7 mm, distal 9 mm)."""
+    q = hand.neutral()
+    q[hand.state_index("thumb.cmc_flex")] = np.radians(40)
+    cam = camera((0.0, 60.0, 500.0), target=(0.0, 60.0, 0.0), focal=600.0)
+    view = render_views(hand, q, cam)[0]
+    kin = forward_kinematics(hand, q)
+    start, end, link_idx = kin.link_segments()
+    for tip, link in enumerate(hand.links):
+        if link.kind != "tip":
+            continue
+        distal = list(link_idx).index(tip - 1)
+        axis = (end[distal] - start[distal]) / np.linalg.norm(end[distal] - start[distal])
+        r = hand.links[tip - 1].radius
+        beyond, before = end[distal] + 0.6 * r * axis, end[distal] - 0.6 * r * axis
+        v, u = pixel_of(view, cam.project(np.stack([beyond, before])))
+        assert view.labels[v[0], u[0]] == tip, link.name
+        assert view.labels[v[1], u[1]] == tip - 1, link.name

@@ -40,7 +40,7 @@ def _truth_model(model, perturb: float, seed: int) -> tuple[object, dict | None]
     for link in palm:
         links[link.name] = {"size_mm": [round(v, 6) for v in link.size]}
     return truth, {"perturb_model": {"model": model.name, "link_length": perturb, "rng": seed},
-                   "links": links}
+                   "file": "truth/model.dh", "links": links}
 
 
 def _check_resume(folder: Path, settings: dict) -> None:
@@ -84,19 +84,30 @@ def _check_resume(folder: Path, settings: dict) -> None:
 def render(scenario_name: str, output: str, background: str, color: bool, noise: float,
            blur: float, perturb: float, frames: int | None, seed: int, video: bool,
            force: bool, resume: bool) -> None:
+    if force and resume:
+        raise DigitEyesError("--force and --resume exclude each other: --force starts again, "
+                             "--resume continues")
+    from digiteyes.render.scenarios import build_scenario
+
+    scenario = build_scenario(scenario_name, seed=seed, n_frames=frames)
+    render_scenario(scenario, Path(output), seed=seed, background=background, color=color,
+                    noise=noise, blur=blur, perturb=perturb, video=video, force=force,
+                    resume=resume)
+
+
+def render_scenario(scenario, folder: Path, *, seed: int = 0, background: str = "black",
+                    color: bool = False, noise: float = 0.0, blur: float = 0.0,
+                    perturb: float = 0.0, video: bool = False, force: bool = False,
+                    resume: bool = False, progress: bool | None = None) -> Path:
+    """Render every frame of ``scenario`` through its rig into the sequence ``folder``
+    (shared by ``digiteyes render`` and ``digiteyes demo``); returns the folder."""
     from tqdm import tqdm
 
     from digiteyes.io.dataset import FrameTruth, SequenceWriter
     from digiteyes.render import render_views
-    from digiteyes.render.scenarios import build_scenario
 
-    if force and resume:
-        raise DigitEyesError("--force and --resume exclude each other: --force starts again, "
-                             "--resume continues")
-    scenario = build_scenario(scenario_name, seed=seed, n_frames=frames)
     options = _options(background, color, noise, blur, seed)
     truth_model, truth_info = _truth_model(scenario.model, perturb, seed)
-    folder = Path(output)
     settings = {"scenario": scenario.name, "seed": seed, "frames": scenario.n_frames,
                 "background": background, "color": color, "noise_sigma": noise,
                 "blur_sigma": blur, "perturb": perturb}
@@ -114,7 +125,7 @@ def render(scenario_name: str, output: str, background: str, color: bool, noise:
             raise DigitEyesError(f"{folder}: already holds {start} frames of {total}; "
                                  "nothing to render")
         bar = tqdm(total=total, initial=start, unit="frame", desc=f"render {scenario.name}",
-                   disable=None)
+                   disable=None if progress is None else not progress)
         try:
             for t in range(start, total):
                 views = render_views(truth_model, scenario.states[t], scenario.rig, options,
@@ -130,5 +141,12 @@ def render(scenario_name: str, output: str, background: str, color: bool, noise:
                        f"run the same command with --resume to continue", err=True)
             raise
         bar.close()
+    if truth_info is not None:
+        from digiteyes.kinematics import format_model_text
+
+        (folder / "truth").mkdir(exist_ok=True)
+        (folder / "truth" / "model.dh").write_text(format_model_text(truth_model.spec),
+                                                  encoding="utf-8")
     click.echo(f"wrote {total - start} frame(s) x {len(scenario.rig)} camera(s) of "
                f"{scenario.name} (seed {seed}) to {folder}")
+    return folder

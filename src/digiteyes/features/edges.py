@@ -21,6 +21,8 @@ overhead, not the arithmetic, dominated (DESIGN.md Sec. 8).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from numba import njit
 
@@ -36,9 +38,31 @@ def edge_response(profiles: np.ndarray) -> np.ndarray:
     return out
 
 
+@dataclass(frozen=True)
+class EdgeSearch:
+    """Result of :func:`find_edges` for R profiles with K searches each (arrays (R, K)).
+
+    Attributes
+    ----------
+    position : edge positions along the slices, px (NaN where none was found).
+    height : signed response at the edge, grey levels (0 where none was found).
+    before, after : intensity ``side_px`` before and after the edge along the slice (the
+        two regions the edge separates; NaN where none was found).
+    window_mean : mean intensity of the samples inside the image in the search range
+        (NaN if there are none): what a search that found nothing saw.
+    """
+
+    position: np.ndarray
+    height: np.ndarray
+    before: np.ndarray
+    after: np.ndarray
+    window_mean: np.ndarray
+
+
 @njit(cache=True)
 def _peaks_kernel(profiles, inside, centre, signs, half_window, first, step, min_contrast,
-                  position, height):  # pragma: no cover - compiled
+                  side_samples, position, height, before, after,
+                  window_mean):  # pragma: no cover - compiled
     n_rows, n_samples = profiles.shape
     n_search = centre.shape[1]
     response = np.zeros(n_samples)
@@ -49,6 +73,9 @@ def _peaks_kernel(profiles, inside, centre, signs, half_window, first, step, min
         for k in range(n_search):
             position[row, k] = np.nan
             height[row, k] = 0.0
+            before[row, k] = np.nan
+            after[row, k] = np.nan
+            window_mean[row, k] = np.nan
             c = centre[row, k]
             if not np.isfinite(c):
                 continue
@@ -57,12 +84,20 @@ def _peaks_kernel(profiles, inside, centre, signs, half_window, first, step, min
             hi = min(int(np.floor((c + half_window - first) / step)), n_samples - 3)
             best = -1
             best_value = -np.inf
+            total = 0.0
+            count = 0
             for j in range(lo, hi + 1):
+                if not inside[row, j]:
+                    continue
+                total += prof[j]
+                count += 1
                 s = sign * response[j]
-                if (inside[row, j] and s >= min_contrast and s > best_value
+                if (s >= min_contrast and s > best_value
                         and s >= sign * response[j - 1] and s > sign * response[j + 1]):
                     best = j
                     best_value = s
+            if count > 0:
+                window_mean[row, k] = total / count
             if best < 0:
                 continue
             height[row, k] = best_value
@@ -74,6 +109,8 @@ def _peaks_kernel(profiles, inside, centre, signs, half_window, first, step, min
             if curvature < 0.0:
                 delta = min(max(0.5 * (left - right) / curvature, -0.5), 0.5)
             position[row, k] = first + (best + delta) * step
+            before[row, k] = prof[max(best - side_samples, 0)]
+            after[row, k] = prof[min(best + side_samples, n_samples - 1)]
 
 
 def find_edges(
@@ -84,7 +121,8 @@ def find_edges(
     offsets: np.ndarray,
     half_window: float,
     min_contrast: float,
-) -> tuple[np.ndarray, np.ndarray]:
+    side_px: float = 3.0,
+) -> EdgeSearch:
     """Strongest edge of the wanted sign near each predicted position, subpixel.
 
     Parameters
@@ -97,11 +135,11 @@ def find_edges(
     offsets : (J,) evenly spaced sample positions, px.
     half_window : the search range is ``centre +- half_window``, px.
     min_contrast : smallest accepted response, grey levels (the step height of an edge).
+    side_px : distance from the edge at which ``before`` and ``after`` are read, px.
 
     Returns
     -------
-    position : (R, K) edge positions along the slices, px (NaN where none was found).
-    height : (R, K) signed response at the edge, grey levels (0 where none was found).
+    EdgeSearch
 
     Notes
     -----
@@ -113,10 +151,9 @@ def find_edges(
     """
     profiles = np.ascontiguousarray(profiles, dtype=np.float64)
     centre = np.ascontiguousarray(centre, dtype=np.float64)
-    position = np.empty(centre.shape)
-    height = np.empty(centre.shape)
+    out = [np.empty(centre.shape) for _ in range(5)]
     step = float(offsets[1] - offsets[0]) if len(offsets) > 1 else 1.0
     _peaks_kernel(profiles, np.ascontiguousarray(inside, dtype=np.bool_), centre,
                   np.asarray(signs, dtype=np.float64), float(half_window), float(offsets[0]),
-                  step, float(min_contrast), position, height)
-    return position, height
+                  step, float(min_contrast), round(side_px / step), *out)
+    return EdgeSearch(*out)

@@ -53,6 +53,9 @@ LINK_REASONS = {
     "background-side": "one side found, but the other side's window shows background",
     "outside-window": "the measured axis leaves the search window",
 }
+_LINK_CODES = np.array(["ok", "behind-camera", "foreshortened", "off-image", "few-edges",
+                        "fit-residual", "inconsistent-sides", "background-side",
+                        "outside-window"])
 TIP_REASONS = {
     "ok": "measured",
     "behind-camera": "the tip is not in front of the camera",
@@ -300,13 +303,12 @@ def _measure_links(gray, camera, model, shapes, link_ids, opt) -> dict:
     radii = np.array([model.links[i].radius for i in link_ids], dtype=float)
     T = shapes[rows]
     start, axis = T[:, :3, 3], T[:, :3, 0]
-    end = start + axis * lengths[:, None]
-    t = np.linspace(opt.end_margin, 1.0 - opt.end_margin, n_slices)
-    p_slices = start[:, None] + (t[None, :, None] * lengths[:, None, None]) * axis[:, None]
-    tangent = cylinder_tangent_points(camera, p_slices, axis[:, None], radii[:, None])
-    w = camera.project(np.concatenate(
-        [start[:, None], end[:, None], p_slices, tangent.reshape(n_links, 2 * n_slices, 3)],
-        axis=1))
+    t = np.concatenate([[0.0, 1.0], np.linspace(opt.end_margin, 1.0 - opt.end_margin,
+                                                n_slices)])
+    p_axis = start[:, None] + (t[None, :, None] * lengths[:, None, None]) * axis[:, None]
+    tangent = cylinder_tangent_points(camera, p_axis[:, 2:], axis[:, None], radii[:, None])
+    w = camera.project(np.concatenate([p_axis, tangent.reshape(n_links, 2 * n_slices, 3)],
+                                      axis=1))
     w_ends = w[:, :2]
     w_slices = w[:, 2:2 + n_slices]
     u, length_px = _unit2(w_ends[:, 1] - w_ends[:, 0])
@@ -315,28 +317,28 @@ def _measure_links(gray, camera, model, shapes, link_ids, opt) -> dict:
     contour = np.sort(np.sum((w_tangent - w_slices[:, :, None]) * normal[:, None, None],
                              axis=-1), axis=-1)  # (L, S, 2): side 0 < 0 < side 1
 
-    reason = np.full(n_links, "ok", dtype=object)
     behind = ~np.isfinite(contour).all(axis=(1, 2))
     if camera.projection == "perspective":
-        behind |= (camera.depth(np.stack([start, end], axis=1)) <= radii[:, None]).any(axis=1)
-    short = (length_px < opt.min_axis_px) & ~behind
-    off_image = (camera.in_image(w_slices).sum(axis=1) < opt.min_edge_points) & ~behind & ~short
-    reason[behind] = "behind-camera"
-    reason[short] = "foreshortened"
-    reason[off_image] = "off-image"
+        behind |= (camera.depth(p_axis[:, :2]) <= radii[:, None]).any(axis=1)
+    short = length_px < opt.min_axis_px
+    off_image = camera.in_image(w_slices).sum(axis=1) < opt.min_edge_points
     usable = ~(behind | short | off_image)
     contour = np.where(usable[:, None, None], contour, np.nan)
 
-    # One bilinear lookup for every slice of every link: profiles (L, S, J).
+    # One bilinear lookup for every slice of every link: profiles (L * S, J).
     reach = np.nanmax(np.abs(contour)) if usable.any() else 0.0
     offsets = _sample_grid(reach + 0.5 * opt.window_px, opt.step_px)
     origins = np.where(usable[:, None, None], w_slices, -1e4)
-    profiles, inside = sample_profiles(gray, origins, normal[:, None], offsets)
+    profiles, inside = sample_profiles(gray, origins.reshape(-1, 2),
+                                       np.repeat(normal, n_slices, axis=0), offsets)
     polarity = 1.0 if opt.bright_object else -1.0
-    position, _ = find_edges(profiles.reshape(-1, len(offsets)), inside.reshape(-1, len(offsets)),
-                             contour.reshape(-1, 2), np.array([polarity, -polarity]), offsets,
-                             0.5 * opt.window_px, opt.min_contrast)
-    position = position.reshape(n_links, n_slices, 2).transpose(0, 2, 1)  # (L, 2, S)
+    edges = find_edges(profiles, inside, contour.reshape(-1, 2), np.array([polarity, -polarity]),
+                       offsets, 0.5 * opt.window_px, opt.min_contrast)
+
+    def per_side(a: np.ndarray) -> np.ndarray:  # (L * S, 2) -> (L, 2, S)
+        return a.reshape(n_links, n_slices, 2).transpose(0, 2, 1)
+
+    position = per_side(edges.position)
     found = np.isfinite(position)
     edge_points = w_slices[:, None] + position[..., None] * normal[:, None, None]
     side_normal = normal[:, None]
@@ -349,38 +351,35 @@ def _measure_links(gray, camera, model, shapes, link_ids, opt) -> dict:
     shifted = fit_lines(axis_points, fit.inlier, robust="none", normal=side_normal).line
 
     side_ok = (fit.count >= opt.min_edge_points) & (fit.rms <= opt.max_fit_rms_px)
-    cos_sides = np.abs(np.sum(fit.line[:, 0, :2] * fit.line[:, 1, :2], axis=-1))
+    both = side_ok[:, 0] & side_ok[:, 1]
+    one = side_ok[:, 0] != side_ok[:, 1]
     middle = w_slices[:, n_slices // 2]
-    width = (np.sum(fit.line[:, 0, :2] * middle, axis=-1) - fit.line[:, 0, 2]
-             - np.sum(fit.line[:, 1, :2] * middle, axis=-1) + fit.line[:, 1, 2])
+    offset_middle = np.sum(fit.line[..., :2] * middle[:, None], axis=-1) - fit.line[..., 2]
+    width = offset_middle[:, 0] - offset_middle[:, 1]
     predicted_width = contour[:, n_slices // 2, 1] - contour[:, n_slices // 2, 0]
+    cos_sides = np.abs(np.sum(fit.line[:, 0, :2] * fit.line[:, 1, :2], axis=-1))
     agree = (cos_sides >= math.cos(math.radians(opt.max_side_angle_deg))) & (
         np.abs(width - predicted_width) <= opt.max_width_error * predicted_width)
-    both = side_ok.all(axis=1)
-    found_side = side_ok[:, 1].astype(int)
-    single = np.take_along_axis(shifted, found_side[:, None, None], axis=1)[:, 0]
-    line = np.where(both[:, None], bisector(fit.line[:, 0], fit.line[:, 1]), single)
-    merged = _missing_side_is_object(profiles, inside, offsets, position, fit.inlier,
-                                     contour_sides, found_side, polarity, opt)
-
+    merged = _missing_side_is_object(edges, fit.inlier, side_ok, per_side, polarity)
+    line = np.where(both[:, None], bisector(fit.line[:, 0], fit.line[:, 1]),
+                    np.where(side_ok[:, 1:], shifted[:, 1], shifted[:, 0]))
     end_slices = w_slices[:, [0, -1]]
     distance = np.abs(np.sum(line[:, None, :2] * end_slices, axis=-1) - line[:, None, 2])
     outside = ~(distance <= 0.5 * opt.window_px).all(axis=1)
     enough = (fit.count >= opt.min_edge_points).any(axis=1)
-    any_side = side_ok.any(axis=1)
-    reason[usable & ~enough] = "few-edges"
-    reason[usable & enough & ~any_side] = "fit-residual"
-    reason[usable & both & ~agree] = "inconsistent-sides"
-    reason[usable & any_side & ~both & ~merged] = "background-side"
-    reason[usable & any_side & np.where(both, agree, merged) & outside] = "outside-window"
-    valid = reason == "ok"
+
+    code = np.select(
+        [behind, short, off_image, ~enough, ~(both | one), both & ~agree, one & ~merged,
+         outside],
+        np.arange(1, 9), 0)
+    valid = code == 0
     half = 0.5 * opt.window_px
     span = np.stack([contour[..., 0] - half, contour[..., 1] + half], axis=-1)
     return {
         "predicted_axis": w_ends,
         "line": np.where(valid[:, None], line, np.nan),
         "link_valid": valid,
-        "link_reason": reason.astype(str),
+        "link_reason": _LINK_CODES[code],
         "n_edges": fit.count,
         "side_lines": np.where(side_ok[..., None], fit.line, np.nan),
         "edge_points": edge_points,
@@ -392,36 +391,27 @@ def _measure_links(gray, camera, model, shapes, link_ids, opt) -> dict:
     }
 
 
-def _missing_side_is_object(profiles, inside, offsets, position, inlier, contour_sides,
-                            found_side, polarity, opt) -> np.ndarray:
-    """Whether the side without edges looks like the finger, per link (L,).
+def _missing_side_is_object(edges, inlier, side_ok, per_side, polarity) -> np.ndarray:
+    """Whether the side without a usable line looks like the finger, per link (L,).
 
     The one-edge fallback is right when the other silhouette edge vanished into a region
-    as bright as the finger (another finger, the palm). If instead the other side's search
-    window shows background, the found "edges" cannot be the finger's silhouette (the
-    true edge of that side would lie in the window): they are shading ramps or clutter
-    seen from a prediction that is off the finger. The intensity levels of finger and
-    background are read 3 px inside and outside the found edges.
+    as bright as the finger (another finger, the palm). If the other side's search ranges
+    show background instead, the found "edges" cannot be the finger's silhouette (the
+    missing edge would lie in those ranges): they are shading ramps or clutter seen from a
+    prediction that is off the finger. The finger and background levels are read 3 px
+    inside and outside the found side's inlier edges.
     """
-    n_samples = len(offsets)
-    step = offsets[1] - offsets[0]
-    outward = np.array([-1.0, 1.0])[None, :, None]  # side 0 lies towards -normal
-
-    def level(offset):  # mean profile value at per-edge offsets over the found side's inliers
-        j = np.rint((np.where(inlier, offset, offsets[0]) - offsets[0]) / step)
-        j = np.clip(j, 0, n_samples - 1).astype(int).transpose(0, 2, 1)  # (L, S, 2)
-        values = np.take_along_axis(profiles, j, axis=-1).transpose(0, 2, 1)  # (L, 2, S)
-        values = np.take_along_axis(values, found_side[:, None, None], axis=1)[:, 0]
-        used = np.take_along_axis(inlier, found_side[:, None, None], axis=1)[:, 0]
-        return np.sum(np.where(used, values, 0.0), axis=1) / np.maximum(used.sum(axis=1), 1)
-
-    finger = level(position - 3.0 * outward)
-    background = level(position + 3.0 * outward)
-    missing = 1 - found_side
-    centre = np.take_along_axis(contour_sides, missing[:, None, None], axis=1)[:, 0]  # (L, S)
-    window = inside & (np.abs(offsets - centre[..., None]) <= 0.5 * opt.window_px)
-    seen = np.sum(np.where(window, profiles, 0.0), axis=(1, 2)) / np.maximum(
-        window.sum(axis=(1, 2)), 1)
+    before, after = per_side(edges.before), per_side(edges.after)
+    inner = np.stack([after[:, 0], before[:, 1]], axis=1)  # side 0 edges face +normal
+    outer = np.stack([before[:, 0], after[:, 1]], axis=1)
+    use = inlier & side_ok[..., None]
+    count = np.maximum(use.sum(axis=(1, 2)), 1)
+    finger = np.sum(np.where(use, inner, 0.0), axis=(1, 2)) / count
+    background = np.sum(np.where(use, outer, 0.0), axis=(1, 2)) / count
+    window = per_side(edges.window_mean)
+    seen_mask = ~side_ok[..., None] & np.isfinite(window)
+    seen = np.sum(np.where(seen_mask, window, 0.0), axis=(1, 2)) / np.maximum(
+        seen_mask.sum(axis=(1, 2)), 1)
     return polarity * (seen - 0.5 * (finger + background)) > 0.0
 
 
@@ -484,9 +474,9 @@ def _measure_tips(gray, camera, model, shapes, tip_ids, link_ids, link_part, opt
     profiles, inside = sample_profiles(gray, origins, direction[:, None], offsets)
     polarity = 1.0 if opt.bright_object else -1.0
     centre = np.where(usable[:, None], 0.0, np.nan) * np.ones((1, len(TIP_LATERAL)))
-    shift, _ = find_edges(profiles.reshape(-1, len(offsets)), inside.reshape(-1, len(offsets)),
+    shift = find_edges(profiles.reshape(-1, len(offsets)), inside.reshape(-1, len(offsets)),
                           centre.reshape(-1, 1), np.array([-polarity]), offsets, half,
-                          opt.min_contrast)
+                          opt.min_contrast).position
     shift = shift.reshape(n_tips, len(TIP_LATERAL))  # (T, K): end moved along the axis
     found = np.isfinite(shift)
     edge_points = origins + shift[..., None] * direction[:, None]

@@ -3,7 +3,7 @@
 from digiteyes.kinematics.forward import Kinematics, dh_transform, forward_kinematics
 from digiteyes.kinematics.jacobian import point_jacobian
 from digiteyes.kinematics.model import KinematicModel, Link, model_from_file
-from digiteyes.kinematics.model_file import parse_model_text, read_model_file
+from digiteyes.kinematics.model_file import format_model_text, parse_model_text, read_model_file
 from digiteyes.kinematics.state import (
     State,
     clip_to_limits,
@@ -17,7 +17,7 @@ from digiteyes.models import load_model
 
 __all__ = [
     "KinematicModel", "Kinematics", "Link", "State", "clip_to_limits", "dh_transform",
-    "difference", "forward_kinematics", "integrate", "load_model", "model_from_file",
-    "parse_model_text", "point_jacobian", "read_model_file", "read_states_csv",
+    "difference", "format_model_text", "forward_kinematics", "integrate", "load_model",
+    "model_from_file", "parse_model_text", "point_jacobian", "read_model_file", "read_states_csv",
     "validate_state", "write_states_csv",
 ]

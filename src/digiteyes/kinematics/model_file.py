@@ -267,3 +267,40 @@ def _state_ref(token: str, what: str, path: str, line: int) -> int:
     if match is None:
         raise ModelFileError(path, line, f"{what} must name a state like q7, got {token!r}")
     return int(match[1])
+
+
+def _format_number(value: float) -> str:
+    return repr(float(value)) if value != 0.0 else "0"
+
+
+def format_model_text(spec: ModelSpec) -> str:
+    """Write a :class:`ModelSpec` as model-file text that parses back to the same numbers.
+
+    Numbers are written at full precision (``repr``), limits in radians or mm, so a
+    perturbed model (e.g. the "true" hand of a rendered dataset) can be saved exactly.
+    """
+    lines = [f"model {spec.name}"]
+    if spec.description:
+        lines.append(f"description {spec.description}")
+    lines += ["", "[states]", "# index  name  kind  lower  upper"]
+    for state in sorted(spec.states, key=lambda s: s.index):
+        row = f"q{state.index}  {state.name}  {state.kind}"
+        if math.isfinite(state.lower) or math.isfinite(state.upper):
+            row += f"  {_format_number(state.lower)}  {_format_number(state.upper)}"
+        lines.append(row)
+    lines += ["", "[frames]", "# frame  geometry  theta  d  a  alpha  shape  next"]
+    for frame in sorted(spec.frames, key=lambda f: f.index):
+        if frame.pose_state is not None:
+            theta = f"pose:q{frame.pose_state}"
+        elif frame.theta_state is not None:
+            theta = f"q{frame.theta_state}"
+        else:
+            theta = _format_number(frame.theta)
+        d = f"q{frame.d_state}" if frame.d_state is not None else _format_number(frame.d)
+        shape = "-"
+        if frame.shape is not None:
+            shape = f"{frame.shape.kind}({','.join(_format_number(p) for p in frame.shape.params)})"
+        nexts = " ".join(str(n) for n in frame.next) or "-"
+        lines.append(f"{frame.index}  {frame.geometry or '-'}  {theta}  {d}  "
+                     f"{_format_number(frame.a)}  {_format_number(frame.alpha)}  {shape}  {nexts}")
+    return "\n".join(lines) + "\n"
