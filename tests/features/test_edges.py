@@ -28,8 +28,9 @@ def run(profiles, centre, signs, half=6.0, min_contrast=8.0, inside=None):
     profiles = np.atleast_2d(profiles)
     if inside is None:
         inside = np.ones(profiles.shape, dtype=bool)
-    return find_edges(profiles, inside, np.atleast_2d(centre), np.asarray(signs, float),
-                      OFFSETS, half, min_contrast)
+    found = find_edges(profiles, inside, np.atleast_2d(centre), np.asarray(signs, float),
+                       OFFSETS, half, min_contrast)
+    return found.position, found.height
 
 
 def test_response_of_a_step_is_its_height():
@@ -70,6 +71,15 @@ def test_strongest_peak_wins_and_flanks_are_not_edges():
     # A strong edge just outside the range: its flank inside the range is no edge.
     outside = step_profile(7.0, height=200.0, blur=1.5)
     assert np.isnan(run(outside, [[0.0]], [1.0], half=5.0)[0]).all()
+
+
+def test_levels_beside_the_edge_and_window_mean():
+    profile = step_profile(0.0, height=100.0, base=20.0)
+    found = find_edges(profile[None], np.ones((1, len(OFFSETS)), bool), np.array([[0.0]]),
+                       np.array([1.0]), OFFSETS, 6.0, 8.0, side_px=3.0)
+    assert np.isclose(found.before[0, 0], 20.0) and np.isclose(found.after[0, 0], 120.0)
+    window = np.abs(OFFSETS) <= 6.0
+    assert np.isclose(found.window_mean[0, 0], profile[window].mean())
 
 
 def test_samples_outside_the_image_are_ignored():

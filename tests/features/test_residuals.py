@@ -59,7 +59,7 @@ def test_tangent_jacobian_matches_finite_differences(hand, name):
         q = random_hand_state(hand, rng)
         meas = perturbed_measurement(hand, camera, q, rng)
         assert meas.n_valid == 20
-        r, J, layout = feature_residuals(meas, camera, forward_kinematics(hand, q))
+        r, J, _layout = feature_residuals(meas, camera, forward_kinematics(hand, q))
         assert r.shape == (40,) and J.shape == (40, hand.n_v)
         assert np.abs(r).max() > 0.5
         h = 1e-6
@@ -98,7 +98,7 @@ def test_exact_features_give_zero_residuals(hand, name):
     # ... points in between only without it (distortion bends the projected axis).
     camera = dataclasses.replace(camera, dist=np.zeros(5))
     meas = project_features(camera, hand, kin)
-    r, J, layout = feature_residuals(meas, camera, kin, axis_points=4)
+    r, _J, _layout = feature_residuals(meas, camera, kin, axis_points=4)
     assert r.shape == (15 * 4 + 5 * 2,)
     assert np.abs(r).max() < 1e-9
     r_only, J_none, _ = feature_residuals(meas, camera, kin, jacobian=False, axis_points=4)
@@ -115,7 +115,7 @@ def test_layout_and_invalid_features(hand):
     tips = meas.tip_valid.copy()
     tips[0] = False
     meas = dataclasses.replace(meas, link_valid=valid, tip_valid=tips)
-    r, J, layout = feature_residuals(meas, camera, kin, axis_points=3)
+    r, _J, layout = feature_residuals(meas, camera, kin, axis_points=3)
     assert layout.n_rows == len(r) == 13 * 3 + 4 * 2
     assert layout.camera == camera.name
     links = layout.rows("link")

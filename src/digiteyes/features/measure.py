@@ -53,9 +53,7 @@ LINK_REASONS = {
     "background-side": "one side found, but the other side's window shows background",
     "outside-window": "the measured axis leaves the search window",
 }
-_LINK_CODES = np.array(["ok", "behind-camera", "foreshortened", "off-image", "few-edges",
-                        "fit-residual", "inconsistent-sides", "background-side",
-                        "outside-window"])
+_LINK_CODES = np.array(list(LINK_REASONS))  # reason of each code, checked in priority order
 TIP_REASONS = {
     "ok": "measured",
     "behind-camera": "the tip is not in front of the camera",

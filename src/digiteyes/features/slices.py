@@ -55,29 +55,64 @@ def perpendicular(u: np.ndarray) -> np.ndarray:
     return np.stack([-u[..., 1], u[..., 0]], axis=-1)
 
 
-def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    norm = np.sqrt(np.sum(v * v, axis=-1))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return v / norm[..., None], norm
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
-                     a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
-                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
-
-
-def view_vectors(camera: Camera, p_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unit viewing directions (..., 3) towards world points and their distances (...,).
-
-    Perspective cameras: from the optical centre to each point, distance in mm. Parallel
-    projections (orthographic, scaled orthographic): the optical axis and ``inf``.
-    """
+def _view(camera: Camera) -> tuple[np.ndarray, bool]:
+    """Optical centre (perspective) or optical axis direction (parallel), world frame."""
     if camera.projection == "perspective":
-        return _unit(p_world - camera.centre_world)
-    shape = p_world.shape
-    return (np.broadcast_to(camera.T_cam_world[2, :3], shape).copy(),
-            np.full(shape[:-1], np.inf))
+        return camera.centre_world, True
+    return np.ascontiguousarray(camera.T_cam_world[2, :3]), False
+
+
+@njit(cache=True, error_model="numpy")
+def _tangent_kernel(centres, directions, radius, view, perspective, sphere, out,
+                    sin_view):  # pragma: no cover - compiled
+    for i in range(centres.shape[0]):
+        c = centres[i]
+        e = directions[i]
+        r = radius[i]
+        if perspective:
+            v = c - view
+        else:
+            v = view.copy()
+        distance = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+        v = v / distance
+        if sphere:  # tangent points towards e (out[0]) and beside it (out[1])
+            side = e - (e[0] * v[0] + e[1] * v[1] + e[2] * v[2]) * v
+        else:  # the part of the viewing direction across the axis
+            side = v - (v[0] * e[0] + v[1] * e[1] + v[2] * e[2]) * e
+        s = np.sqrt(side[0] * side[0] + side[1] * side[1] + side[2] * side[2])
+        sin_view[i] = s
+        side = side / s
+        if sphere:
+            other = np.array([v[1] * side[2] - v[2] * side[1], v[2] * side[0] - v[0] * side[2],
+                              v[0] * side[1] - v[1] * side[0]])
+            ratio = r / distance if perspective else 0.0
+            along = r * np.sqrt(1.0 - ratio * ratio)
+            base = c - (r * ratio) * v
+            out[i, 0] = base + along * side
+            out[i, 1] = base + along * other
+        else:
+            w = np.array([e[1] * side[2] - e[2] * side[1], e[2] * side[0] - e[0] * side[2],
+                          e[0] * side[1] - e[1] * side[0]])
+            ratio = r / (distance * s) if perspective else 0.0
+            along = r * np.sqrt(1.0 - ratio * ratio)
+            base = c - (r * ratio) * side
+            out[i, 0] = base - along * w
+            out[i, 1] = base + along * w
+
+
+def _tangent_points(camera, centres, directions, radius, sphere):
+    centres, directions, radius = np.broadcast_arrays(
+        np.asarray(centres, dtype=float), np.asarray(directions, dtype=float),
+        np.asarray(radius, dtype=float)[..., None])
+    lead = centres.shape[:-1]
+    view, perspective = _view(camera)
+    out = np.empty((*lead, 2, 3))
+    sin_view = np.empty(lead)
+    _tangent_kernel(np.ascontiguousarray(centres.reshape(-1, 3)),
+                    np.ascontiguousarray(directions.reshape(-1, 3)),
+                    np.ascontiguousarray(radius[..., 0].reshape(-1)), view, perspective, sphere,
+                    out.reshape(-1, 2, 3), sin_view.reshape(-1))
+    return out, sin_view
 
 
 def cylinder_tangent_points(
@@ -94,7 +129,7 @@ def cylinder_tangent_points(
     Parameters
     ----------
     p_world : (..., 3) points on the axis, mm.
-    axis_world : (..., 3) unit axis directions.
+    axis_world : (..., 3) unit axis directions (broadcast against ``p_world``).
     radius : (...,) cylinder radii, mm.
 
     Returns
@@ -102,16 +137,7 @@ def cylinder_tangent_points(
     (..., 2, 3) world tangent points, mm (NaN where the optical centre lies inside the
     cylinder or the axis is along the viewing ray).
     """
-    v_hat, distance = view_vectors(camera, p_world)
-    v_perp = v_hat - np.sum(v_hat * axis_world, axis=-1, keepdims=True) * axis_world
-    v_perp, sin_view = _unit(v_perp)
-    w_hat = _cross(axis_world, v_perp)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        ratio = radius / (distance * sin_view)
-        along = np.sqrt(1.0 - ratio**2)
-    base = p_world - (radius * ratio)[..., None] * v_perp
-    side = (radius * along)[..., None] * w_hat
-    return np.stack([base - side, base + side], axis=-2)
+    return _tangent_points(camera, p_world, axis_world, radius, False)[0]
 
 
 def sphere_tangent_points(
@@ -122,7 +148,7 @@ def sphere_tangent_points(
     The silhouette point of a sphere on the side of the 3D direction ``e`` is the tangent
     point ``c + r N`` with ``N = -(r/d) v + sqrt(1 - (r/d)^2) e_perp`` (``v`` the unit viewing
     direction, ``d`` the centre's distance, ``e_perp`` the unit part of ``e`` perpendicular
-    to ``v``); the point across uses ``v x e_perp`` instead of ``e_perp``.
+    to ``v``); the point beside it uses ``v x e_perp`` instead of ``e_perp``.
 
     Parameters
     ----------
@@ -132,19 +158,11 @@ def sphere_tangent_points(
 
     Returns
     -------
-    points : (T, 2, 3) tangent points along and across, mm.
+    points : (T, 2, 3) tangent points along and beside, mm.
     sin_view : (T,) sine of the angle between the direction and the viewing ray (small
         values mean the finger points at or away from the camera).
     """
-    v_hat, distance = view_vectors(camera, centre_world)
-    e_perp = direction_world - np.sum(direction_world * v_hat, axis=-1, keepdims=True) * v_hat
-    e_perp, sin_view = _unit(e_perp)
-    f_perp = _cross(v_hat, e_perp)
-    with np.errstate(invalid="ignore"):
-        ratio = radius / distance
-        along = (radius * np.sqrt(1.0 - ratio**2))[..., None]
-    base = centre_world - (radius * ratio)[..., None] * v_hat
-    return np.stack([base + along * e_perp, base + along * f_perp], axis=-2), sin_view
+    return _tangent_points(camera, centre_world, direction_world, radius, True)
 
 
 @njit(cache=True)

@@ -91,7 +91,7 @@ def as_state_batch(model: KinematicModel, q: np.ndarray) -> tuple[np.ndarray, bo
             f"model {model.name!r} needs states of size {model.n_q} (or batches (N, "
             f"{model.n_q})); got shape {q.shape}"
         )
-    q2 = np.ascontiguousarray(q.reshape(-1, model.n_q))
+    q2 = np.ascontiguousarray(q.reshape(len(q) if batched else 1, model.n_q))
     if not np.isfinite(q2.sum()) and not np.isfinite(q2).all():
         bad = np.argwhere(~np.isfinite(q2))[0]
         raise StateError(f"state q{bad[1]} ({model.state_names[bad[1]]}) is not finite")
