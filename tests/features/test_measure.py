@@ -75,6 +75,23 @@ def test_one_edge_fallback_when_one_side_merges_with_a_bright_region(
     assert np.isnan(meas.side_lines[0, 1 - only_side]).all()
 
 
+def test_sides_that_disagree_with_the_model_are_rejected(stick, flat_camera, stick_state,
+                                                          capsule_image):
+    q = stick_state(-30.0, 0.0, 0.3)
+    a, b = truth(stick, flat_camera, q)
+    too_wide = measure(capsule_image(a, b, 1.5 * RADIUS), stick, flat_camera, q)
+    assert (too_wide.n_edges[0] >= 9).all()
+    assert too_wide.link_reason[0] == "inconsistent-sides"
+    # A thin bright streak where the prediction expects the finger's left contour, and
+    # background on the right: that one "side" cannot be the finger's silhouette.
+    image = np.full((flat_camera.height, flat_camera.width), 40.0)
+    n = axis_normal(a, b)
+    streak = capsule_image(a - RADIUS * n, b - RADIUS * n, 1.5, fg=200.0, bg=0.0)
+    meas = measure(image + streak, stick, flat_camera, q)
+    assert meas.n_edges[0, 0] >= 9 and meas.n_edges[0, 1] == 0
+    assert meas.link_reason[0] == "background-side" and not meas.link_valid[0]
+
+
 def test_no_edges_means_invalid(stick, flat_camera, stick_state):
     image = np.full((flat_camera.height, flat_camera.width), 90.0)
     meas = measure(image, stick, flat_camera, stick_state(-30.0, 0.0, 0.4))

@@ -8,9 +8,10 @@ Each fit is total least squares (the line minimising the sum of squared perpendi
 distances: through the weighted centroid, along the major axis of the weighted 2x2
 scatter matrix, in closed form) inside iteratively reweighted least squares (IRLS):
 
-1. start from the least-median-of-squares line: of the lines through every pair of
-   points, the one with the smallest median distance to all points (exhaustive, so
-   deterministic: 45 pairs for 10 points);
+1. fit with equal weights; unless every point lies within ``4.685 min_scale`` of that
+   line (no outliers), restart from the least-median-of-squares line: of the lines
+   through every pair of points, the one with the smallest median distance to all points
+   (exhaustive, so deterministic: 45 pairs for 10 points);
 2. residuals ``r``, robust scale ``sigma = max(1.4826 median|r|, min_scale)``;
 3. weights from Tukey's biweight (``(1 - (r / 4.685 sigma)^2)^2``, zero beyond) or
    Huber's (``min(1, 1.345 sigma / |r|)``); weighted refit; repeat a fixed number of
@@ -179,10 +180,15 @@ def _fit_kernel(points, mask, normal, loss, iterations, min_scale, line, inlier,
         for i in range(n_points):
             weights[i] = 1.0 if mask[b, i] else 0.0
             n_used += mask[b, i]
-        if loss != 0 and n_used >= 3:
-            ok = _lmeds(pts, mask[b], line[b], scratch)
-        else:
-            ok = n_used >= 2 and _tls(pts, weights, line[b])
+        ok = n_used >= 2 and _tls(pts, weights, line[b])
+        if ok and loss != 0 and n_used >= 3:
+            worst = 0.0
+            for i in range(n_points):
+                if mask[b, i]:
+                    worst = max(worst, abs(line[b, 0] * pts[i, 0] + line[b, 1] * pts[i, 1]
+                                           - line[b, 2]))
+            if worst > TUKEY_C * min_scale:  # outliers may have tilted the fit
+                ok = _lmeds(pts, mask[b], line[b], scratch)
         for _ in range(iterations if ok and loss != 0 else 0):
             for i in range(n_points):
                 residual[i] = line[b, 0] * pts[i, 0] + line[b, 1] * pts[i, 1] - line[b, 2]

@@ -10,22 +10,28 @@ when crossing the left contour towards the right, darker at the right contour) a
 ``min_contrast`` grey levels is the edge, refined to subpixel precision.
 
 A robust line is fitted to each side's edge points; the link feature (report Sec. 3.2) is
-the bisector of the two side lines. When only one side is usable, its edge points are moved
-towards the axis by their predicted contour offsets and a line through them is the
-feature (one-edge fallback, report Sec. 4). Tips are measured on three slices along the
-finger axis, beyond the distal link: the end of the silhouette, moved back by the
-projected tip radius, gives the tip centre; the lateral position comes from the measured
-axis line of the distal link when it is valid.
+the bisector of the two side lines, provided they agree with each other and with the
+model (angle, width). When only one side is usable, its edge points are moved towards the
+axis by their predicted contour offsets and a line through them is the feature (one-edge
+fallback, report Sec. 4), provided the other side's search ranges show the finger's own
+intensity (it merged with another part of the hand) rather than background. Tips are
+measured on three slices along the finger axis, beyond the distal link: the end of the
+silhouette, moved back by the projected radius of the finger end, gives the tip centre;
+the lateral position comes from the measured axis line of the distal link when it is
+valid.
 
-Every link and tip carries a validity flag and a reason (see :data:`LINK_REASONS`), so
-trackers can exclude bad features from the residual and detect track loss.
+Every link and tip carries a validity flag and a reason (:data:`LINK_REASONS`,
+:data:`TIP_REASONS`), so trackers can exclude bad features from the residual and detect
+track loss. All model points are projected with one ``camera.project`` call; all slices of
+all links are sampled with one ``cv2.remap`` call (docs/features.md).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
+from functools import lru_cache
 
 import numpy as np
 
@@ -61,6 +67,7 @@ TIP_REASONS = {
     "few-edges": "fewer than min_tip_edges tip slices found the silhouette end",
     "inconsistent": "the tip slices disagree by more than max_tip_spread_px",
 }
+_TIP_CODES = np.array(list(TIP_REASONS))
 TIP_LATERAL = np.array([-0.5, 0.0, 0.5])  # tip slice offsets, fractions of the tip radius
 MIN_TIP_SIN = 0.2
 
@@ -279,12 +286,108 @@ def measure_features(
             f"{gray.shape[1]}x{gray.shape[0]}"
         )
     shapes = _single_state_shapes(kin)
+    tracked = _tracked(model, None if links is None else tuple(links),
+                       None if tips is None else tuple(tips), options.tip_end)
+    # All model points of this camera (link axes, contour tangents, tip silhouettes) are
+    # projected in one call.
+    link_3d, link_depth = _link_points(camera, shapes, tracked, options)
+    tip_3d, sin_view = _tip_points(camera, shapes, tracked)
+    w = camera.project(np.concatenate([link_3d.reshape(-1, 3), tip_3d.reshape(-1, 3)]))
+    n = link_3d.shape[0] * link_3d.shape[1]
+    behind_link = behind_tip = False
+    if camera.projection == "perspective":
+        depth = camera.depth(np.concatenate([link_depth.reshape(-1, 3), tip_3d[:, 0]]))
+        behind_link = (depth[:link_depth.shape[0] * 2].reshape(-1, 2)
+                       <= tracked.link_radii[:, None]).any(axis=1)
+        behind_tip = depth[link_depth.shape[0] * 2:] <= tracked.tip_radii
+    link_part = _measure_links(gray, camera, w[:n].reshape((*link_3d.shape[:2], 2)),
+                               behind_link, tracked, options)
+    tip_part = _measure_tips(gray, w[n:].reshape(-1, 3, 2), sin_view, behind_tip, tracked,
+                             link_part, options)
+    return FeatureMeasurement(camera=camera.name, link_ids=tracked.link_ids,
+                              tip_ids=tracked.tip_ids, **link_part, **tip_part)
+
+
+@dataclass(frozen=True)
+class _Tracked:
+    """What a tracker set needs from the model, computed once per (model, selection)."""
+
+    link_ids: np.ndarray
+    link_rows: np.ndarray
+    link_lengths: np.ndarray
+    link_radii: np.ndarray
+    tip_ids: np.ndarray
+    tip_rows: np.ndarray
+    tip_axis_rows: np.ndarray  # row whose shape-frame x axis is the finger axis at the tip
+    tip_radii: np.ndarray  # radius of the finger end (see FeatureOptions.tip_end)
+    tip_parent: np.ndarray  # position of the tip's parent link in link_ids, -1 if none
+
+
+@lru_cache(maxsize=64)
+def _tracked(model: KinematicModel, links: tuple[str, ...] | None,
+             tips: tuple[str, ...] | None, tip_end: str) -> _Tracked:
     link_ids = select_links(model, links, "link")
     tip_ids = select_links(model, tips, "tip")
-    link_part = _measure_links(gray, camera, model, shapes, link_ids, options)
-    tip_part = _measure_tips(gray, camera, model, shapes, tip_ids, link_ids, link_part, options)
-    return FeatureMeasurement(camera=camera.name, link_ids=link_ids, tip_ids=tip_ids,
-                              **link_part, **tip_part)
+    row_to_link = {link.row: i for i, link in enumerate(model.links) if link.kind == "link"}
+    parents = [row_to_link.get(int(model.parent[model.links[i].row]), -1) for i in tip_ids]
+    position = {int(link): k for k, link in enumerate(link_ids)}
+    tip_radii = [model.links[i].radius for i in tip_ids]
+    if tip_end == "capsule":
+        tip_radii = [max(r, model.links[p].radius) if p >= 0 else r
+                     for r, p in zip(tip_radii, parents, strict=True)]
+    tracked = _Tracked(
+        link_ids=link_ids,
+        link_rows=np.array([model.links[i].row for i in link_ids], dtype=int),
+        link_lengths=np.array([model.links[i].length for i in link_ids], dtype=float),
+        link_radii=np.array([model.links[i].radius for i in link_ids], dtype=float),
+        tip_ids=tip_ids,
+        tip_rows=np.array([model.links[i].row for i in tip_ids], dtype=int),
+        tip_axis_rows=np.array([model.links[p].row if p >= 0 else model.links[i].row
+                                for i, p in zip(tip_ids, parents, strict=True)], dtype=int),
+        tip_radii=np.array(tip_radii, dtype=float),
+        tip_parent=np.array([position.get(p, -1) for p in parents], dtype=int),
+    )
+    for field in fields(tracked):
+        getattr(tracked, field.name).setflags(write=False)  # shared through the cache
+    return tracked
+
+
+@lru_cache(maxsize=16)
+def _fractions(end_margin: float, n_slices: int) -> np.ndarray:
+    """Axis fractions of the link start, end and slice positions."""
+    t = np.concatenate([[0.0, 1.0], np.linspace(end_margin, 1.0 - end_margin, n_slices)])
+    t.setflags(write=False)
+    return t
+
+
+def _link_points(camera, shapes, tracked, opt) -> tuple[np.ndarray, np.ndarray]:
+    """World points to project per link (L, 2 + 3 S, 3): axis start and end, slice centres,
+    contour tangent points; and the axis ends (L, 2, 3) for the depth test."""
+    T = shapes[tracked.link_rows]
+    start, axis = T[:, :3, 3], T[:, :3, 0]
+    t = _fractions(opt.end_margin, opt.slices_per_link)
+    p_axis = start[:, None] + (t[:, None] * tracked.link_lengths[:, None, None]) * axis[:, None]
+    tangent = cylinder_tangent_points(camera, p_axis[:, 2:], axis[:, None],
+                                      tracked.link_radii[:, None])
+    n_links = len(tracked.link_ids)
+    return np.concatenate([p_axis, tangent.reshape(n_links, -1, 3)], axis=1), p_axis[:, :2]
+
+
+def _tip_points(camera, shapes, tracked) -> tuple[np.ndarray, np.ndarray]:
+    """World points to project per tip (T, 3, 3): centre, silhouette along and beside the
+    finger axis; and the sine of the axis' angle to the viewing ray (T,)."""
+    centre = shapes[tracked.tip_rows, :3, 3]
+    axis = shapes[tracked.tip_axis_rows, :3, 0]
+    tangent, sin_view = sphere_tangent_points(camera, centre, axis, tracked.tip_radii)
+    return np.concatenate([centre[:, None], tangent], axis=1), sin_view
+
+
+def _first_reason(conditions: list[np.ndarray]) -> np.ndarray:
+    """Code of the first true condition per feature (1-based; 0 if none)."""
+    code = np.zeros(len(conditions[0]), dtype=int)
+    for k in range(len(conditions), 0, -1):
+        code[conditions[k - 1]] = k
+    return code
 
 
 def _unit2(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -294,19 +397,8 @@ def _unit2(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.where(length[..., None] > 0, v / safe, [1.0, 0.0]), length
 
 
-def _measure_links(gray, camera, model, shapes, link_ids, opt) -> dict:
-    n_links, n_slices = len(link_ids), opt.slices_per_link
-    rows = np.array([model.links[i].row for i in link_ids], dtype=int)
-    lengths = np.array([model.links[i].length for i in link_ids], dtype=float)
-    radii = np.array([model.links[i].radius for i in link_ids], dtype=float)
-    T = shapes[rows]
-    start, axis = T[:, :3, 3], T[:, :3, 0]
-    t = np.concatenate([[0.0, 1.0], np.linspace(opt.end_margin, 1.0 - opt.end_margin,
-                                                n_slices)])
-    p_axis = start[:, None] + (t[None, :, None] * lengths[:, None, None]) * axis[:, None]
-    tangent = cylinder_tangent_points(camera, p_axis[:, 2:], axis[:, None], radii[:, None])
-    w = camera.project(np.concatenate([p_axis, tangent.reshape(n_links, 2 * n_slices, 3)],
-                                      axis=1))
+def _measure_links(gray, camera, w, behind, tracked, opt) -> dict:
+    n_links, n_slices = len(tracked.link_ids), opt.slices_per_link
     w_ends = w[:, :2]
     w_slices = w[:, 2:2 + n_slices]
     u, length_px = _unit2(w_ends[:, 1] - w_ends[:, 0])
@@ -315,9 +407,7 @@ def _measure_links(gray, camera, model, shapes, link_ids, opt) -> dict:
     contour = np.sort(np.sum((w_tangent - w_slices[:, :, None]) * normal[:, None, None],
                              axis=-1), axis=-1)  # (L, S, 2): side 0 < 0 < side 1
 
-    behind = ~np.isfinite(contour).all(axis=(1, 2))
-    if camera.projection == "perspective":
-        behind |= (camera.depth(p_axis[:, :2]) <= radii[:, None]).any(axis=1)
+    behind = behind | ~np.isfinite(contour).all(axis=(1, 2))
     short = length_px < opt.min_axis_px
     off_image = camera.in_image(w_slices).sum(axis=1) < opt.min_edge_points
     usable = ~(behind | short | off_image)
@@ -341,13 +431,6 @@ def _measure_links(gray, camera, model, shapes, link_ids, opt) -> dict:
     edge_points = w_slices[:, None] + position[..., None] * normal[:, None, None]
     side_normal = normal[:, None]
     fit = fit_lines(edge_points, found, robust=opt.robust, normal=side_normal)
-    # One-edge fallback: each side's inliers moved onto the predicted axis by their
-    # predicted contour offsets, then one line through them.
-    contour_sides = contour.transpose(0, 2, 1)
-    axis_points = w_slices[:, None] + (position - contour_sides)[..., None] * normal[:, None,
-                                                                                       None]
-    shifted = fit_lines(axis_points, fit.inlier, robust="none", normal=side_normal).line
-
     side_ok = (fit.count >= opt.min_edge_points) & (fit.rms <= opt.max_fit_rms_px)
     both = side_ok[:, 0] & side_ok[:, 1]
     one = side_ok[:, 0] != side_ok[:, 1]
@@ -358,18 +441,25 @@ def _measure_links(gray, camera, model, shapes, link_ids, opt) -> dict:
     cos_sides = np.abs(np.sum(fit.line[:, 0, :2] * fit.line[:, 1, :2], axis=-1))
     agree = (cos_sides >= math.cos(math.radians(opt.max_side_angle_deg))) & (
         np.abs(width - predicted_width) <= opt.max_width_error * predicted_width)
-    merged = _missing_side_is_object(edges, fit.inlier, side_ok, per_side, polarity)
-    line = np.where(both[:, None], bisector(fit.line[:, 0], fit.line[:, 1]),
-                    np.where(side_ok[:, 1:], shifted[:, 1], shifted[:, 0]))
+    line = bisector(fit.line[:, 0], fit.line[:, 1])
+    merged = np.zeros(n_links, dtype=bool)
+    if one.any():
+        # One-edge fallback: the usable side's inliers moved onto the predicted axis by
+        # their predicted contour offsets, then one line through them.
+        contour_sides = contour.transpose(0, 2, 1)
+        axis_points = w_slices[:, None] + (position - contour_sides)[..., None] \
+            * normal[:, None, None]
+        shifted = fit_lines(axis_points, fit.inlier, robust="none", normal=side_normal).line
+        line = np.where(both[:, None], line,
+                        np.where(side_ok[:, 1:], shifted[:, 1], shifted[:, 0]))
+        merged = _missing_side_is_object(edges, fit.inlier, side_ok, per_side, polarity)
     end_slices = w_slices[:, [0, -1]]
     distance = np.abs(np.sum(line[:, None, :2] * end_slices, axis=-1) - line[:, None, 2])
     outside = ~(distance <= 0.5 * opt.window_px).all(axis=1)
     enough = (fit.count >= opt.min_edge_points).any(axis=1)
 
-    code = np.select(
-        [behind, short, off_image, ~enough, ~(both | one), both & ~agree, one & ~merged,
-         outside],
-        np.arange(1, 9), 0)
+    code = _first_reason([behind, short, off_image, ~enough, ~(both | one), both & ~agree,
+                          one & ~merged, outside])
     valid = code == 0
     half = 0.5 * opt.window_px
     span = np.stack([contour[..., 0] - half, contour[..., 1] + half], axis=-1)
@@ -413,48 +503,21 @@ def _missing_side_is_object(edges, inlier, side_ok, per_side, polarity) -> np.nd
     return polarity * (seen - 0.5 * (finger + background)) > 0.0
 
 
-def _tip_axes(model: KinematicModel, shapes: np.ndarray, tip_ids: np.ndarray):
-    """3D outward axis of each tip (its parent cylinder's axis, else its own x axis) and
-    the index into ``model.links`` of that parent cylinder (-1 if none)."""
-    row_to_link = {link.row: i for i, link in enumerate(model.links) if link.kind == "link"}
-    parents = np.array([row_to_link.get(int(model.parent[model.links[i].row]), -1)
-                        for i in tip_ids], dtype=int)
-    own = np.array([model.links[i].row for i in tip_ids], dtype=int)
-    axis_rows = np.where(parents >= 0,
-                         [model.links[p].row if p >= 0 else 0 for p in parents], own)
-    return parents, shapes[axis_rows.astype(int), :3, 0].reshape(-1, 3)
-
-
-def _measure_tips(gray, camera, model, shapes, tip_ids, link_ids, link_part, opt) -> dict:
-    n_tips = len(tip_ids)
-    rows = np.array([model.links[i].row for i in tip_ids], dtype=int)
-    radii = np.array([model.links[i].radius for i in tip_ids], dtype=float)
-    centre3 = shapes[rows, :3, 3]
-    parents, axis3 = _tip_axes(model, shapes, tip_ids)
-    if opt.tip_end == "capsule":
-        parent_radii = np.array([model.links[p].radius if p >= 0 else 0.0 for p in parents])
-        radii = np.maximum(radii, parent_radii)
-    tangent, sin_view = sphere_tangent_points(camera, centre3, axis3, radii)
-    w = camera.project(np.concatenate([centre3[:, None], tangent], axis=1))
+def _measure_tips(gray, w, sin_view, behind, tracked, link_part, opt) -> dict:
+    n_tips = len(tracked.tip_ids)
     w_c = w[:, 0]
     u, along = _unit2(w[:, 1] - w_c)
     across = np.sqrt(np.sum((w[:, 2] - w_c) ** 2, axis=-1))
-
-    reason = np.full(n_tips, "ok", dtype=object)
-    behind = ~(np.isfinite(along) & np.isfinite(across))
-    if camera.projection == "perspective":
-        behind |= camera.depth(centre3) <= radii
+    behind = behind | ~(np.isfinite(along) & np.isfinite(across))
     short = ~behind & ~(sin_view >= MIN_TIP_SIN)
-    reason[behind] = "behind-camera"
-    reason[short] = "foreshortened"
     usable = ~(behind | short)
 
     # Lateral position and direction from the measured axis of the parent link, if valid.
-    position_of = {int(link): k for k, link in enumerate(link_ids)}
-    k = np.array([position_of.get(int(p), -1) for p in parents], dtype=int)
+    k = tracked.tip_parent
     has_line = (k >= 0) & usable
     has_line[has_line] = link_part["link_valid"][k[has_line]]
-    line = link_part["line"][np.maximum(k, 0)] if len(link_ids) else np.zeros((n_tips, 3))
+    line = (link_part["line"][np.maximum(k, 0)] if len(tracked.link_ids)
+            else np.zeros((n_tips, 3)))
     m = line[:, :2]
     base = np.where(has_line[:, None],
                     w_c - (np.sum(m * w_c, axis=-1) - line[:, 2])[:, None] * m, w_c)
@@ -473,8 +536,8 @@ def _measure_tips(gray, camera, model, shapes, tip_ids, link_ids, link_part, opt
     polarity = 1.0 if opt.bright_object else -1.0
     centre = np.where(usable[:, None], 0.0, np.nan) * np.ones((1, len(TIP_LATERAL)))
     shift = find_edges(profiles.reshape(-1, len(offsets)), inside.reshape(-1, len(offsets)),
-                          centre.reshape(-1, 1), np.array([-polarity]), offsets, half,
-                          opt.min_contrast).position
+                       centre.reshape(-1, 1), np.array([-polarity]), offsets, half,
+                       opt.min_contrast).position
     shift = shift.reshape(n_tips, len(TIP_LATERAL))  # (T, K): end moved along the axis
     found = np.isfinite(shift)
     edge_points = origins + shift[..., None] * direction[:, None]
@@ -483,10 +546,9 @@ def _measure_tips(gray, camera, model, shapes, tip_ids, link_ids, link_part, opt
         mean_shift = np.where(found, shift, 0.0).sum(axis=1) / count
     spread = (np.where(found, shift, -np.inf).max(axis=1, initial=-np.inf)
               - np.where(found, shift, np.inf).min(axis=1, initial=np.inf))
-    few = usable & (count < opt.min_tip_edges)
-    reason[few] = "few-edges"
-    reason[usable & ~few & (spread > opt.max_tip_spread_px)] = "inconsistent"
-    valid = reason == "ok"
+    few = count < opt.min_tip_edges
+    code = _first_reason([behind, short, few, spread > opt.max_tip_spread_px])
+    valid = code == 0
     measured = base + mean_shift[:, None] * direction
     ends = np.stack([origins - half * direction[:, None], origins + half * direction[:, None]],
                     axis=-2)
@@ -494,7 +556,7 @@ def _measure_tips(gray, camera, model, shapes, tip_ids, link_ids, link_part, opt
         "predicted_tip": w_c,
         "measured_tip": np.where(valid[:, None], measured, np.nan),
         "tip_valid": valid,
-        "tip_reason": reason.astype(str),
+        "tip_reason": _TIP_CODES[code],
         "tip_direction": direction,
         "tip_slice_ends": ends,
         "tip_edge_points": edge_points,

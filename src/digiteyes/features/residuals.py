@@ -29,13 +29,14 @@ stepped with :func:`~digiteyes.kinematics.integrate`) or the raw state numbers
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
 from digiteyes.camera import Camera
 from digiteyes.errors import StateError
 from digiteyes.features.measure import FeatureMeasurement
-from digiteyes.kinematics import Kinematics, point_jacobian
+from digiteyes.kinematics import KinematicModel, Kinematics, point_jacobian
 
 
 @dataclass(frozen=True)
@@ -67,6 +68,41 @@ class ResidualLayout:
     def rows(self, kind: str) -> np.ndarray:
         """Row indices of one kind (``"link"`` or ``"tip"``)."""
         return np.flatnonzero(self.kind == kind)
+
+
+@dataclass(frozen=True)
+class _Rows:
+    """Model points and row labels for a set of valid features (cached per selection)."""
+
+    rows: np.ndarray  # shape-frame row of each model point
+    p_shape: np.ndarray  # the points in their shape frames, mm
+    n_link_rows: int
+    kind: np.ndarray
+    link_index: np.ndarray
+    component: np.ndarray
+
+    @staticmethod
+    @lru_cache(maxsize=256)
+    def build(model: KinematicModel, link_ids: tuple[int, ...], tip_ids: tuple[int, ...],
+              axis_points: int) -> _Rows:
+        fractions = np.linspace(0.0, 1.0, axis_points) if axis_points > 1 else np.zeros(1)
+        lengths = np.array([model.links[i].length for i in link_ids], dtype=float)
+        rows = np.concatenate([np.repeat([model.links[i].row for i in link_ids], axis_points),
+                               [model.links[i].row for i in tip_ids]]).astype(int)
+        n_link_rows = len(link_ids) * axis_points
+        p_shape = np.zeros((len(rows), 3))
+        p_shape[:n_link_rows, 0] = (lengths[:, None] * fractions[None, :]).ravel()
+        arrays = dict(
+            rows=rows, p_shape=p_shape,
+            kind=np.array(["link"] * n_link_rows + ["tip"] * (2 * len(tip_ids)), dtype=str),
+            link_index=np.concatenate([np.repeat(np.array(link_ids, dtype=int), axis_points),
+                                       np.repeat(np.array(tip_ids, dtype=int), 2)]),
+            component=np.concatenate([np.tile(np.arange(axis_points), len(link_ids)),
+                                      np.tile([0, 1], len(tip_ids))]).astype(int),
+        )
+        for a in arrays.values():
+            a.setflags(write=False)  # shared between calls through the cache
+        return _Rows(n_link_rows=n_link_rows, **arrays)
 
 
 def feature_residuals(
@@ -105,50 +141,36 @@ def feature_residuals(
             f"feature_residuals needs the kinematics of one state, got "
             f"{kin.T_world_shape.shape[0]}"
         )
-    model = kin.model
     links = np.flatnonzero(meas.link_valid)
     tips = np.flatnonzero(meas.tip_valid)
-    link_ids = meas.link_ids[links]
-    tip_ids = meas.tip_ids[tips]
-    fractions = np.linspace(0.0, 1.0, axis_points) if axis_points > 1 else np.zeros(1)
-    lengths = np.array([model.links[i].length for i in link_ids], dtype=float)
-    rows = np.concatenate([
-        np.repeat([model.links[i].row for i in link_ids], axis_points),
-        [model.links[i].row for i in tip_ids],
-    ]).astype(int)
-    p_shape = np.zeros((len(rows), 3))
-    n_link_rows = len(links) * axis_points
-    p_shape[:n_link_rows, 0] = (lengths[:, None] * fractions[None, :]).ravel()
+    rows_of = _Rows.build(kin.model, tuple(meas.link_ids[links]), tuple(meas.tip_ids[tips]),
+                          axis_points)
+    n_link_rows = rows_of.n_link_rows
 
     if jacobian:
-        p_world, J_point = point_jacobian(kin, rows, p_shape, form=form)
+        p_world, J_point = point_jacobian(kin, rows_of.rows, rows_of.p_shape, form=form)
         if J_point.ndim == 4:
             p_world, J_point = p_world[0], J_point[0]
     else:
-        p_world = kin.points(rows, p_shape).reshape(-1, 3)
+        p_world = kin.points(rows_of.rows, rows_of.p_shape).reshape(-1, 3)
     w, dw = camera.project_with_jacobian(p_world, jacobian=jacobian)
 
-    m = np.repeat(meas.line[links, :2], axis_points, axis=0)
-    rho = np.repeat(meas.line[links, 2], axis_points)
+    line = meas.line[links]
+    m = np.repeat(line[:, :2], axis_points, axis=0)
     w_link, w_tip = w[:n_link_rows], w[n_link_rows:]
-    r_link = np.sum(m * w_link, axis=-1) - rho
-    r_tip = (w_tip - meas.measured_tip[tips]).ravel()
-    r = np.concatenate([r_link, r_tip])
-
+    r = np.concatenate([np.sum(m * w_link, axis=-1) - np.repeat(line[:, 2], axis_points),
+                        (w_tip - meas.measured_tip[tips]).ravel()])
     J = None
     if jacobian:
         dw_dq = dw @ J_point  # (P, 2, n)
-        J_link = np.einsum("pi,pin->pn", m, dw_dq[:n_link_rows])
-        J = np.concatenate([J_link, dw_dq[n_link_rows:].reshape(-1, dw_dq.shape[-1])])
-
+        J = np.concatenate([np.einsum("pi,pin->pn", m, dw_dq[:n_link_rows]),
+                            dw_dq[n_link_rows:].reshape(-1, dw_dq.shape[-1])])
     layout = ResidualLayout(
         camera=meas.camera,
-        kind=np.array(["link"] * n_link_rows + ["tip"] * (2 * len(tips)), dtype=str),
-        feature=np.concatenate([np.repeat(links, axis_points), np.repeat(tips, 2)]).astype(int),
-        link_index=np.concatenate([np.repeat(link_ids, axis_points),
-                                   np.repeat(tip_ids, 2)]).astype(int),
-        component=np.concatenate([np.tile(np.arange(axis_points), len(links)),
-                                  np.tile([0, 1], len(tips))]).astype(int),
-        points_px=np.concatenate([w_link, np.repeat(w_tip, 2, axis=0)]).reshape(-1, 2),
+        kind=rows_of.kind,
+        feature=np.concatenate([np.repeat(links, axis_points), np.repeat(tips, 2)]),
+        link_index=rows_of.link_index,
+        component=rows_of.component,
+        points_px=np.concatenate([w_link, np.repeat(w_tip, 2, axis=0)]),
     )
     return r, J, layout

@@ -24,6 +24,7 @@ EDGE_IN = (40, 255, 40)
 EDGE_OUT = (255, 70, 70)
 MEASURED = (255, 0, 255)
 RESIDUAL = (255, 40, 40)
+DEFAULT_HALF_WIDTH = 6.0  # crossbar half-length without slices (e.g. exact features), px
 SHIFT = 4
 _ONE = 1 << SHIFT
 
@@ -126,8 +127,8 @@ def draw_features(
         start, end = meas.predicted_axis[k]
         colour = TRACKER if valid else INVALID
         canvas.line(start, end, colour, 2)
-        half_width = np.nanmax(np.abs(meas.contour_offsets[k, -1])) if np.isfinite(
-            meas.contour_offsets[k, -1]).any() else 0.0
+        last = meas.contour_offsets[k, -1:].ravel()  # predicted contour at the last slice
+        half_width = np.abs(last).max() if np.isfinite(last).any() else DEFAULT_HALF_WIDTH
         bar = meas.slice_normal[k] * (half_width + 2.0)
         canvas.line(end - bar, end + bar, colour, 2)
         for side in range(2):
@@ -139,7 +140,7 @@ def draw_features(
             canvas.line(_foot(line, start), _foot(line, end), MEASURED, 1)
             if residual_layout is None:
                 for p in (start, end):
-                    canvas.line(p, _foot(line, p), RESIDUAL, 1)
+                    canvas.line(p, _foot(line, p), RESIDUAL, 2)
 
     for t in range(len(meas.tip_ids)):
         if show_slices:
@@ -156,16 +157,16 @@ def draw_features(
         if meas.tip_valid[t]:
             canvas.cross(meas.measured_tip[t], MEASURED)
             if residual_layout is None:
-                canvas.line(c, meas.measured_tip[t], RESIDUAL, 1)
+                canvas.line(c, meas.measured_tip[t], RESIDUAL, 2)
 
     if residual_layout is not None and residual_layout.camera == meas.camera:
         for row in range(residual_layout.n_rows):
             p = residual_layout.points_px[row]
             f = residual_layout.feature[row]
             if residual_layout.kind[row] == "link":
-                canvas.line(p, _foot(meas.line[f], p), RESIDUAL, 1)
+                canvas.line(p, _foot(meas.line[f], p), RESIDUAL, 2)
             elif residual_layout.component[row] == 0:
-                canvas.line(p, meas.measured_tip[f], RESIDUAL, 1)
+                canvas.line(p, meas.measured_tip[f], RESIDUAL, 2)
     if camera is not None:
         canvas.text(np.array([4.0, 12.0]), camera.name, TRACKER)
     return canvas.image
