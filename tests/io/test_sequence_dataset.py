@@ -260,7 +260,7 @@ def test_cameras_must_match_rig_and_format_is_checked(tmp_path, hand, rig, image
     with pytest.raises(DatasetError, match="unsupported version 7"):
         open_sequence(folder)
     (folder / "sequence.json").unlink()
-    with pytest.raises(DatasetError, match=r"sequence.json: missing"):
+    with pytest.raises(DatasetError, match=r"sequence.json: no such file"):
         open_sequence(folder)
 
 

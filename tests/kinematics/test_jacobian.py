@@ -17,14 +17,8 @@ RTOL = 1e-6
 
 def hand_points(model, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Both ends of every link axis, every tip centre and one random point per row (mm)."""
-    rows, offsets = [], []
-    for link in model.links:
-        if link.kind == "link":
-            rows += [link.row, link.row]
-            offsets += [(0.0, 0.0, 0.0), (link.length, 0.0, 0.0)]
-        elif link.kind == "tip":
-            rows.append(link.row)
-            offsets.append((0.0, 0.0, 0.0))
+    axis_rows, axis_offsets = model.axis_and_tip_points()
+    rows, offsets = list(axis_rows), list(axis_offsets)
     rows += list(range(model.n_frames))
     offsets += list(rng.uniform(-20.0, 20.0, size=(model.n_frames, 3)))
     return np.array(rows), np.array(offsets)

@@ -47,6 +47,6 @@ def test_a_model_without_states_has_fixed_frames() -> None:
         "model block\n[states]\n[frames]\n0 base 0 0 0 0 - 1\n1 arm pi/2 0 40 0 cyl(5) -\n"))
     kin = forward_kinematics(model, np.zeros(0))
     np.testing.assert_allclose(kin.T_world_frame[0, 1], np.eye(4))
-    start, end, _ = kin.link_segments()
+    _, end, _ = kin.link_segments()
     np.testing.assert_allclose(end[0], [0.0, 40.0, 0.0], atol=1e-12)
     assert forward_kinematics(model, np.zeros((3, 0))).T_world_frame.shape == (3, 2, 4, 4)

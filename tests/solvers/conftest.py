@@ -20,19 +20,14 @@ from digiteyes.trackers.parameterisation import StateParameterisation
 def model_points(model: KinematicModel) -> tuple[np.ndarray, np.ndarray]:
     """Rows and shape-frame points: both ends of every cylinder, every tip centre and the
     eight palm-box corners (mm)."""
-    rows, points = [], []
+    axis_rows, axis_points = model.axis_and_tip_points()
+    rows, points = list(axis_rows), list(axis_points)
     for link in model.links:
-        if link.kind == "link":
-            rows += [link.row, link.row]
-            points += [(0.0, 0.0, 0.0), (link.length, 0.0, 0.0)]
-        elif link.kind == "tip":
-            rows.append(link.row)
-            points.append((0.0, 0.0, 0.0))
-        else:
+        if link.kind == "palm":
             half = 0.5 * np.asarray(link.size)
             for sign in np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).reshape(3, -1).T:
                 rows.append(link.row)
-                points.append(tuple(np.asarray(link.centre) + sign * half))
+                points.append(np.asarray(link.centre) + sign * half)
     return np.array(rows), np.array(points, dtype=float)
 
 

@@ -10,19 +10,83 @@ pixel; ``K`` is OpenCV's 3x3 intrinsic matrix and ``dist`` OpenCV's (k1, k2, p1,
   per mm;
 * scaled orthographic (weak perspective): ``w = (fx x / Z0 + s y / Z0 + cx, fy y / Z0 + cy)``
   with a fixed reference depth ``Z0 = depth_mm``.
+
+Projection and its Jacobian run in one compiled loop (numba, :func:`project_point`): the
+trackers project a few hundred points per camera and iteration, where numpy's per-call
+overhead cost more than the arithmetic.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Literal
 
 import numpy as np
+from numba import njit
 
 from digiteyes.errors import CameraError
 
 Projection = Literal["perspective", "orthographic", "scaled-orthographic"]
 PROJECTIONS = ("perspective", "orthographic", "scaled-orthographic")
+
+
+
+@njit(cache=True, inline="always")
+def project_point(params, px, py, pz):  # pragma: no cover - compiled
+    """Pixel ``(u, v)`` and camera-frame coordinates of one world point, for compiled
+    callers (:attr:`Camera.projection_params` layout): returns ``u, v, x, y, z``."""
+    x = params[0] * px + params[1] * py + params[2] * pz + params[9]
+    y = params[3] * px + params[4] * py + params[5] * pz + params[10]
+    z = params[6] * px + params[7] * py + params[8] * pz + params[11]
+    fx, s, cx, fy, cy = params[12], params[13], params[14], params[15], params[16]
+    if params[22] == 0.0:  # perspective with distortion (thesis eq. 2.6)
+        xn, yn = x / z, y / z
+        k1, k2, p1, p2, k3 = params[17], params[18], params[19], params[20], params[21]
+        r2 = xn * xn + yn * yn
+        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        xd = xn * radial + 2.0 * p1 * xn * yn + p2 * (r2 + 2.0 * xn * xn)
+        yd = yn * radial + p1 * (r2 + 2.0 * yn * yn) + 2.0 * p2 * xn * yn
+        return fx * xd + s * yd + cx, fy * yd + cy, x, y, z
+    scale = 1.0 if params[22] == 1.0 else 1.0 / params[23]  # eq. 2.7-2.8, weak perspective
+    return scale * (fx * x + s * y) + cx, scale * fy * y + cy, x, y, z
+
+
+@njit(cache=True)
+def _project_kernel(params, points, w, J, jacobian):  # pragma: no cover - compiled
+    """Pixels ``w`` (P, 2) and, if ``jacobian``, ``dw/dp_world`` ``J`` (P, 2, 3)."""
+    fx, s, fy = params[12], params[13], params[15]
+    for i in range(points.shape[0]):
+        u, v, x, y, z = project_point(params, points[i, 0], points[i, 1], points[i, 2])
+        w[i, 0] = u
+        w[i, 1] = v
+        if not jacobian:
+            continue
+        if params[22] == 0.0:
+            inv_z = 1.0 / z
+            xn, yn = x * inv_z, y * inv_z
+            k1, k2, p1, p2, k3 = params[17], params[18], params[19], params[20], params[21]
+            r2 = xn * xn + yn * yn
+            radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+            dradial = k1 + r2 * (2.0 * k2 + 3.0 * k3 * r2)  # d radial / d r2
+            dxd_dxn = radial + 2.0 * xn * xn * dradial + 2.0 * p1 * yn + 6.0 * p2 * xn
+            dxd_dyn = 2.0 * xn * yn * dradial + 2.0 * p1 * xn + 2.0 * p2 * yn
+            dyd_dxn = dxd_dyn
+            dyd_dyn = radial + 2.0 * yn * yn * dradial + 6.0 * p1 * yn + 2.0 * p2 * xn
+            a00 = fx * dxd_dxn + s * dyd_dxn  # d w / d (xn, yn)
+            a01 = fx * dxd_dyn + s * dyd_dyn
+            a10 = fy * dyd_dxn
+            a11 = fy * dyd_dyn
+            # d (xn, yn) / d p_cam = [[1/z, 0, -xn/z], [0, 1/z, -yn/z]]
+            c00, c01, c02 = a00 * inv_z, a01 * inv_z, -(a00 * xn + a01 * yn) * inv_z
+            c10, c11, c12 = a10 * inv_z, a11 * inv_z, -(a10 * xn + a11 * yn) * inv_z
+        else:
+            scale = 1.0 if params[22] == 1.0 else 1.0 / params[23]
+            c00, c01, c02 = scale * fx, scale * s, 0.0
+            c10, c11, c12 = 0.0, scale * fy, 0.0
+        for k in range(3):  # chain with R_cam_world
+            J[i, 0, k] = c00 * params[k] + c01 * params[3 + k] + c02 * params[6 + k]
+            J[i, 1, k] = c10 * params[k] + c11 * params[3 + k] + c12 * params[6 + k]
 
 
 @dataclass(frozen=True, eq=False)
@@ -146,6 +210,22 @@ class Camera:
                           projection=projection, depth_mm=depth)
 
     # ------------------------------------------------------------------ geometry
+    @cached_property
+    def projection_params(self) -> np.ndarray:
+        """The camera as one read-only float array for compiled code (numba): rotation
+        ``R_cam_world`` (9, row-major), translation (3), ``fx s cx fy cy`` (5), distortion
+        (5), projection code (perspective 0, orthographic 1, scaled orthographic 2) and
+        ``depth_mm``; see :func:`project_point`."""
+        params = np.concatenate([
+            np.asarray(self.T_cam_world, dtype=float)[:3, :3].ravel(),
+            np.asarray(self.T_cam_world, dtype=float)[:3, 3],
+            np.asarray(self.K, dtype=float)[[0, 0, 0, 1, 1], [0, 1, 2, 1, 2]],
+            np.asarray(self.dist, dtype=float)[:5],
+            [float(PROJECTIONS.index(self.projection)), float(self.depth_mm)],
+        ])
+        params.setflags(write=False)
+        return params
+
     @property
     def T_world_cam(self) -> np.ndarray:
         """Camera pose in the world (inverse of ``T_cam_world``)."""
@@ -174,47 +254,13 @@ class Camera:
         The Jacobian chains the projection derivative in camera coordinates with the
         camera rotation: ``dw/dp_world = dw/dp_cam R_cam_world``.
         """
-        pc = self.to_camera(p_world)
-        fx, s, cx = self.K[0]
-        fy, cy = self.K[1, 1], self.K[1, 2]
-        x, y, z = pc[..., 0], pc[..., 1], pc[..., 2]
-        if self.projection == "perspective":
-            inv_z = 1.0 / z
-            xn, yn = x * inv_z, y * inv_z
-            k1, k2, p1, p2, k3 = self.dist
-            r2 = xn * xn + yn * yn
-            radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
-            xd = xn * radial + 2 * p1 * xn * yn + p2 * (r2 + 2 * xn * xn)
-            yd = yn * radial + p1 * (r2 + 2 * yn * yn) + 2 * p2 * xn * yn
-            w = np.stack([fx * xd + s * yd + cx, fy * yd + cy], axis=-1)
-            if not jacobian:
-                return w, None
-            dradial = k1 + r2 * (2 * k2 + 3 * k3 * r2)  # d radial / d r2
-            dxd_dxn = radial + 2 * xn * xn * dradial + 2 * p1 * yn + 6 * p2 * xn
-            dxd_dyn = 2 * xn * yn * dradial + 2 * p1 * xn + 2 * p2 * yn
-            dyd_dxn = 2 * xn * yn * dradial + 2 * p1 * xn + 2 * p2 * yn
-            dyd_dyn = radial + 2 * yn * yn * dradial + 6 * p1 * yn + 2 * p2 * xn
-            dw_dn = np.empty((*x.shape, 2, 2))
-            dw_dn[..., 0, 0] = fx * dxd_dxn + s * dyd_dxn
-            dw_dn[..., 0, 1] = fx * dxd_dyn + s * dyd_dyn
-            dw_dn[..., 1, 0] = fy * dyd_dxn
-            dw_dn[..., 1, 1] = fy * dyd_dyn
-            dn_dc = np.zeros((*x.shape, 2, 3))
-            dn_dc[..., 0, 0] = inv_z
-            dn_dc[..., 0, 2] = -xn * inv_z
-            dn_dc[..., 1, 1] = inv_z
-            dn_dc[..., 1, 2] = -yn * inv_z
-            dw_dc = dw_dn @ dn_dc
-        else:
-            scale = 1.0 if self.projection == "orthographic" else 1.0 / self.depth_mm
-            w = np.stack([scale * (fx * x + s * y) + cx, scale * fy * y + cy], axis=-1)
-            if not jacobian:
-                return w, None
-            dw_dc = np.zeros((*x.shape, 2, 3))
-            dw_dc[..., 0, 0] = scale * fx
-            dw_dc[..., 0, 1] = scale * s
-            dw_dc[..., 1, 1] = scale * fy
-        return w, dw_dc @ self.T_cam_world[:3, :3]
+        p = np.asarray(p_world, dtype=float)
+        lead = p.shape[:-1]
+        flat = np.ascontiguousarray(p.reshape(-1, 3))
+        w = np.empty((len(flat), 2))
+        J = np.empty((len(flat), 2, 3)) if jacobian else np.empty((0, 2, 3))
+        _project_kernel(self.projection_params, flat, w, J, jacobian)
+        return w.reshape(*lead, 2), J.reshape(*lead, 2, 3) if jacobian else None
 
     def depth(self, p_world: np.ndarray) -> np.ndarray:
         """Depth along the optical axis (camera z) of world points, mm."""

@@ -28,6 +28,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from digiteyes._files import read_json_object
 from digiteyes.camera.camera import Camera
 from digiteyes.errors import CameraError
 
@@ -184,14 +185,10 @@ def load_rig(path: str | Path) -> Rig:
     if path.suffix.lower() in (".yml", ".yaml", ".xml"):
         return Rig((_camera_from_entry({"name": path.stem, "opencv": path.name}, path.parent,
                                        0, str(path)),))
-    try:
-        payload = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise CameraError(f"{path}: no such rig file") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise CameraError(f"{path}: not a readable JSON rig file ({exc})") from None
-    if not isinstance(payload, dict) or not isinstance(payload.get("cameras"), list):
-        raise CameraError(f"{path}: a rig file is an object with a 'cameras' list")
+    expected = "a rig: an object with a 'cameras' list"
+    payload = read_json_object(path, CameraError, "rig file", expected)
+    if not isinstance(payload.get("cameras"), list):
+        raise CameraError(f"{path}: expected {expected}")
     cams = tuple(_camera_from_entry(e, path.parent, i, str(path))
                  for i, e in enumerate(payload["cameras"]))
     try:

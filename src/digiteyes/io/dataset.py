@@ -31,6 +31,7 @@ import cv2
 import numpy as np
 
 from digiteyes import __version__
+from digiteyes._files import read_json_object
 from digiteyes.camera import Rig, load_rig, save_rig
 from digiteyes.errors import DatasetError, StateError
 from digiteyes.io.video import VIDEO_CODECS, VideoReader, VideoWriter
@@ -147,15 +148,7 @@ def _check_image(image: np.ndarray, rig: Rig, c: int, where: str, video: bool) -
 
 
 def _read_json(path: Path) -> dict:
-    try:
-        payload = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise DatasetError(f"{path}: missing") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise DatasetError(f"{path}: not a readable JSON file ({exc})") from None
-    if not isinstance(payload, dict):
-        raise DatasetError(f"{path}: expected a JSON object")
-    return payload
+    return read_json_object(path, DatasetError, "file")
 
 
 def _atomic_save(path: Path, save: Callable[[Path], None]) -> None:

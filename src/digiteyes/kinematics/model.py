@@ -280,6 +280,20 @@ class KinematicModel:
                 return link
         raise KeyError(f"model {self.name!r} has no link {name!r}")
 
+    def axis_and_tip_points(self) -> tuple[np.ndarray, np.ndarray]:
+        """Both ends of every cylinder link's axis and every tip centre, as shape-frame
+        rows (P,) and offsets (P, 3) mm: the points the DigitEyes residuals live on."""
+        rows: list[int] = []
+        offsets: list[tuple[float, float, float]] = []
+        for link in self.links:
+            if link.kind == "link":
+                rows += [link.row, link.row]
+                offsets += [(0.0, 0.0, 0.0), (link.length, 0.0, 0.0)]
+            elif link.kind == "tip":
+                rows.append(link.row)
+                offsets.append((0.0, 0.0, 0.0))
+        return np.array(rows, dtype=int), np.array(offsets, dtype=float).reshape(-1, 3)
+
     def neutral(self) -> np.ndarray:
         """The zero state: identity quaternion, zero translation, all joints at zero,
         clipped into the joint limits."""

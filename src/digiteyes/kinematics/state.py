@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from digiteyes._files import read_json_object
 from digiteyes.errors import StateError
 from digiteyes.kinematics.forward import as_state_batch
 from digiteyes.kinematics.model import KinematicModel
@@ -173,15 +174,7 @@ class State:
     @classmethod
     def load_json(cls, model: KinematicModel, path: str | Path) -> State:
         """Read a state written by :meth:`save_json` (or a bare name -> value object)."""
-        path = Path(path)
-        try:
-            payload = json.loads(path.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise StateError(f"{path}: no such state file") from None
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise StateError(f"{path}: not a readable JSON state file ({exc})") from None
-        if not isinstance(payload, dict):
-            raise StateError(f"{path}: expected a JSON object")
+        payload = read_json_object(path, StateError, "state file")
         if "state" in payload:
             if payload.get("model", model.name) != model.name:
                 raise StateError(
