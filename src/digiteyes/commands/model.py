@@ -28,7 +28,8 @@ def list_models() -> None:
 
     for name in shipped_models():
         m = load_model(name)
-        click.echo(f"{name:<16} {m.n_q:>3} states  {len(m.links):>3} bodies  {m.description}")
+        bodies = sum(link.kind != "tip" for link in m.links)
+        click.echo(f"{name:<16} {m.n_q:>3} states  {bodies:>3} bodies  {m.description}")
 
 
 @model.command("render")
