@@ -1,0 +1,129 @@
+"""``digiteyes track``, ``demo`` and ``model``: end to end through the CLI, against truth."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from digiteyes.cli import main
+from digiteyes.io import VideoWriter, open_sequence, read_state_log
+from digiteyes.kinematics import State
+from digiteyes.models import load_model
+from digiteyes.pipeline import run_tracker
+from digiteyes.trackers import FeatureTracker
+
+
+def one_line_error(capsys) -> str:
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("digiteyes: error:"), err
+    return err[0]
+
+
+@pytest.fixture(scope="module")
+def whole_hand(tmp_path_factory):
+    """Six rendered frames of the whole-hand scenario (two cameras)."""
+    folder = tmp_path_factory.mktemp("seq") / "wh"
+    assert main(["render", "whole-hand", "-o", str(folder), "--frames", "6"]) == 0
+    return folder
+
+
+def test_track_dataset_writes_log_overlay_views_and_plots(whole_hand, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["track", str(whole_hand), "-o", str(out), "--quiet"]) == 0
+    seq = open_sequence(whole_hand)
+    log = read_state_log(out / "states.csv", seq.model)
+    assert list(log.frames) == list(range(6)) and not log.lost.any()
+    tips = [i for i, n in enumerate(seq.truth.keypoint_names) if n.endswith(".tip")]
+    from digiteyes import forward_kinematics
+    from digiteyes.render import keypoints
+
+    estimated = keypoints(seq.model, forward_kinematics(seq.model, log.states))[1]
+    error = np.linalg.norm(estimated[:, tips] - seq.truth.keypoints_3d[:, tips], axis=-1)
+    assert error.mean() < 5.0, f"fingertip error {error.mean():.2f} mm"
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["frames"] == 6 and summary["lost_frames"] == 0
+    assert summary["ms_per_iteration"] > 0
+    for name in ("overlay.mp4", "trajectory-palm.png", "trajectory-joints.png",
+                 "views/estimate-000005.png"):
+        assert (out / name).stat().st_size > 1000, name
+    assert "tracked 6 frame(s)" in capsys.readouterr().out
+
+
+def test_track_videos_matches_tracking_the_dataset(whole_hand, tmp_path):
+    seq = open_sequence(whole_hand)
+    videos = []
+    for c, name in enumerate(seq.camera_names):
+        path = tmp_path / f"{name}.mkv"
+        with VideoWriter(path, seq.fps, codec="ffv1") as writer:
+            for images in seq:
+                writer.write(images[c])
+        videos.append(str(path))
+    State(seq.model, seq.initial_state).save_json(tmp_path / "init.json")
+    out = tmp_path / "video-out"
+    assert main(["track", *videos, "--model", str(whole_hand / "model.dh"),
+                 "--rig", str(whole_hand / "rig.json"), "--init", str(tmp_path / "init.json"),
+                 "-o", str(out), "--quiet", "--no-overlay"]) == 0
+    from_video = read_state_log(out / "states.csv", seq.model).states
+    reference = tmp_path / "ref"
+    assert main(["track", str(whole_hand), "-o", str(reference), "--quiet",
+                 "--no-overlay"]) == 0
+    from_dataset = read_state_log(reference / "states.csv", seq.model).states
+    np.testing.assert_allclose(from_video, from_dataset, atol=1e-9)
+
+
+def test_track_refuses_bad_input_in_one_line(whole_hand, tmp_path, capsys):
+    other = tmp_path / "two-finger.json"
+    State(load_model("two-finger")).save_json(other)
+    assert main(["track", str(whole_hand), "--init", str(other), "-o", str(tmp_path / "a"),
+                 "--quiet"]) == 2
+    assert "two-finger" in one_line_error(capsys)
+    video = tmp_path / "one.mkv"
+    with VideoWriter(video, 10, codec="ffv1") as writer:
+        writer.write(np.zeros((480, 640), np.uint8))
+    assert main(["track", str(video), "--model", "hand", "--rig",
+                 str(whole_hand / "rig.json"), "--init", str(whole_hand / "initial_state.json"),
+                 "-o", str(tmp_path / "b"), "--quiet"]) == 2
+    assert "2 camera(s)" in one_line_error(capsys)
+    broken = tmp_path / "broken.mp4"
+    broken.write_bytes(b"not a video at all")
+    assert main(["track", str(broken), str(broken), "--model", "hand", "--rig",
+                 str(whole_hand / "rig.json"), "--init", str(whole_hand / "initial_state.json"),
+                 "-o", str(tmp_path / "c"), "--quiet"]) == 2
+    assert "broken.mp4" in one_line_error(capsys)
+
+
+def test_interrupted_run_keeps_every_tracked_frame(whole_hand, tmp_path):
+    seq = open_sequence(whole_hand)
+
+    def frames_then_ctrl_c():
+        for i, images in enumerate(seq):
+            if i == 3:
+                raise KeyboardInterrupt
+            yield images
+
+    tracker = FeatureTracker(seq.model, seq.rig)
+    run = run_tracker(tracker, seq.model, seq.rig, frames_then_ctrl_c(), seq.initial_state,
+                      tmp_path / "out", progress=False)
+    assert run.interrupted and run.n_frames == 3
+    assert len(read_state_log(tmp_path / "out" / "states.csv", seq.model).frames) == 3
+    assert json.loads((tmp_path / "out" / "summary.json").read_text())["interrupted"]
+
+
+def test_demo_renders_tracks_and_reports(tmp_path, capsys):
+    out = tmp_path / "demo"
+    assert main(["demo", "-o", str(out), "--frames", "8", "--quiet"]) == 0
+    text = capsys.readouterr().out
+    assert "fingertip error" in text and "report:" in text
+    metrics = json.loads((out / "evaluation" / "metrics.json").read_text())
+    assert metrics["track_life"]["frames"] == 8
+    assert (out / "evaluation" / "report.md").exists()
+
+
+def test_model_show_and_errors(capsys):
+    assert main(["model", "show", "hand"]) == 0
+    text = capsys.readouterr().out
+    assert "q9   index.pip" in text and "28 states" in text
+    assert main(["model", "show", "no-such-model"]) == 2
+    assert "no shipped model" in one_line_error(capsys)
