@@ -225,7 +225,8 @@ def test_jacobian_chained_to_hand_state(hand, projection):
         kin = forward_kinematics(hand, q)
         p_world, J_state = point_jacobian(kin, rows, p_shape)
 
-        eye = p_world.mean(axis=0) + 600.0 * rng.normal(size=3) / np.sqrt(3)
+        direction = rng.normal(size=3)
+        eye = p_world.mean(axis=0) + 600.0 * direction / np.linalg.norm(direction)
         pose = Camera.look_at("pose", eye, p_world.mean(axis=0), up=rng.normal(size=3))
         K = random_K(rng, projection, skew=True)
         dist = random_dist(rng) if projection == "perspective" else None

@@ -149,7 +149,7 @@ def test_selection_shapes_and_errors(stick, flat_camera, stick_state):
     assert meas.measured_tip.shape == (0, 2)
     with pytest.raises(KeyError, match="no link"):
         measure_features(image, flat_camera, stick, kin, links=["nope"])
-    with pytest.raises(ValueError, match="expected a 'tip'"):
+    with pytest.raises(ValueError, match="expected one of tip"):
         measure_features(image, flat_camera, stick, kin, tips=["stick.link"])
     with pytest.raises(CameraError, match="200x160"):
         measure_features(image[:-1], flat_camera, stick, kin)

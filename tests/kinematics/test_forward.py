@@ -233,8 +233,8 @@ def test_frames_are_rigid_transforms(hand, random_states):
 def test_batch_matches_single(hand, random_states):
     Q = random_states(np.random.default_rng(5), 6)
     batch = forward_kinematics(hand, Q)
-    assert batch.T_world_frame.shape == (6, 37, 4, 4)
-    assert batch.T_world_shape.shape == (6, 37, 4, 4)
+    assert batch.T_world_frame.shape == (6, hand.n_frames, 4, 4)
+    assert batch.T_world_shape.shape == (6, hand.n_frames, 4, 4)
     rows, p = np.array([0, 4, 36]), np.array([[1.0, 2.0, 3.0], [45.0, 0, 0], [0, 0, 8.0]])
     for n, q in enumerate(Q):
         single = forward_kinematics(hand, q)

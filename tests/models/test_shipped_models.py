@@ -17,7 +17,7 @@ from digiteyes.models import shipped_models
 
 # name: (n_q, n_v, frames, rigid bodies, tips, joint states (angle or length), base pose)
 SIZES = {
-    "hand": (28, 27, 37, 16, 5, 21, True),
+    "hand": (28, 27, 43, 16, 5, 21, True),
     "mouse-hand": (8, 8, 26, 10, 3, 8, False),
     "two-finger": (9, 9, 19, 7, 2, 9, False),
     "cardboard-hand": (27, 26, 37, 16, 5, 20, True),
@@ -86,7 +86,7 @@ def test_all_four_models_ship() -> None:
 def test_sizes(model: KinematicModel) -> None:
     n_q, n_v, frames, bodies, tips, joints, pose = SIZES[model.name]
     assert (model.n_q, model.n_v, model.n_frames) == (n_q, n_v, frames)
-    assert sum(link.kind != "tip" for link in model.links) == bodies
+    assert sum(link.kind in ("link", "palm") for link in model.links) == bodies
     assert sum(link.kind == "tip" for link in model.links) == tips
     assert sum(kind in ("angle", "length") for kind in model.state_kinds) == joints
     assert (model.base_state is not None) == pose

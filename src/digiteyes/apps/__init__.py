@@ -1,1 +1,20 @@
-"""apps layer (see DESIGN.md)."""
+"""Applications built on the trackers' state estimates.
+
+:mod:`digiteyes.apps.mouse3d` is the 3D mouse of thesis Sec. 4.3.4: the palm position on
+the table moves the base of a "mouse pole" cursor, the index fingertip's height sets the
+pole's height, and the thumb and little finger are buttons (docs/mouse3d.md).
+"""
+
+from digiteyes.apps.mouse3d import (
+    BUTTONS,
+    DEFAULT_BUTTON_THRESHOLD_DEG,
+    buttons_from_state,
+    plot_mouse_pole,
+    pole_from_state,
+    write_mouse_pole_plot,
+)
+
+__all__ = [
+    "BUTTONS", "DEFAULT_BUTTON_THRESHOLD_DEG", "buttons_from_state", "plot_mouse_pole",
+    "pole_from_state", "write_mouse_pole_plot",
+]

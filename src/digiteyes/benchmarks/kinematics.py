@@ -22,8 +22,6 @@ by other processes); the printed table also shows the median. Run it with
 from __future__ import annotations
 
 import json
-import os
-import platform
 import statistics
 import timeit
 from collections.abc import Callable
@@ -31,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from digiteyes.benchmarks._machine import machine_info
 from digiteyes.kinematics import (
     KinematicModel,
     forward_kinematics,
@@ -79,31 +78,6 @@ def _seconds_per_call(fn: Callable[[], object], repeat: int, min_time: float
         number = max(number * 2, int(number * 1.2 * min_time / max(elapsed, 1e-9)))
     runs = [t / number for t in timer.repeat(repeat=repeat, number=number)]
     return min(runs), statistics.median(runs)
-
-
-def _machine() -> dict[str, object]:
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as handle:
-            for line in handle:
-                if line.startswith("model name"):
-                    cpu = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
-    info: dict[str, object] = {
-        "cpu": cpu,
-        "cores": os.cpu_count(),
-        "platform": platform.platform(),
-        "python": platform.python_version(),
-        "numpy": np.__version__,
-    }
-    for name in ("numba", "pinocchio"):
-        try:
-            info[name] = __import__(name).__version__
-        except ImportError:
-            info[name] = None
-    return info
 
 
 def _time_pinocchio(rows: np.ndarray, offsets: np.ndarray, q_single: np.ndarray,
@@ -211,7 +185,7 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
         "repeats": repeat,
         **figures(0),
         "median": figures(1),
-        "machine": _machine(),
+        "machine": machine_info(extra=("pinocchio",)),
     }
     print(format_table(result))
     if json_path is not None:

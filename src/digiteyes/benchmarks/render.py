@@ -19,8 +19,6 @@ with ``digiteyes bench render [--json FILE] [--quick]``.
 from __future__ import annotations
 
 import json
-import os
-import platform
 import statistics
 import timeit
 from pathlib import Path
@@ -28,6 +26,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from digiteyes.benchmarks._machine import machine_info
 from digiteyes.camera import Camera
 from digiteyes.kinematics import KinematicModel, load_model
 from digiteyes.render import RenderOptions, render_views
@@ -64,21 +63,6 @@ def _frames_per_second(fn, repeat: int, min_time: float) -> tuple[float, float]:
         number = max(number * 2, int(number * 1.2 * min_time / max(elapsed, 1e-9)))
     rates = [number / t for t in timer.repeat(repeat=repeat, number=number)]
     return max(rates), statistics.median(rates)
-
-
-def _machine() -> dict[str, object]:
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as handle:
-            cpu = next((line.split(":", 1)[1].strip() for line in handle
-                        if line.startswith("model name")), cpu)
-    except OSError:
-        pass
-    import numba
-
-    return {"cpu": cpu, "cores": os.cpu_count(), "platform": platform.platform(),
-            "python": platform.python_version(), "numpy": np.__version__,
-            "numba": numba.__version__, "opencv": cv2.__version__}
 
 
 CASES = {
@@ -125,7 +109,7 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
         "repeats": repeat,
         **{key: best for key, (best, _) in rates.items()},
         "median": {key: med for key, (_, med) in rates.items()},
-        "machine": _machine(),
+        "machine": machine_info(),
     }
     print(format_table(result))
     if json_path is not None:

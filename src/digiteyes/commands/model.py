@@ -28,7 +28,7 @@ def list_models() -> None:
 
     for name in shipped_models():
         m = load_model(name)
-        bodies = sum(link.kind != "tip" for link in m.links)
+        bodies = sum(link.kind in ("link", "palm") for link in m.links)
         click.echo(f"{name:<16} {m.n_q:>3} states  {bodies:>3} bodies  {m.description}")
 
 

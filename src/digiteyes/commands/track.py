@@ -72,8 +72,9 @@ def print_run(run: TrackingRun) -> None:
               help="Track every link and tip, or the thesis's set (Sec. 4.3.3).")
 @click.option("--robust", type=click.Choice(["huber", "tukey"]), default=None,
               help="Robust loss on the feature residuals.")
-@click.option("--prediction", type=click.Choice(["constant-velocity", "none"]),
-              default="constant-velocity", show_default=True)
+@click.option("--prediction", type=click.Choice(["none", "constant-velocity"]),
+              default="none", show_default=True,
+              help="Start each frame from the previous estimate (thesis) or extrapolate.")
 @click.option("--frames", "max_frames", type=click.IntRange(min=1), default=None,
               help="Track at most this many frames.")
 @click.option("--fps", type=click.FloatRange(min=0.1), default=None,

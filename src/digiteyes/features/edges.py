@@ -59,58 +59,70 @@ class EdgeSearch:
     window_mean: np.ndarray
 
 
+@njit(cache=True, inline="always")
+def smoothed_derivative(prof, response):  # pragma: no cover - compiled
+    """Edge response of one profile into ``response`` (module docstring); ends are 0."""
+    n = prof.shape[0]
+    for j in range(min(2, n)):
+        response[j] = 0.0
+        response[n - 1 - j] = 0.0
+    for j in range(2, n - 2):
+        response[j] = (prof[j + 2] - prof[j - 2] + 2.0 * (prof[j + 1] - prof[j - 1])) / 3.0
+
+
+@njit(cache=True)
+def peak_in_range(prof, inside, response, c, sign, half_window, first, step, min_contrast,
+                  side_samples):  # pragma: no cover - compiled
+    """Strongest local maximum of ``sign * response`` within ``c +- half_window`` (px along
+    a profile whose sample j lies at ``first + j step``), refined by the parabola vertex.
+
+    Returns ``position, height, before, after, window_mean`` as in :class:`EdgeSearch`.
+    """
+    n_samples = prof.shape[0]
+    if not np.isfinite(c):
+        return np.nan, 0.0, np.nan, np.nan, np.nan
+    lo = max(int(np.ceil((c - half_window - first) / step)), 2)
+    hi = min(int(np.floor((c + half_window - first) / step)), n_samples - 3)
+    best = -1
+    best_value = -np.inf
+    total = 0.0
+    count = 0
+    for j in range(lo, hi + 1):
+        if not inside[j]:
+            continue
+        total += prof[j]
+        count += 1
+        s = sign * response[j]
+        if (s >= min_contrast and s > best_value
+                and s >= sign * response[j - 1] and s > sign * response[j + 1]):
+            best = j
+            best_value = s
+    window_mean = total / count if count > 0 else np.nan
+    if best < 0:
+        return np.nan, 0.0, np.nan, np.nan, window_mean
+    left = sign * response[best - 1]
+    mid = sign * response[best]
+    right = sign * response[best + 1]
+    curvature = left - 2.0 * mid + right
+    delta = 0.0
+    if curvature < 0.0:
+        delta = min(max(0.5 * (left - right) / curvature, -0.5), 0.5)
+    return (first + (best + delta) * step, best_value, prof[max(best - side_samples, 0)],
+            prof[min(best + side_samples, n_samples - 1)], window_mean)
+
+
 @njit(cache=True)
 def _peaks_kernel(profiles, inside, centre, signs, half_window, first, step, min_contrast,
                   side_samples, position, height, before, after,
                   window_mean):  # pragma: no cover - compiled
-    n_rows, n_samples = profiles.shape
-    n_search = centre.shape[1]
-    response = np.zeros(n_samples)
-    for row in range(n_rows):
-        prof = profiles[row]
-        for j in range(2, n_samples - 2):
-            response[j] = (prof[j + 2] - prof[j - 2] + 2.0 * (prof[j + 1] - prof[j - 1])) / 3.0
-        for k in range(n_search):
-            position[row, k] = np.nan
-            height[row, k] = 0.0
-            before[row, k] = np.nan
-            after[row, k] = np.nan
-            window_mean[row, k] = np.nan
-            c = centre[row, k]
-            if not np.isfinite(c):
-                continue
-            sign = signs[k]
-            lo = max(int(np.ceil((c - half_window - first) / step)), 2)
-            hi = min(int(np.floor((c + half_window - first) / step)), n_samples - 3)
-            best = -1
-            best_value = -np.inf
-            total = 0.0
-            count = 0
-            for j in range(lo, hi + 1):
-                if not inside[row, j]:
-                    continue
-                total += prof[j]
-                count += 1
-                s = sign * response[j]
-                if (s >= min_contrast and s > best_value
-                        and s >= sign * response[j - 1] and s > sign * response[j + 1]):
-                    best = j
-                    best_value = s
-            if count > 0:
-                window_mean[row, k] = total / count
-            if best < 0:
-                continue
-            height[row, k] = best_value
-            left = sign * response[best - 1]
-            mid = sign * response[best]
-            right = sign * response[best + 1]
-            curvature = left - 2.0 * mid + right
-            delta = 0.0
-            if curvature < 0.0:
-                delta = min(max(0.5 * (left - right) / curvature, -0.5), 0.5)
-            position[row, k] = first + (best + delta) * step
-            before[row, k] = prof[max(best - side_samples, 0)]
-            after[row, k] = prof[min(best + side_samples, n_samples - 1)]
+    response = np.empty(profiles.shape[1])
+    for row in range(profiles.shape[0]):
+        smoothed_derivative(profiles[row], response)
+        for k in range(centre.shape[1]):
+            (position[row, k], height[row, k], before[row, k], after[row, k],
+             window_mean[row, k]) = peak_in_range(
+                profiles[row], inside[row], response, centre[row, k], signs[k], half_window,
+                first, step, min_contrast, side_samples)
 
 
 def find_edges(

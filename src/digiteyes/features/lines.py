@@ -168,62 +168,69 @@ def _lmeds(points, mask, line, values):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
+def fit_one(pts, mask, normal, loss, iterations, min_scale, line, inlier, weights, residual,
+            scratch):  # pragma: no cover - compiled
+    """Robust line (module docstring) through the masked points (P, 2) of one set into
+    ``line`` (3,) and ``inlier`` (P,); ``loss`` 0 none, 1 Tukey, 2 Huber. ``weights``,
+    ``residual`` and ``scratch`` are (P,) work arrays. Returns the inlier count and RMS."""
+    n_points = mask.shape[0]
+    n_used = 0
+    for i in range(n_points):
+        weights[i] = 1.0 if mask[i] else 0.0
+        n_used += mask[i]
+    ok = n_used >= 2 and _tls(pts, weights, line)
+    if ok and loss != 0 and n_used >= 3:
+        worst = 0.0
+        for i in range(n_points):
+            if mask[i]:
+                worst = max(worst, abs(line[0] * pts[i, 0] + line[1] * pts[i, 1] - line[2]))
+        if worst > TUKEY_C * min_scale:  # outliers may have tilted the fit
+            ok = _lmeds(pts, mask, line, scratch)
+    for _ in range(iterations if ok and loss != 0 else 0):
+        for i in range(n_points):
+            residual[i] = line[0] * pts[i, 0] + line[1] * pts[i, 1] - line[2]
+        scale = _robust_scale(residual, mask, min_scale, scratch)
+        for i in range(n_points):
+            if not mask[i]:
+                weights[i] = 0.0
+                continue
+            u = abs(residual[i]) / scale
+            if loss == 1:
+                weights[i] = (1.0 - (u / TUKEY_C) ** 2) ** 2 if u < TUKEY_C else 0.0
+            else:
+                weights[i] = min(1.0, HUBER_K / u) if u > 0.0 else 1.0
+        ok = _tls(pts, weights, line)
+    if not ok:
+        line[:] = np.nan
+        inlier[:] = False
+        return 0, np.nan
+    if line[0] * normal[0] + line[1] * normal[1] < 0.0:
+        line[:] = -line[:]
+    for i in range(n_points):
+        residual[i] = line[0] * pts[i, 0] + line[1] * pts[i, 1] - line[2]
+    cut = np.inf
+    if loss != 0:
+        cut = TUKEY_C * _robust_scale(residual, mask, min_scale, scratch)
+    count = 0
+    total = 0.0
+    for i in range(n_points):
+        inlier[i] = mask[i] and abs(residual[i]) < cut
+        if inlier[i]:
+            count += 1
+            total += residual[i] ** 2
+    return count, np.sqrt(total / count) if count > 0 else np.nan
+
+
+@njit(cache=True)
 def _fit_kernel(points, mask, normal, loss, iterations, min_scale, line, inlier, count,
                 rms):  # pragma: no cover - compiled
-    n_sets, n_points = mask.shape
+    n_points = mask.shape[1]
     weights = np.empty(n_points)
     residual = np.empty(n_points)
     scratch = np.empty(n_points)
-    for b in range(n_sets):
-        pts = points[b]
-        n_used = 0
-        for i in range(n_points):
-            weights[i] = 1.0 if mask[b, i] else 0.0
-            n_used += mask[b, i]
-        ok = n_used >= 2 and _tls(pts, weights, line[b])
-        if ok and loss != 0 and n_used >= 3:
-            worst = 0.0
-            for i in range(n_points):
-                if mask[b, i]:
-                    worst = max(worst, abs(line[b, 0] * pts[i, 0] + line[b, 1] * pts[i, 1]
-                                           - line[b, 2]))
-            if worst > TUKEY_C * min_scale:  # outliers may have tilted the fit
-                ok = _lmeds(pts, mask[b], line[b], scratch)
-        for _ in range(iterations if ok and loss != 0 else 0):
-            for i in range(n_points):
-                residual[i] = line[b, 0] * pts[i, 0] + line[b, 1] * pts[i, 1] - line[b, 2]
-            scale = _robust_scale(residual, mask[b], min_scale, scratch)
-            for i in range(n_points):
-                if not mask[b, i]:
-                    weights[i] = 0.0
-                    continue
-                u = abs(residual[i]) / scale
-                if loss == 1:
-                    weights[i] = (1.0 - (u / TUKEY_C) ** 2) ** 2 if u < TUKEY_C else 0.0
-                else:
-                    weights[i] = min(1.0, HUBER_K / u) if u > 0.0 else 1.0
-            ok = _tls(pts, weights, line[b])
-        count[b] = 0
-        rms[b] = np.nan
-        if not ok:
-            line[b, :] = np.nan
-            inlier[b, :] = False
-            continue
-        if line[b, 0] * normal[b, 0] + line[b, 1] * normal[b, 1] < 0.0:
-            line[b, :] = -line[b, :]
-        for i in range(n_points):
-            residual[i] = line[b, 0] * pts[i, 0] + line[b, 1] * pts[i, 1] - line[b, 2]
-        cut = np.inf
-        if loss != 0:
-            cut = TUKEY_C * _robust_scale(residual, mask[b], min_scale, scratch)
-        total = 0.0
-        for i in range(n_points):
-            inlier[b, i] = mask[b, i] and abs(residual[i]) < cut
-            if inlier[b, i]:
-                count[b] += 1
-                total += residual[i] ** 2
-        if count[b] > 0:
-            rms[b] = np.sqrt(total / count[b])
+    for b in range(mask.shape[0]):
+        count[b], rms[b] = fit_one(points[b], mask[b], normal[b], loss, iterations, min_scale,
+                                   line[b], inlier[b], weights, residual, scratch)
 
 
 def fit_lines(

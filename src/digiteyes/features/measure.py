@@ -22,8 +22,8 @@ valid.
 
 Every link and tip carries a validity flag and a reason (:data:`LINK_REASONS`,
 :data:`TIP_REASONS`), so trackers can exclude bad features from the residual and detect
-track loss. All model points are projected with one ``camera.project`` call; all slices of
-all links are sampled with one ``cv2.remap`` call (docs/features.md).
+track loss. The work per camera runs in two compiled loops, one over the links and one over the tips
+(``features/_kernels.py``, docs/features.md "Performance").
 """
 
 from __future__ import annotations
@@ -37,15 +37,9 @@ import numpy as np
 
 from digiteyes.camera import Camera
 from digiteyes.errors import CameraError, StateError
-from digiteyes.features.edges import KERNEL_HALF_WIDTH, find_edges
-from digiteyes.features.lines import bisector, fit_lines
-from digiteyes.features.slices import (
-    cylinder_tangent_points,
-    perpendicular,
-    prepare_image,
-    sample_profiles,
-    sphere_tangent_points,
-)
+from digiteyes.features._kernels import TIP_LATERAL, links_kernel, tips_kernel
+from digiteyes.features.lines import ROBUST_LOSSES
+from digiteyes.features.slices import perpendicular, prepare_image, view_of
 from digiteyes.kinematics import KinematicModel, Kinematics
 
 LINK_REASONS = {
@@ -68,8 +62,6 @@ TIP_REASONS = {
     "inconsistent": "the tip slices disagree by more than max_tip_spread_px",
 }
 _TIP_CODES = np.array(list(TIP_REASONS))
-TIP_LATERAL = np.array([-0.5, 0.0, 0.5])  # tip slice offsets, fractions of the tip radius
-MIN_TIP_SIN = 0.2
 
 
 @dataclass(frozen=True)
@@ -223,18 +215,25 @@ class FeatureMeasurement:
         return int(self.link_valid.sum() + self.tip_valid.sum())
 
 
-def select_links(model: KinematicModel, names: Sequence[str] | None, kind: str) -> np.ndarray:
-    """Indices into ``model.links`` of the named links of one kind (all of them if None)."""
+LINE_KINDS = ("link", "edge")  # measured as lines: cylinder links and tracked body edges
+
+
+def select_links(model: KinematicModel, names: Sequence[str] | None,
+                 kinds: tuple[str, ...]) -> np.ndarray:
+    """Indices into ``model.links`` of the named links of the given kinds (all of them if
+    None)."""
     if names is None:
-        return np.array([i for i, link in enumerate(model.links) if link.kind == kind], dtype=int)
+        return np.array([i for i, link in enumerate(model.links) if link.kind in kinds],
+                        dtype=int)
     index = {link.name: i for i, link in enumerate(model.links)}
     out = []
     for name in names:
         if name not in index:
             raise KeyError(f"model {model.name!r} has no link {name!r}")
-        if model.links[index[name]].kind != kind:
+        if model.links[index[name]].kind not in kinds:
             raise ValueError(
-                f"{name!r} is a {model.links[index[name]].kind!r}, expected a {kind!r}"
+                f"{name!r} is a {model.links[index[name]].kind!r}, expected one of "
+                f"{', '.join(kinds)}"
             )
         out.append(index[name])
     return np.array(out, dtype=int)
@@ -246,11 +245,6 @@ def _single_state_shapes(kin: Kinematics) -> np.ndarray:
             f"measure_features needs the kinematics of one state, got {kin.T_world_shape.shape[0]}"
         )
     return kin.T_world_shape[0]
-
-
-def _sample_grid(half: float, step: float) -> np.ndarray:
-    n = math.ceil(half / step) + KERNEL_HALF_WIDTH + 1
-    return np.arange(-n, n + 1) * step
 
 
 def measure_features(
@@ -288,24 +282,51 @@ def measure_features(
     shapes = _single_state_shapes(kin)
     tracked = _tracked(model, None if links is None else tuple(links),
                        None if tips is None else tuple(tips), options.tip_end)
-    # All model points of this camera (link axes, contour tangents, tip silhouettes) are
-    # projected in one call.
-    link_3d, link_depth = _link_points(camera, shapes, tracked, options)
-    tip_3d, sin_view = _tip_points(camera, shapes, tracked)
-    w = camera.project(np.concatenate([link_3d.reshape(-1, 3), tip_3d.reshape(-1, 3)]))
-    n = link_3d.shape[0] * link_3d.shape[1]
-    behind_link = behind_tip = False
-    if camera.projection == "perspective":
-        depth = camera.depth(np.concatenate([link_depth.reshape(-1, 3), tip_3d[:, 0]]))
-        behind_link = (depth[:link_depth.shape[0] * 2].reshape(-1, 2)
-                       <= tracked.link_radii[:, None]).any(axis=1)
-        behind_tip = depth[link_depth.shape[0] * 2:] <= tracked.tip_radii
-    link_part = _measure_links(gray, camera, w[:n].reshape((*link_3d.shape[:2], 2)),
-                               behind_link, tracked, options)
-    tip_part = _measure_tips(gray, w[n:].reshape(-1, 3, 2), sin_view, behind_tip, tracked,
-                             link_part, options)
-    return FeatureMeasurement(camera=camera.name, link_ids=tracked.link_ids,
-                              tip_ids=tracked.tip_ids, **link_part, **tip_part)
+    view, perspective = view_of(camera)
+    params = camera.projection_params
+    polarity = 1.0 if options.bright_object else -1.0
+    side_samples = round(3.0 / options.step_px)  # intensities 3 px either side of an edge
+    n_links, n_slices = len(tracked.link_ids), options.slices_per_link
+    link = {
+        "predicted_axis": np.empty((n_links, 2, 2)),
+        "slice_centres": np.empty((n_links, n_slices, 2)),
+        "slice_normal": np.empty((n_links, 2)),
+        "contour_offsets": np.empty((n_links, n_slices, 2)),
+        "line": np.empty((n_links, 3)),
+        "code": np.empty(n_links, dtype=np.int64),
+        "n_edges": np.empty((n_links, 2), dtype=np.int64),
+        "side_lines": np.empty((n_links, 2, 3)),
+        "edge_points": np.empty((n_links, 2, n_slices, 2)),
+        "edge_inlier": np.empty((n_links, 2, n_slices), dtype=bool),
+        "slice_ends": np.empty((n_links, n_slices, 2, 2)),
+    }
+    links_kernel(gray, params, view, perspective, shapes, tracked.link_rows,
+                 tracked.link_lengths, tracked.link_radii,
+                 _fractions(options.end_margin, n_slices), options.min_axis_px,
+                 options.min_edge_points, 0.5 * options.window_px, options.step_px,
+                 options.min_contrast, polarity, ROBUST_LOSSES.index(options.robust),
+                 options.max_fit_rms_px, math.cos(math.radians(options.max_side_angle_deg)),
+                 options.max_width_error, side_samples, *link.values())
+    link_code = link.pop("code")
+    n_tips = len(tracked.tip_ids)
+    tip = {
+        "predicted_tip": np.empty((n_tips, 2)),
+        "measured_tip": np.empty((n_tips, 2)),
+        "code": np.empty(n_tips, dtype=np.int64),
+        "tip_direction": np.empty((n_tips, 2)),
+        "tip_slice_ends": np.empty((n_tips, len(TIP_LATERAL), 2, 2)),
+        "tip_edge_points": np.empty((n_tips, len(TIP_LATERAL), 2)),
+    }
+    tips_kernel(gray, params, view, perspective, shapes, tracked.tip_rows,
+                tracked.tip_axis_rows, tracked.tip_radii, tracked.tip_parent, link["line"],
+                link_code, 0.5 * options.tip_search_px, options.step_px, options.min_contrast,
+                polarity, options.min_tip_edges, options.max_tip_spread_px, side_samples,
+                *tip.values())
+    tip_code = tip.pop("code")
+    return FeatureMeasurement(
+        camera=camera.name, link_ids=tracked.link_ids, link_valid=link_code == 0,
+        link_reason=_LINK_CODES[link_code], tip_ids=tracked.tip_ids, tip_valid=tip_code == 0,
+        tip_reason=_TIP_CODES[tip_code], **link, **tip)
 
 
 @dataclass(frozen=True)
@@ -326,8 +347,8 @@ class _Tracked:
 @lru_cache(maxsize=64)
 def _tracked(model: KinematicModel, links: tuple[str, ...] | None,
              tips: tuple[str, ...] | None, tip_end: str) -> _Tracked:
-    link_ids = select_links(model, links, "link")
-    tip_ids = select_links(model, tips, "tip")
+    link_ids = select_links(model, links, LINE_KINDS)
+    tip_ids = select_links(model, tips, ("tip",))
     row_to_link = {link.row: i for i, link in enumerate(model.links) if link.kind == "link"}
     parents = [row_to_link.get(int(model.parent[model.links[i].row]), -1) for i in tip_ids]
     position = {int(link): k for k, link in enumerate(link_ids)}
@@ -360,207 +381,11 @@ def _fractions(end_margin: float, n_slices: int) -> np.ndarray:
     return t
 
 
-def _link_points(camera, shapes, tracked, opt) -> tuple[np.ndarray, np.ndarray]:
-    """World points to project per link (L, 2 + 3 S, 3): axis start and end, slice centres,
-    contour tangent points; and the axis ends (L, 2, 3) for the depth test."""
-    T = shapes[tracked.link_rows]
-    start, axis = T[:, :3, 3], T[:, :3, 0]
-    t = _fractions(opt.end_margin, opt.slices_per_link)
-    p_axis = start[:, None] + (t[:, None] * tracked.link_lengths[:, None, None]) * axis[:, None]
-    tangent = cylinder_tangent_points(camera, p_axis[:, 2:], axis[:, None],
-                                      tracked.link_radii[:, None])
-    n_links = len(tracked.link_ids)
-    return np.concatenate([p_axis, tangent.reshape(n_links, -1, 3)], axis=1), p_axis[:, :2]
-
-
-def _tip_points(camera, shapes, tracked) -> tuple[np.ndarray, np.ndarray]:
-    """World points to project per tip (T, 3, 3): centre, silhouette along and beside the
-    finger axis; and the sine of the axis' angle to the viewing ray (T,)."""
-    centre = shapes[tracked.tip_rows, :3, 3]
-    axis = shapes[tracked.tip_axis_rows, :3, 0]
-    tangent, sin_view = sphere_tangent_points(camera, centre, axis, tracked.tip_radii)
-    return np.concatenate([centre[:, None], tangent], axis=1), sin_view
-
-
-def _first_reason(conditions: list[np.ndarray]) -> np.ndarray:
-    """Code of the first true condition per feature (1-based; 0 if none)."""
-    code = np.zeros(len(conditions[0]), dtype=int)
-    for k in range(len(conditions), 0, -1):
-        code[conditions[k - 1]] = k
-    return code
-
-
 def _unit2(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Unit image vectors (..., 2) (``(1, 0)`` for zero vectors) and their lengths."""
     length = np.sqrt(np.sum(v * v, axis=-1))
     safe = np.where(length > 0, length, 1.0)[..., None]
     return np.where(length[..., None] > 0, v / safe, [1.0, 0.0]), length
-
-
-def _measure_links(gray, camera, w, behind, tracked, opt) -> dict:
-    n_links, n_slices = len(tracked.link_ids), opt.slices_per_link
-    w_ends = w[:, :2]
-    w_slices = w[:, 2:2 + n_slices]
-    u, length_px = _unit2(w_ends[:, 1] - w_ends[:, 0])
-    normal = perpendicular(u)
-    w_tangent = w[:, 2 + n_slices:].reshape(n_links, n_slices, 2, 2)
-    contour = np.sort(np.sum((w_tangent - w_slices[:, :, None]) * normal[:, None, None],
-                             axis=-1), axis=-1)  # (L, S, 2): side 0 < 0 < side 1
-
-    behind = behind | ~np.isfinite(contour).all(axis=(1, 2))
-    short = length_px < opt.min_axis_px
-    off_image = camera.in_image(w_slices).sum(axis=1) < opt.min_edge_points
-    usable = ~(behind | short | off_image)
-    contour = np.where(usable[:, None, None], contour, np.nan)
-
-    # One bilinear lookup for every slice of every link: profiles (L * S, J).
-    reach = np.nanmax(np.abs(contour)) if usable.any() else 0.0
-    offsets = _sample_grid(reach + 0.5 * opt.window_px, opt.step_px)
-    origins = np.where(usable[:, None, None], w_slices, -1e4)
-    profiles, inside = sample_profiles(gray, origins.reshape(-1, 2),
-                                       np.repeat(normal, n_slices, axis=0), offsets)
-    polarity = 1.0 if opt.bright_object else -1.0
-    edges = find_edges(profiles, inside, contour.reshape(-1, 2), np.array([polarity, -polarity]),
-                       offsets, 0.5 * opt.window_px, opt.min_contrast)
-
-    def per_side(a: np.ndarray) -> np.ndarray:  # (L * S, 2) -> (L, 2, S)
-        return a.reshape(n_links, n_slices, 2).transpose(0, 2, 1)
-
-    position = per_side(edges.position)
-    found = np.isfinite(position)
-    edge_points = w_slices[:, None] + position[..., None] * normal[:, None, None]
-    side_normal = normal[:, None]
-    fit = fit_lines(edge_points, found, robust=opt.robust, normal=side_normal)
-    side_ok = (fit.count >= opt.min_edge_points) & (fit.rms <= opt.max_fit_rms_px)
-    both = side_ok[:, 0] & side_ok[:, 1]
-    one = side_ok[:, 0] != side_ok[:, 1]
-    middle = w_slices[:, n_slices // 2]
-    offset_middle = np.sum(fit.line[..., :2] * middle[:, None], axis=-1) - fit.line[..., 2]
-    width = offset_middle[:, 0] - offset_middle[:, 1]
-    predicted_width = contour[:, n_slices // 2, 1] - contour[:, n_slices // 2, 0]
-    cos_sides = np.abs(np.sum(fit.line[:, 0, :2] * fit.line[:, 1, :2], axis=-1))
-    agree = (cos_sides >= math.cos(math.radians(opt.max_side_angle_deg))) & (
-        np.abs(width - predicted_width) <= opt.max_width_error * predicted_width)
-    line = bisector(fit.line[:, 0], fit.line[:, 1])
-    merged = np.zeros(n_links, dtype=bool)
-    if one.any():
-        # One-edge fallback: the usable side's inliers moved onto the predicted axis by
-        # their predicted contour offsets, then one line through them.
-        contour_sides = contour.transpose(0, 2, 1)
-        axis_points = w_slices[:, None] + (position - contour_sides)[..., None] \
-            * normal[:, None, None]
-        shifted = fit_lines(axis_points, fit.inlier, robust="none", normal=side_normal).line
-        line = np.where(both[:, None], line,
-                        np.where(side_ok[:, 1:], shifted[:, 1], shifted[:, 0]))
-        merged = _missing_side_is_object(edges, fit.inlier, side_ok, per_side, polarity)
-    end_slices = w_slices[:, [0, -1]]
-    distance = np.abs(np.sum(line[:, None, :2] * end_slices, axis=-1) - line[:, None, 2])
-    outside = ~(distance <= 0.5 * opt.window_px).all(axis=1)
-    enough = (fit.count >= opt.min_edge_points).any(axis=1)
-
-    code = _first_reason([behind, short, off_image, ~enough, ~(both | one), both & ~agree,
-                          one & ~merged, outside])
-    valid = code == 0
-    half = 0.5 * opt.window_px
-    span = np.stack([contour[..., 0] - half, contour[..., 1] + half], axis=-1)
-    return {
-        "predicted_axis": w_ends,
-        "line": np.where(valid[:, None], line, np.nan),
-        "link_valid": valid,
-        "link_reason": _LINK_CODES[code],
-        "n_edges": fit.count,
-        "side_lines": np.where(side_ok[..., None], fit.line, np.nan),
-        "edge_points": edge_points,
-        "edge_inlier": fit.inlier,
-        "slice_centres": w_slices,
-        "slice_normal": normal,
-        "slice_ends": w_slices[..., None, :] + span[..., None] * normal[:, None, None],
-        "contour_offsets": contour,
-    }
-
-
-def _missing_side_is_object(edges, inlier, side_ok, per_side, polarity) -> np.ndarray:
-    """Whether the side without a usable line looks like the finger, per link (L,).
-
-    The one-edge fallback is right when the other silhouette edge vanished into a region
-    as bright as the finger (another finger, the palm). If the other side's search ranges
-    show background instead, the found "edges" cannot be the finger's silhouette (the
-    missing edge would lie in those ranges): they are shading ramps or clutter seen from a
-    prediction that is off the finger. The finger and background levels are read 3 px
-    inside and outside the found side's inlier edges.
-    """
-    before, after = per_side(edges.before), per_side(edges.after)
-    inner = np.stack([after[:, 0], before[:, 1]], axis=1)  # side 0 edges face +normal
-    outer = np.stack([before[:, 0], after[:, 1]], axis=1)
-    use = inlier & side_ok[..., None]
-    count = np.maximum(use.sum(axis=(1, 2)), 1)
-    finger = np.sum(np.where(use, inner, 0.0), axis=(1, 2)) / count
-    background = np.sum(np.where(use, outer, 0.0), axis=(1, 2)) / count
-    window = per_side(edges.window_mean)
-    seen_mask = ~side_ok[..., None] & np.isfinite(window)
-    seen = np.sum(np.where(seen_mask, window, 0.0), axis=(1, 2)) / np.maximum(
-        seen_mask.sum(axis=(1, 2)), 1)
-    return polarity * (seen - 0.5 * (finger + background)) > 0.0
-
-
-def _measure_tips(gray, w, sin_view, behind, tracked, link_part, opt) -> dict:
-    n_tips = len(tracked.tip_ids)
-    w_c = w[:, 0]
-    u, along = _unit2(w[:, 1] - w_c)
-    across = np.sqrt(np.sum((w[:, 2] - w_c) ** 2, axis=-1))
-    behind = behind | ~(np.isfinite(along) & np.isfinite(across))
-    short = ~behind & ~(sin_view >= MIN_TIP_SIN)
-    usable = ~(behind | short)
-
-    # Lateral position and direction from the measured axis of the parent link, if valid.
-    k = tracked.tip_parent
-    has_line = (k >= 0) & usable
-    has_line[has_line] = link_part["link_valid"][k[has_line]]
-    line = (link_part["line"][np.maximum(k, 0)] if len(tracked.link_ids)
-            else np.zeros((n_tips, 3)))
-    m = line[:, :2]
-    base = np.where(has_line[:, None],
-                    w_c - (np.sum(m * w_c, axis=-1) - line[:, 2])[:, None] * m, w_c)
-    along_line = np.stack([m[:, 1], -m[:, 0]], axis=-1)
-    along_line *= np.where(np.sum(along_line * u, axis=-1) < 0, -1.0, 1.0)[:, None]
-    direction = np.where(has_line[:, None], along_line, u)
-    lateral = perpendicular(direction)
-
-    expected_end = along[:, None] * np.sqrt(1.0 - TIP_LATERAL**2)[None, :]  # (T, K)
-    origins = (base[:, None] + (TIP_LATERAL[None, :] * across[:, None])[..., None]
-               * lateral[:, None] + expected_end[..., None] * direction[:, None])
-    origins = np.where(usable[:, None, None], origins, -1e4)
-    half = 0.5 * opt.tip_search_px
-    offsets = _sample_grid(half, opt.step_px)
-    profiles, inside = sample_profiles(gray, origins, direction[:, None], offsets)
-    polarity = 1.0 if opt.bright_object else -1.0
-    centre = np.where(usable[:, None], 0.0, np.nan) * np.ones((1, len(TIP_LATERAL)))
-    shift = find_edges(profiles.reshape(-1, len(offsets)), inside.reshape(-1, len(offsets)),
-                       centre.reshape(-1, 1), np.array([-polarity]), offsets, half,
-                       opt.min_contrast).position
-    shift = shift.reshape(n_tips, len(TIP_LATERAL))  # (T, K): end moved along the axis
-    found = np.isfinite(shift)
-    edge_points = origins + shift[..., None] * direction[:, None]
-    count = found.sum(axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean_shift = np.where(found, shift, 0.0).sum(axis=1) / count
-    spread = (np.where(found, shift, -np.inf).max(axis=1, initial=-np.inf)
-              - np.where(found, shift, np.inf).min(axis=1, initial=np.inf))
-    few = count < opt.min_tip_edges
-    code = _first_reason([behind, short, few, spread > opt.max_tip_spread_px])
-    valid = code == 0
-    measured = base + mean_shift[:, None] * direction
-    ends = np.stack([origins - half * direction[:, None], origins + half * direction[:, None]],
-                    axis=-2)
-    return {
-        "predicted_tip": w_c,
-        "measured_tip": np.where(valid[:, None], measured, np.nan),
-        "tip_valid": valid,
-        "tip_reason": _TIP_CODES[code],
-        "tip_direction": direction,
-        "tip_slice_ends": ends,
-        "tip_edge_points": edge_points,
-    }
 
 
 def project_features(
@@ -579,8 +404,8 @@ def project_features(
     :func:`~digiteyes.features.feature_residuals`.
     """
     shapes = _single_state_shapes(kin)
-    link_ids = select_links(model, links, "link")
-    tip_ids = select_links(model, tips, "tip")
+    link_ids = select_links(model, links, LINE_KINDS)
+    tip_ids = select_links(model, tips, ("tip",))
     rows = np.array([model.links[i].row for i in link_ids], dtype=int)
     lengths = np.array([model.links[i].length for i in link_ids], dtype=float)
     start = shapes[rows, :3, 3]

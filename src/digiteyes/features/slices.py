@@ -10,8 +10,10 @@ Fig. 4.2); tip trackers use slices along the axis, beyond the distal link. This 
   exact tangent points of the viewing rays, which the caller projects with
   ``camera.project`` (so perspective, orthographic and scaled orthographic cameras are
   handled alike);
-* samples every slice of every link with one bilinear lookup (:func:`sample_profiles`,
-  one ``cv2.remap`` call).
+* samples slices bilinearly (:func:`bilinear`, :func:`sample_profiles`).
+
+The compiled pieces (:func:`tangent_pair`, :func:`bilinear`) are also called by the fused
+measurement loop of ``features/_kernels.py``.
 
 Pixel (0, 0) is the centre of the top-left pixel (DESIGN.md Sec. 3); world points in mm.
 """
@@ -55,7 +57,7 @@ def perpendicular(u: np.ndarray) -> np.ndarray:
     return np.stack([-u[..., 1], u[..., 0]], axis=-1)
 
 
-def _view(camera: Camera) -> tuple[np.ndarray, bool]:
+def view_of(camera: Camera) -> tuple[np.ndarray, bool]:
     """Optical centre (perspective) or optical axis direction (parallel), world frame."""
     if camera.projection == "perspective":
         return camera.centre_world, True
@@ -63,44 +65,49 @@ def _view(camera: Camera) -> tuple[np.ndarray, bool]:
 
 
 @njit(cache=True, error_model="numpy")
+def tangent_pair(cx, cy, cz, ex, ey, ez, r, view, perspective, sphere,
+                 out):  # pragma: no cover - compiled
+    """Tangent points (2, 3) into ``out`` of a cylinder cross-section (``sphere`` False:
+    the two contours) or a sphere (True: along ``e`` and beside it) centred at ``c``, with
+    axis or direction ``e``; ``view`` is the optical centre (perspective) or the viewing
+    direction. Returns the sine of the angle between ``e`` and the viewing ray."""
+    vx, vy, vz = view[0], view[1], view[2]
+    if perspective:
+        vx, vy, vz = cx - vx, cy - vy, cz - vz
+    distance = np.sqrt(vx * vx + vy * vy + vz * vz)
+    vx, vy, vz = vx / distance, vy / distance, vz / distance
+    if sphere:  # tangent points towards e (out[0]) and beside it (out[1])
+        k = ex * vx + ey * vy + ez * vz
+        sx, sy, sz = ex - k * vx, ey - k * vy, ez - k * vz
+    else:  # the part of the viewing direction across the axis
+        k = vx * ex + vy * ey + vz * ez
+        sx, sy, sz = vx - k * ex, vy - k * ey, vz - k * ez
+    s = np.sqrt(sx * sx + sy * sy + sz * sz)
+    sx, sy, sz = sx / s, sy / s, sz / s
+    if sphere:  # other = v x side
+        ox, oy, oz = vy * sz - vz * sy, vz * sx - vx * sz, vx * sy - vy * sx
+        ratio = r / distance if perspective else 0.0
+        along = r * np.sqrt(1.0 - ratio * ratio)
+        bx, by, bz = cx - r * ratio * vx, cy - r * ratio * vy, cz - r * ratio * vz
+        out[0, 0], out[0, 1], out[0, 2] = bx + along * sx, by + along * sy, bz + along * sz
+        out[1, 0], out[1, 1], out[1, 2] = bx + along * ox, by + along * oy, bz + along * oz
+    else:  # w = e x side
+        wx, wy, wz = ey * sz - ez * sy, ez * sx - ex * sz, ex * sy - ey * sx
+        ratio = r / (distance * s) if perspective else 0.0
+        along = r * np.sqrt(1.0 - ratio * ratio)
+        bx, by, bz = cx - r * ratio * sx, cy - r * ratio * sy, cz - r * ratio * sz
+        out[0, 0], out[0, 1], out[0, 2] = bx - along * wx, by - along * wy, bz - along * wz
+        out[1, 0], out[1, 1], out[1, 2] = bx + along * wx, by + along * wy, bz + along * wz
+    return s
+
+
+@njit(cache=True)
 def _tangent_kernel(centres, directions, radius, view, perspective, sphere, out,
                     sin_view):  # pragma: no cover - compiled
     for i in range(centres.shape[0]):
-        cx, cy, cz = centres[i, 0], centres[i, 1], centres[i, 2]
-        ex, ey, ez = directions[i, 0], directions[i, 1], directions[i, 2]
-        r = radius[i]
-        vx, vy, vz = view[0], view[1], view[2]
-        if perspective:
-            vx, vy, vz = cx - vx, cy - vy, cz - vz
-        distance = np.sqrt(vx * vx + vy * vy + vz * vz)
-        vx, vy, vz = vx / distance, vy / distance, vz / distance
-        if sphere:  # tangent points towards e (out[0]) and beside it (out[1])
-            k = ex * vx + ey * vy + ez * vz
-            sx, sy, sz = ex - k * vx, ey - k * vy, ez - k * vz
-        else:  # the part of the viewing direction across the axis
-            k = vx * ex + vy * ey + vz * ez
-            sx, sy, sz = vx - k * ex, vy - k * ey, vz - k * ez
-        s = np.sqrt(sx * sx + sy * sy + sz * sz)
-        sin_view[i] = s
-        sx, sy, sz = sx / s, sy / s, sz / s
-        if sphere:  # other = v x side
-            ox, oy, oz = vy * sz - vz * sy, vz * sx - vx * sz, vx * sy - vy * sx
-            ratio = r / distance if perspective else 0.0
-            along = r * np.sqrt(1.0 - ratio * ratio)
-            bx, by, bz = cx - r * ratio * vx, cy - r * ratio * vy, cz - r * ratio * vz
-            out[i, 0, 0], out[i, 0, 1], out[i, 0, 2] = bx + along * sx, by + along * sy, \
-                bz + along * sz
-            out[i, 1, 0], out[i, 1, 1], out[i, 1, 2] = bx + along * ox, by + along * oy, \
-                bz + along * oz
-        else:  # w = e x side
-            wx, wy, wz = ey * sz - ez * sy, ez * sx - ex * sz, ex * sy - ey * sx
-            ratio = r / (distance * s) if perspective else 0.0
-            along = r * np.sqrt(1.0 - ratio * ratio)
-            bx, by, bz = cx - r * ratio * sx, cy - r * ratio * sy, cz - r * ratio * sz
-            out[i, 0, 0], out[i, 0, 1], out[i, 0, 2] = bx - along * wx, by - along * wy, \
-                bz - along * wz
-            out[i, 1, 0], out[i, 1, 1], out[i, 1, 2] = bx + along * wx, by + along * wy, \
-                bz + along * wz
+        sin_view[i] = tangent_pair(centres[i, 0], centres[i, 1], centres[i, 2],
+                                   directions[i, 0], directions[i, 1], directions[i, 2],
+                                   radius[i], view, perspective, sphere, out[i])
 
 
 def _tangent_points(camera, centres, directions, radius, sphere):
@@ -108,12 +115,11 @@ def _tangent_points(camera, centres, directions, radius, sphere):
         np.asarray(centres, dtype=float), np.asarray(directions, dtype=float),
         np.asarray(radius, dtype=float)[..., None])
     lead = centres.shape[:-1]
-    view, perspective = _view(camera)
+    view, perspective = view_of(camera)
     out = np.empty((*lead, 2, 3))
     sin_view = np.empty(lead)
-    _tangent_kernel(np.ascontiguousarray(centres.reshape(-1, 3)),
-                    np.ascontiguousarray(directions.reshape(-1, 3)),
-                    np.ascontiguousarray(radius[..., 0].reshape(-1)), view, perspective, sphere,
+    _tangent_kernel(np.array(centres.reshape(-1, 3)), np.array(directions.reshape(-1, 3)),
+                    np.array(radius[..., 0].reshape(-1)), view, perspective, sphere,
                     out.reshape(-1, 2, 3), sin_view.reshape(-1))
     return out, sin_view
 
@@ -168,17 +174,38 @@ def sphere_tangent_points(
     return _tangent_points(camera, centre_world, direction_world, radius, True)
 
 
+@njit(cache=True, inline="always")
+def bilinear(gray, x, y):  # pragma: no cover - compiled
+    """Bilinear grey level at pixel ``(x, y)``; NaN unless ``0 <= x < W - 1`` and
+    ``0 <= y < H - 1`` (the whole neighbourhood inside the image)."""
+    if not (0.0 <= x < gray.shape[1] - 1 and 0.0 <= y < gray.shape[0] - 1):
+        return np.nan
+    x0, y0 = int(x), int(y)
+    fx, fy = x - x0, y - y0
+    top = gray[y0, x0] + fx * (gray[y0, x0 + 1] - gray[y0, x0])
+    bottom = gray[y0 + 1, x0] + fx * (gray[y0 + 1, x0 + 1] - gray[y0 + 1, x0])
+    return top + fy * (bottom - top)
+
+
+@njit(cache=True)
+def _sample_kernel(gray, origins, directions, offsets, profiles):  # pragma: no cover
+    for i in range(origins.shape[0]):
+        for j in range(offsets.shape[0]):
+            profiles[i, j] = bilinear(gray, origins[i, 0] + offsets[j] * directions[i, 0],
+                                      origins[i, 1] + offsets[j] * directions[i, 1])
+
+
 def sample_profiles(
     gray: np.ndarray,
     origins: np.ndarray,
     directions: np.ndarray,
     offsets: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Bilinear intensity profiles along many slices with one ``cv2.remap`` call.
+    """Bilinear intensity profiles along many slices (one compiled loop, :func:`bilinear`).
 
     Sample ``j`` of a slice is at ``origin + offsets[j] * direction``. Samples whose
     bilinear neighbourhood leaves the image are NaN (so no edge is ever found at the image
-    border). OpenCV places bilinear samples on a 1/32 px grid, far below the edge noise.
+    border).
 
     Parameters
     ----------
@@ -189,22 +216,16 @@ def sample_profiles(
 
     Returns
     -------
-    profiles : (..., J) float32 grey levels, NaN outside the image.
+    profiles : (..., J) grey levels, NaN outside the image.
     inside : (..., J) bool, the sample is inside (``0 <= x < W - 1``, same in y).
     """
-    origins = np.asarray(origins, dtype=np.float32)
-    directions = np.asarray(directions, dtype=np.float32)
-    if origins.shape != directions.shape:
-        origins, directions = np.broadcast_arrays(origins, directions)
+    origins, directions = np.broadcast_arrays(np.asarray(origins, dtype=float),
+                                              np.asarray(directions, dtype=float))
     lead, n = origins.shape[:-1], len(offsets)
-    o = origins.reshape(-1, 2)
-    d = directions.reshape(-1, 2)
-    if o.shape[0] == 0:
-        return np.zeros((*lead, n), np.float32), np.zeros((*lead, n), bool)
-    step = np.asarray(offsets, dtype=np.float32)
-    # x and y maps separately: broadcasting over a trailing axis of 2 is slow in numpy.
-    map_x = o[:, :1] + step * d[:, :1]
-    map_y = o[:, 1:] + step * d[:, 1:]
-    profiles = cv2.remap(gray, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                         borderValue=np.nan)
-    return profiles.reshape(*lead, n), ~np.isnan(profiles).reshape(*lead, n)
+    profiles = np.empty((int(np.prod(lead)), n))
+    _sample_kernel(np.ascontiguousarray(gray, dtype=np.float32),
+                   np.ascontiguousarray(origins.reshape(-1, 2)),
+                   np.ascontiguousarray(directions.reshape(-1, 2)),
+                   np.asarray(offsets, dtype=float), profiles)
+    profiles = profiles.reshape(*lead, n)
+    return profiles, ~np.isnan(profiles)

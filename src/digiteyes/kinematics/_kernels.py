@@ -170,3 +170,44 @@ def jacobian_kernel(world, shape, q, rows, p_shape, moved, joint_row, theta_stat
                 J[n, p, 0, t0] = 1.0
                 J[n, p, 1, t0 + 1] = 1.0
                 J[n, p, 2, t0 + 2] = 1.0
+
+
+@njit(cache=True)
+def integrate_kernel(q, dv, q_to_v, base_state, out):  # pragma: no cover - compiled
+    """Retraction of the states ``q`` (N, n_q) by tangent steps ``dv`` (N, n_v) into ``out``.
+
+    Numbers with a tangent index add; the base quaternion (w, x, y, z) is turned on the left
+    by ``exp(dv_rot)`` (world frame) and renormalised.
+    """
+    n_states, n_q = q.shape
+    for n in range(n_states):
+        for i in range(n_q):
+            j = q_to_v[i]
+            out[n, i] = q[n, i] + dv[n, j] if j >= 0 else q[n, i]
+        if base_state >= 0:
+            k = base_state
+            rx = dv[n, k]
+            ry = dv[n, k + 1]
+            rz = dv[n, k + 2]
+            angle = np.sqrt(rx * rx + ry * ry + rz * rz)
+            if angle < 1e-8:
+                scale = 0.5 - angle * angle / 48.0  # sin(angle/2)/angle near zero
+            else:
+                scale = np.sin(0.5 * angle) / angle
+            tw = np.cos(0.5 * angle)
+            tx = rx * scale
+            ty = ry * scale
+            tz = rz * scale
+            w = q[n, k]
+            x = q[n, k + 1]
+            y = q[n, k + 2]
+            z = q[n, k + 3]
+            nw = tw * w - tx * x - ty * y - tz * z
+            nx = tw * x + tx * w + ty * z - tz * y
+            ny = tw * y - tx * z + ty * w + tz * x
+            nz = tw * z + tx * y - ty * x + tz * w
+            inv = 1.0 / np.sqrt(nw * nw + nx * nx + ny * ny + nz * nz)
+            out[n, k] = nw * inv
+            out[n, k + 1] = nx * inv
+            out[n, k + 2] = ny * inv
+            out[n, k + 3] = nz * inv

@@ -28,12 +28,14 @@ from digiteyes.kinematics.model_file import FrameSpec, ModelSpec, StateSpec, rea
 
 @dataclass(frozen=True)
 class Link:
-    """A visible part of the model: a cylinder link, a fingertip sphere or the palm slab.
+    """A part of the model with geometry: a cylinder link, a fingertip sphere, the palm
+    slab, or a tracked edge of a body.
 
-    ``row`` is the frame row whose shape frame carries the geometry. Cylinders run from the
-    shape-frame origin along +x for ``length`` mm with ``radius`` mm; tips are spheres of
-    ``radius`` centred on the shape-frame origin; the palm is a box (``size``, ``centre`` in
-    the shape frame, mm).
+    ``row`` is the frame row whose shape frame carries the geometry. Cylinders (kind
+    ``"link"``) and edges (kind ``"edge"``) run from the shape-frame origin along +x for
+    ``length`` mm with ``radius`` mm; tips are spheres of ``radius`` centred on the
+    shape-frame origin; the palm is a box (``size``, ``centre`` in the shape frame, mm).
+    Edges are measured like links but belong to another body's surface.
     """
 
     name: str
@@ -219,12 +221,13 @@ class KinematicModel:
             if row.shape is None:
                 continue
             name = row.geometry or f"frame{row.index}"
-            if row.shape.kind == "cyl":
+            if row.shape.kind in ("cyl", "edge"):
                 if row.a <= 0.0:
                     raise ModelFileError(
-                        spec.path, row.line, "a cyl() link needs a positive length a"
+                        spec.path, row.line, f"a {row.shape.kind}() link needs a positive length a"
                     )
-                links.append(Link(name, "link", row.index, row.a, row.shape.params[0]))
+                kind = "link" if row.shape.kind == "cyl" else "edge"
+                links.append(Link(name, kind, row.index, row.a, row.shape.params[0]))
             elif row.shape.kind == "tip":
                 links.append(Link(name, "tip", row.index, 0.0, row.shape.params[0]))
             else:
@@ -281,12 +284,13 @@ class KinematicModel:
         raise KeyError(f"model {self.name!r} has no link {name!r}")
 
     def axis_and_tip_points(self) -> tuple[np.ndarray, np.ndarray]:
-        """Both ends of every cylinder link's axis and every tip centre, as shape-frame
-        rows (P,) and offsets (P, 3) mm: the points the DigitEyes residuals live on."""
+        """Both ends of every cylinder link's and edge's axis and every tip centre, as
+        shape-frame rows (P,) and offsets (P, 3) mm: the points the DigitEyes residuals
+        live on."""
         rows: list[int] = []
         offsets: list[tuple[float, float, float]] = []
         for link in self.links:
-            if link.kind == "link":
+            if link.kind in ("link", "edge"):
                 rows += [link.row, link.row]
                 offsets += [(0.0, 0.0, 0.0), (link.length, 0.0, 0.0)]
             elif link.kind == "tip":
@@ -306,7 +310,7 @@ class KinematicModel:
         """A human-readable summary: the frame tree and the state layout."""
         lines = [f"model {self.name}: {self.description}".rstrip(": "),
                  f"  {self.n_frames} frames, "
-                 f"{sum(link.kind != 'tip' for link in self.links)} rigid bodies, "
+                 f"{sum(link.kind in ('link', 'palm') for link in self.links)} rigid bodies, "
                  f"{sum(link.kind == 'tip' for link in self.links)} tips, "
                  f"{self.n_q} states (tangent size {self.n_v})", "", "frame tree:"]
 

@@ -35,8 +35,8 @@ _VALUE_RE = re.compile(
 )
 _STATE_RE = re.compile(r"^q([0-9]{1,9})$")
 _INDEX_RE = re.compile(r"^[0-9]{1,9}$")
-_SHAPE_RE = re.compile(r"^(?P<kind>box|cyl|tip)\((?P<args>[^()]*)\)$")
-_SHAPE_ARITY = {"box": (3, 6), "cyl": (1, 1), "tip": (1, 1)}
+_SHAPE_RE = re.compile(r"^(?P<kind>box|cyl|tip|edge)\((?P<args>[^()]*)\)$")
+_SHAPE_ARITY = {"box": (3, 6), "cyl": (1, 1), "tip": (1, 1), "edge": (1, 1)}
 
 
 @dataclass(frozen=True)
@@ -53,10 +53,12 @@ class StateSpec:
 
 @dataclass(frozen=True)
 class ShapeSpec:
-    """Visible geometry of a row: ``box`` (palm slab), ``cyl`` (link) or ``tip`` (sphere).
+    """Geometry of a row: ``box`` (palm slab), ``cyl`` (link), ``tip`` (sphere) or ``edge``.
 
     ``params`` are millimetres: box = (size_x, size_y, size_z, centre_x, centre_y, centre_z)
-    in the shape frame, cyl = (radius,), tip = (radius,).
+    in the shape frame, cyl = (radius,), tip = (radius,), edge = (radius,). An ``edge`` is a
+    rounded edge of another body (e.g. the palm slab): tracked like a cylinder link, but not
+    a body of its own (not rendered, labelled or given a keypoint).
     """
 
     kind: str
@@ -233,7 +235,8 @@ def _parse_frame_row(cells: list[str], path: str, line: int) -> FrameSpec:
 
 def _parse_shape(cell: str, path: str, line: int) -> ShapeSpec:
     match = _SHAPE_RE.match(cell)
-    expected = "shape must be '-', box(sx,sy,sz[,cx,cy,cz]), cyl(radius) or tip(radius)"
+    expected = ("shape must be '-', box(sx,sy,sz[,cx,cy,cz]), cyl(radius), tip(radius) or "
+                "edge(radius)")
     if match is None:
         raise ModelFileError(path, line, f"{expected}; got {cell!r}")
     kind = match["kind"]

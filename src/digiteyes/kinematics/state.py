@@ -17,13 +17,10 @@ import numpy as np
 
 from digiteyes._files import read_json_object
 from digiteyes.errors import StateError
+from digiteyes.kinematics._kernels import integrate_kernel
 from digiteyes.kinematics.forward import as_state_batch
 from digiteyes.kinematics.model import KinematicModel
-from digiteyes.kinematics.rotations import (
-    quaternion_from_rotvec,
-    quaternion_multiply,
-    rotvec_from_quaternion,
-)
+from digiteyes.kinematics.rotations import quaternion_multiply, rotvec_from_quaternion
 
 UNIT_QUATERNION_TOLERANCE = 1e-6
 
@@ -55,19 +52,22 @@ def integrate(model: KinematicModel, q: np.ndarray, dv: np.ndarray) -> np.ndarra
     """Retraction: the state reached from ``q`` by the tangent step ``dv`` (n_v numbers).
 
     Base rotation: ``R <- exp([dv_rot]x) R`` (world frame), quaternion renormalised;
-    everything else adds. Accepts single states or batches.
+    everything else adds. Accepts single states or batches (broadcast against each other).
     """
     q = np.asarray(q, dtype=float)
     dv = np.asarray(dv, dtype=float)
-    out = np.array(np.broadcast_to(q, np.broadcast_shapes(q.shape, (*dv.shape[:-1], model.n_q))))
-    plain = model.q_to_v >= 0
-    out[..., plain] += dv[..., model.q_to_v[plain]]
-    if model.base_state is not None:
-        k = model.base_state
-        turn = quaternion_from_rotvec(dv[..., k:k + 3])
-        quat = quaternion_multiply(turn, out[..., k:k + 4])
-        out[..., k:k + 4] = quat / np.linalg.norm(quat, axis=-1, keepdims=True)
-    return out
+    base = -1 if model.base_state is None else model.base_state
+    if q.ndim == 1 and dv.ndim == 1:  # one state: skip the broadcasting machinery
+        out = np.empty((1, model.n_q))
+        integrate_kernel(np.ascontiguousarray(q).reshape(1, -1),
+                         np.ascontiguousarray(dv).reshape(1, -1), model.q_to_v, base, out)
+        return out[0]
+    batch = np.broadcast_shapes(q.shape[:-1], dv.shape[:-1])
+    q2 = np.ascontiguousarray(np.broadcast_to(q, (*batch, model.n_q)).reshape(-1, model.n_q))
+    dv2 = np.ascontiguousarray(np.broadcast_to(dv, (*batch, model.n_v)).reshape(-1, model.n_v))
+    out = np.empty_like(q2)
+    integrate_kernel(q2, dv2, model.q_to_v, base, out)
+    return out.reshape(*batch, model.n_q)
 
 
 def difference(model: KinematicModel, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:

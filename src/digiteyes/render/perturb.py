@@ -65,6 +65,8 @@ def perturb_model(
     tips = {tip: link for link, tip in tip_of_link(model).items()}
     radius_factor: dict[int, float] = {}
     for i, link in enumerate(model.links):
+        if link.kind == "edge":
+            continue  # tracked edges are features of the tracking model, never rendered
         u_length, u_radius = rng.uniform(-1.0, 1.0, size=2)
         f_length, f_radius = 1.0 + u_length * link_length, 1.0 + u_radius * radius
         row = rows[link.row]
@@ -77,7 +79,7 @@ def perturb_model(
             factor = radius_factor.get(tips.get(i, -1), f_radius)
             rows[link.row] = dataclasses.replace(row, shape=ShapeSpec("tip",
                                                                       (params[0] * factor,)))
-        else:
+        elif link.kind == "palm":
             size = np.array(params[:3])
             factors = np.full(3, f_length)
             factors[np.argmin(size)] = f_radius
@@ -105,7 +107,7 @@ def anchor_chains(model: KinematicModel) -> list[tuple[int, ...]]:
                    and len(row.next) == 1):
                 chain.append(row.index)
                 row = model.rows[row.next[0]]
-            if chain:
+            if chain and (row.theta_state is not None or row.d_state is not None):
                 chains.append(tuple(chain))
     return sorted(chains)
 

@@ -94,7 +94,7 @@ def build_scene(model: KinematicModel, kin: Kinematics, index: int = 0) -> Scene
             rows.append((CAPSULE, i, tips.get(i, i), _pack(origin, end, [link.radius])))
         elif link.kind == "tip":
             rows.append((BALL, i, i, _pack(origin, [link.radius])))
-        else:
+        elif link.kind == "palm":
             centre = origin + R @ np.asarray(link.centre, dtype=float)
             rows += [(kind, i, i, p) for kind, p in
                      _rounded_slab(centre, R, 0.5 * np.asarray(link.size, dtype=float))]

@@ -23,8 +23,8 @@ from __future__ import annotations
 import time
 
 import numpy as np
-import scipy.linalg
 
+from digiteyes.solvers._kernels import scaled_cholesky_solve
 from digiteyes.solvers.options import GaussNewtonOptions
 from digiteyes.solvers.problem import LeastSquaresProblem, SolverSummary, project_if_defined
 from digiteyes.solvers.robust import robust_cost, robust_weights
@@ -62,17 +62,15 @@ def solve_normal_equations(A: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, bo
     factorisation serves well-conditioned systems; when a pivot of the scaled matrix falls
     below the eigenvalue floor, a symmetric eigendecomposition gives the pseudo-inverse.
     """
+    A = np.ascontiguousarray(A, dtype=float)
+    g = np.ascontiguousarray(g, dtype=float)
+    x = np.empty(len(g))
+    if scaled_cholesky_solve(A, g, RELATIVE_EIGENVALUE_FLOOR, x):
+        return x, False
     diag = np.diag(A)
     d = np.where(diag > 0, 1.0 / np.sqrt(np.where(diag > 0, diag, 1.0)), 0.0)
     A_scaled = A * d[:, None] * d[None, :]
     g_scaled = d * g
-    if (diag > 0).all():
-        try:
-            factor = scipy.linalg.cho_factor(A_scaled, lower=True, check_finite=False)
-        except np.linalg.LinAlgError:
-            factor = None
-        if factor is not None and np.diag(factor[0]).min() ** 2 > RELATIVE_EIGENVALUE_FLOOR:
-            return d * scipy.linalg.cho_solve(factor, g_scaled, check_finite=False), False
     eigenvalues, V = np.linalg.eigh(A_scaled)
     floor = RELATIVE_EIGENVALUE_FLOOR * max(float(eigenvalues[-1]), 0.0)
     keep = eigenvalues > floor

@@ -55,7 +55,8 @@ phalanges of the middle two fingers, which were always occluded)."""
 
 def thesis_whole_hand_links(model: KinematicModel) -> tuple[str, ...]:
     """Every cylinder link and tip of ``model`` except :data:`THESIS_EXCLUDED_LINKS`:
-    the 13 phalanges and 5 tips of thesis Sec. 4.3.3 for the full hand."""
+    the 13 phalanges and 5 tips of thesis Sec. 4.3.3 for the full hand (no palm edges,
+    which the thesis did not measure)."""
     return tuple(link.name for link in model.links
                  if link.kind in ("link", "tip") and link.name not in THESIS_EXCLUDED_LINKS)
 
@@ -80,8 +81,10 @@ class FeatureTrackerOptions:
     robust_loss : ``None``, ``"huber"`` or ``"tukey"`` on the feature residuals.
     robust_scale_px : scale of the robust loss, pixels.
     clip_to_limits : clip joint states into their limits after every step.
-    prediction : ``"constant-velocity"`` (tangent-space extrapolation) or ``"none"``
-        (previous estimate, as the thesis).
+    prediction : ``"none"`` (start from the previous estimate, as the thesis; the default,
+        because extrapolating amplifies drift along weakly observed directions, see
+        docs/tracker.md) or ``"constant-velocity"`` (tangent-space extrapolation, which
+        helps on fast motion).
     form : ``"tangent"`` steps (n_v) or the thesis's ``"quaternion"`` form (n_q).
     max_invalid_fraction : lost when more than this fraction of requested features is
         invalid.
@@ -102,7 +105,7 @@ class FeatureTrackerOptions:
     robust_loss: RobustLoss | None = None
     robust_scale_px: float = 5.0
     clip_to_limits: bool = True
-    prediction: PredictionKind = "constant-velocity"
+    prediction: PredictionKind = "none"
     form: StepForm = "tangent"
     max_invalid_fraction: float = 0.5
     max_residual_rms_px: float | None = None
@@ -276,7 +279,7 @@ class FeatureTracker:
     @staticmethod
     def _split_features(model: KinematicModel, names: tuple[str, ...] | None
                         ) -> tuple[list[str], list[str]]:
-        features = [link for link in model.links if link.kind in ("link", "tip")]
+        features = [link for link in model.links if link.kind in ("link", "edge", "tip")]
         if names is None:
             chosen = features
         else:
@@ -289,7 +292,7 @@ class FeatureTracker:
                     f"{', '.join(by_name)}"
                 )
             chosen = [by_name[n] for n in dict.fromkeys(names)]
-        links = [link.name for link in chosen if link.kind == "link"]
+        links = [link.name for link in chosen if link.kind in ("link", "edge")]
         tips = [link.name for link in chosen if link.kind == "tip"]
         if not links and not tips:
             raise ValueError(f"no cylinder link or tip to track in model {model.name!r}")

@@ -148,7 +148,7 @@ def draw_wireframe(model: KinematicModel, q: np.ndarray, cam: Camera) -> np.ndar
         elif link.kind == "tip":
             radius = _pixel_radius(cam, origin[None], link.radius)[0]
             _arc(image, cam.project(origin), radius, 0.0, 360.0, _AXIS_RGB)
-        else:
+        elif link.kind == "link":
             _capsule_outline(image, cam, origin, origin + link.length * R[:, 0], link.radius)
     return image
 

@@ -1,0 +1,116 @@
+"""The machine a benchmark ran on: CPU, cores, Python and library versions, BLAS threads.
+
+Shared by every module of :mod:`digiteyes.benchmarks`, so that all their tables and JSON
+files describe the machine the same way.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import platform
+from collections.abc import Sequence
+
+import numpy as np
+
+BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+"""Environment variables that fix the BLAS thread count when numpy is first imported."""
+
+
+def cpu_model() -> str:
+    """The CPU's model name from ``/proc/cpuinfo`` (Linux), else what :mod:`platform` says."""
+    fallback = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as handle:
+            for line in handle:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return fallback
+
+
+def package_version(module: str) -> str | None:
+    """``module.__version__``, or None when the module cannot be imported."""
+    try:
+        return str(importlib.import_module(module).__version__)
+    except ImportError:
+        return None
+
+
+def blas_info() -> dict[str, object]:
+    """Which BLAS numpy uses and how many threads it may run.
+
+    Keys: ``library`` (numpy's build information), ``env`` (the thread variables set in
+    the environment), ``threads`` (per library, from ``threadpoolctl`` when it is
+    importable, else None: the count is then unknown and, unless an environment variable
+    fixed it before numpy loaded, OpenBLAS uses every core).
+    """
+    library = None
+    try:
+        config = np.show_config(mode="dicts")
+        library = config["Build Dependencies"]["blas"].get("name")
+    except (TypeError, KeyError, AttributeError):
+        pass
+    env = {name: os.environ[name] for name in BLAS_THREAD_VARIABLES if name in os.environ}
+    threads = None
+    try:
+        from threadpoolctl import threadpool_info
+    except ImportError:
+        pass
+    else:
+        threads = {pool["internal_api"]: pool["num_threads"] for pool in threadpool_info()}
+    return {"library": library, "env": env, "threads": threads}
+
+
+def machine_info(extra: Sequence[str] = ()) -> dict[str, object]:
+    """Describe this machine for a benchmark report.
+
+    Parameters
+    ----------
+    extra : further modules whose versions to report (e.g. ``("pinocchio",)``); None
+        for those that are not importable.
+
+    Returns
+    -------
+    dict
+        ``cpu`` (model name), ``cores`` (logical CPUs), ``cores_usable`` (CPUs this process
+        may run on), ``platform``, ``python``, ``numpy``, ``numba``, ``opencv``, ``blas``
+        (see :func:`blas_info`) and one entry per module of ``extra``.
+    """
+    try:
+        usable: int | None = len(os.sched_getaffinity(0))
+    except AttributeError:
+        usable = os.cpu_count()
+    info: dict[str, object] = {
+        "cpu": cpu_model(),
+        "cores": os.cpu_count(),
+        "cores_usable": usable,
+        "platform": platform.platform(),
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "numba": package_version("numba"),
+        "opencv": package_version("cv2"),
+        "blas": blas_info(),
+    }
+    for module in extra:
+        info[module] = package_version(module)
+    return info
+
+
+def machine_lines(info: dict[str, object]) -> list[str]:
+    """Two or three lines describing ``info`` (from :func:`machine_info`) for a table."""
+    blas = info["blas"]
+    if blas["threads"] is not None:
+        threads = ", ".join(f"{k} {v} thread(s)" for k, v in blas["threads"].items())
+    elif blas["env"]:
+        threads = ", ".join(f"{k}={v}" for k, v in blas["env"].items())
+    else:
+        threads = "thread count not limited (threadpoolctl not installed, no *_NUM_THREADS)"
+    return [
+        f"machine: {info['cpu']}, {info['cores']} cores ({info['cores_usable']} usable), "
+        f"{info['platform']}",
+        f"         Python {info['python']}, numpy {info['numpy']}, numba {info['numba']}, "
+        f"OpenCV {info['opencv']}",
+        f"         BLAS {blas['library'] or 'unknown'}: {threads}",
+    ]

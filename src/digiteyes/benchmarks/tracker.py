@@ -1,0 +1,630 @@
+"""Feature-tracker benchmark: speed per Gauss-Newton iteration, end-to-end frame rate,
+accuracy against ground truth on the synthetic scenarios, and ablations.
+
+Four sections (DESIGN.md Sec. 7, issue 4 item 8), every figure measured on this machine:
+
+a. **Cost per iteration** of the full hand (28 states, every link and tip measured,
+   640 x 480 images), one camera of the whole-hand rig (*mono*) and both (*stereo*),
+   split into the rows of thesis Table 4.1: forward kinematics, feature detection, state
+   estimation = Jacobian (residual and Jacobian assembly) + linear solve, from
+   :attr:`TrackResult.timings` summed over the frames and divided by the iterations. A
+   frame measures the features ``iterations + 1`` times (once more at the final state
+   for the reported residual), and that extra pass is charged to the iterations, as is
+   the prediction and the bookkeeping between stages ("other"). Thesis figures (68040,
+   stopwatch): 18.0, 46.2, 72.0 (35 + 37), plus 10.0 ms of overlay display that is not
+   measured here; total 146 ms. Keys ``ms_per_iteration_mono``,
+   ``ms_per_iteration_stereo``, ``per_iteration_mono``, ``per_iteration_stereo`` (ms per
+   stage), ``speedup_vs_thesis_mono`` / ``_stereo`` (146 / ours).
+b. **End-to-end frames per second** of ``digiteyes track`` on a video: the whole-hand
+   sequence seen by camera 0 is written as a lossless FFV1 video dataset in a temporary
+   folder, then opened, decoded and tracked with :func:`digiteyes.pipeline.run_tracker`
+   (state log, summary, 3D views every 50 frames and the trajectory plots, as the
+   command writes them), without the overlay video (``fps_end_to_end``) and with it
+   (``fps_end_to_end_overlay``), at ``fps_end_to_end_iterations`` Gauss-Newton
+   iterations per frame: the smallest of 1, 2, 3, 5 whose whole-hand stereo run (black
+   cloth, exact model) meets the accuracy targets (mean fingertip error <= 3 mm and
+   joint-angle RMS <= 5 degrees; 5 if none does, ``targets_met`` false).
+c. **Accuracy** (:func:`digiteyes.evaluate.evaluate_run`) of whole-hand mono (camera 0
+   only), whole-hand stereo, mouse (one camera; also the error of the 3D-mouse pole
+   height, :mod:`digiteyes.apps.mouse3d`), natural (stereo) and fast (stereo; track life
+   matters) x background {black cloth, clutter} x model {exact, perturbed: the images
+   come from a hand whose link lengths differ by up to 5 % (``perturb_model``) while the
+   tracker keeps the nominal model}, at the iterations of (b) and at the tracker's
+   default of 5 iterations per frame.
+d. **Ablations** on whole-hand stereo, black cloth, exact model, from the tracker's
+   defaults (``FeatureTrackerOptions()``: 5 iterations, tangent steps, conditioning, no
+   robust loss, every link and tip): conditioning off, 1/2/3/5/10 iterations per frame,
+   the other prediction (constant velocity vs the previous estimate), the thesis's
+   quaternion form, Tukey loss, the thesis's link set.
+
+The images are rendered in memory (grey, sensor noise 2 grey levels, seeds as
+``digiteyes render --seed 0``); nothing is kept on disk. OpenCV runs on one thread;
+NumPy's BLAS is limited to one thread with ``threadpoolctl`` when it is importable,
+otherwise the table says how it runs (set ``OPENBLAS_NUM_THREADS=1`` before starting for
+one thread). Run it with ``digiteyes bench tracker [--json FILE] [--quick]``;
+docs/benchmarks.md explains the tables.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import tempfile
+import time
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+from tqdm import tqdm
+
+from digiteyes.apps.mouse3d import pole_from_state
+from digiteyes.benchmarks._machine import blas_info, machine_info, machine_lines
+from digiteyes.camera import Rig
+from digiteyes.evaluate import evaluate_run
+from digiteyes.io import GroundTruth, SequenceWriter, StateLog, open_sequence
+from digiteyes.kinematics import KinematicModel
+from digiteyes.pipeline import run_tracker
+from digiteyes.render import RenderOptions, perturb_model, render_views
+from digiteyes.render.scenarios import Scenario, build_scenario
+from digiteyes.trackers import FeatureTracker, FeatureTrackerOptions, thesis_whole_hand_links
+
+SEED = 0
+"""Seed of the scenarios' motion, the sensor noise, the clutter and the perturbation."""
+NOISE_SIGMA = 2.0
+"""Sensor noise of the rendered images, grey levels."""
+PERTURB_LINK_LENGTH = 0.05
+"""Link-length perturbation of the "perturbed" true hand (fraction)."""
+
+STAGES = ("forward_kinematics", "feature_detection", "jacobian", "linear_solve")
+THESIS_TABLE_4_1_MS = {
+    "forward_kinematics": 18.0, "feature_detection": 46.2, "state_estimation": 72.0,
+    "jacobian": 35.0, "linear_solve": 37.0, "overlay_display": 10.0, "total": 146.0,
+}
+"""Thesis Table 4.1: ms per iteration, full hand, 68040 CPU (overlay display included in
+the total; the other rows add up to 136.2)."""
+
+ACCURACY_TARGETS = {"fingertip_err_mm_mean": 3.0, "joint_angle_err_deg_rms": 5.0}
+"""Targets the end-to-end iterations per frame must meet on whole-hand stereo."""
+ITERATION_CHOICES = (1, 2, 3, 5)
+DEFAULT_ITERATIONS = FeatureTrackerOptions().iterations_per_frame
+
+BACKGROUNDS = ("black", "clutter")
+MODELS = ("exact", "perturbed")
+ACCURACY_CASES = {
+    # case: (scenario, cameras (None: all), pole error)
+    "whole-hand mono": ("whole-hand", (0,), False),
+    "whole-hand stereo": ("whole-hand", None, False),
+    "mouse": ("mouse", None, True),
+    "natural": ("natural", None, False),
+    "fast": ("fast", None, False),
+}
+
+OTHER_PREDICTION = "constant-velocity" if FeatureTrackerOptions().prediction == "none" \
+    else "none"
+"""The prediction the tracker does not use by default (the prediction ablation)."""
+
+ABLATIONS: dict[str, dict[str, Any]] = {
+    f"defaults ({DEFAULT_ITERATIONS} it)": {},
+    "no conditioning": {"use_conditioning": False},
+    "1 iteration": {"iterations_per_frame": 1},
+    "2 iterations": {"iterations_per_frame": 2},
+    "3 iterations": {"iterations_per_frame": 3},
+    "10 iterations": {"iterations_per_frame": 10},
+    f"prediction {OTHER_PREDICTION}": {"prediction": OTHER_PREDICTION},
+    "quaternion form": {"form": "quaternion"},
+    "tukey loss (5 px)": {"robust_loss": "tukey"},
+    "thesis link set": {"links": "thesis"},
+}
+"""Ablation variants: changes to the tracker's default options (``"links": "thesis"``
+stands for :func:`thesis_whole_hand_links`: no middle and ring proximal phalanges)."""
+QUICK_ABLATIONS = (f"defaults ({DEFAULT_ITERATIONS} it)", "no conditioning", "1 iteration",
+                   "2 iterations", "3 iterations")
+
+
+@dataclass(frozen=True)
+class Settings:
+    """How much a run does: frames per scenario (None: the scenario's own length), frames
+    of the speed and end-to-end runs, the ablations, passes of the speed runs."""
+
+    frames: int | None
+    speed_frames: int
+    e2e_frames: int | None
+    ablations: tuple[str, ...]
+    speed_passes: int
+
+
+FULL = Settings(frames=None, speed_frames=100, e2e_frames=None, ablations=tuple(ABLATIONS),
+                speed_passes=2)
+QUICK = Settings(frames=30, speed_frames=15, e2e_frames=30, ablations=QUICK_ABLATIONS,
+                 speed_passes=1)
+
+
+# --------------------------------------------------------------------------- sequences
+@dataclass(frozen=True)
+class RenderedSequence:
+    """A scenario rendered in memory: grey images per frame and camera, and the truth."""
+
+    scenario: Scenario
+    rig: Rig
+    images: list[list[np.ndarray]]
+    truth: GroundTruth
+    truth_model: KinematicModel
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.images)
+
+    def cameras(self, indices: Sequence[int] | None) -> RenderedSequence:
+        """The same sequence seen by a subset of the cameras (None: all of them)."""
+        if indices is None:
+            return self
+        idx = list(indices)
+        truth = GroundTruth(self.truth.states, self.truth.keypoint_names,
+                            self.truth.keypoints_3d, self.truth.keypoints_2d[:, idx],
+                            self.truth.visible[:, idx])
+        return replace(self, rig=Rig(tuple(self.rig.cameras[i] for i in idx)),
+                       images=[[frame[i] for i in idx] for frame in self.images], truth=truth)
+
+
+def render_sequence(scenario: Scenario, background: str = "black", perturbed: bool = False,
+                    seed: int = SEED, progress: bool = False) -> RenderedSequence:
+    """Render every frame of ``scenario`` through its rig (grey, noise
+    :data:`NOISE_SIGMA`), from a hand perturbed by :data:`PERTURB_LINK_LENGTH` if asked;
+    seeds as ``digiteyes render --seed``."""
+    model = scenario.model
+    truth_model = perturb_model(model, link_length=PERTURB_LINK_LENGTH, rng=seed) \
+        if perturbed else model
+    options = RenderOptions(background=background, noise_sigma=NOISE_SIGMA,
+                            background_seed=seed)
+    images, kp3, kp2, visible = [], [], [], []
+    names: tuple[str, ...] = ()
+    label = f"render {scenario.name} {background} {'perturbed' if perturbed else 'exact'}"
+    for t in tqdm(range(scenario.n_frames), desc=label, unit="frame", leave=False,
+                  disable=not progress):
+        views = render_views(truth_model, scenario.states[t], scenario.rig, options,
+                             np.random.default_rng([seed, t]))
+        images.append([v.image for v in views])
+        names = tuple(views[0].keypoint_names)
+        kp3.append(views[0].keypoints_3d)
+        kp2.append(np.stack([v.keypoints_2d for v in views]))
+        visible.append(np.stack([v.visible for v in views]))
+    truth = GroundTruth(np.array(scenario.states, dtype=float), names, np.array(kp3),
+                        np.array(kp2), np.array(visible))
+    return RenderedSequence(scenario, scenario.rig, images, truth, truth_model)
+
+
+# --------------------------------------------------------------------------- tracking
+@dataclass
+class TrackOutcome:
+    """A tracker run over a rendered sequence: the log and the time spent per stage."""
+
+    log: StateLog
+    stage_seconds: dict[str, float]
+    tracker_seconds: float
+    iterations: int
+    features_per_frame: float
+
+
+def track_sequence(sequence: RenderedSequence, options: FeatureTrackerOptions,
+                   label: str = "track", progress: bool = False) -> TrackOutcome:
+    """Track ``sequence`` from its true first state with the feature tracker."""
+    model = sequence.scenario.model
+    tracker = FeatureTracker(model, sequence.rig, options)
+    tracker.reset(sequence.scenario.initial_state)
+    n = sequence.n_frames
+    states = np.empty((n, model.n_q))
+    lost = np.zeros(n, dtype=bool)
+    rms = np.full(n, np.nan)
+    iterations = np.zeros(n, dtype=int)
+    seconds = np.zeros(n)
+    stage = dict.fromkeys((*STAGES, "prediction"), 0.0)
+    features = 0
+    for t in tqdm(range(n), desc=label, unit="frame", leave=False, disable=not progress):
+        start = time.perf_counter()
+        result = tracker.step(sequence.images[t])
+        seconds[t] = time.perf_counter() - start
+        states[t], lost[t], rms[t] = result.state, result.lost, result.residual_rms_px
+        iterations[t] = result.iterations
+        features += result.n_features
+        for key in stage:
+            stage[key] += result.timings.get(key, 0.0)
+    log = StateLog(np.arange(n), states, lost, rms, iterations, seconds)
+    return TrackOutcome(log, stage, float(seconds.sum()), int(iterations.sum()),
+                        features / max(n, 1))
+
+
+def _number(value: Any) -> float | None:
+    """A finite float, or None (strict JSON)."""
+    if value is None:
+        return None
+    value = float(value)
+    return value if np.isfinite(value) else None
+
+
+def accuracy_summary(sequence: RenderedSequence, outcome: TrackOutcome,
+                     pole: bool = False) -> dict[str, Any]:
+    """The per-run figures of section (c) from :func:`evaluate_run` (mm, degrees, px,
+    frames), plus the 3D-mouse pole errors when ``pole``."""
+    model = sequence.scenario.model
+    metrics = evaluate_run(outcome.log, sequence.truth, model, sequence.rig)
+    tip, palm = metrics["fingertip_error_mm"], metrics["palm"]
+    angles, reprojection = metrics["joint_angle_error_deg"], metrics["reprojection_error_px"]
+    n = len(outcome.log)
+    out: dict[str, Any] = {
+        "fingertip_err_mm_mean": _number(tip and tip["mean"]),
+        "fingertip_err_mm_max": _number(tip and tip["max"]),
+        "joint_angle_err_deg_rms": _number(angles and angles["rms"]),
+        "palm_pos_err_mm_mean": _number(palm and palm["position_error_mm"]["mean"]),
+        "palm_rot_err_deg_mean": _number(palm and palm["orientation_error_deg"]["mean"]),
+        "reprojection_err_px_mean": _number(reprojection and reprojection["mean"]),
+        "track_life_frames": int(metrics["track_life"]["frames"]),
+        "frames": n,
+        "lost_frames": int(metrics["run"]["lost_frames"]),
+        "iterations_per_frame": outcome.iterations / max(n, 1),
+        "ms_per_frame": 1e3 * outcome.tracker_seconds / max(n, 1),
+    }
+    if pole:
+        estimate = pole_from_state(model, outcome.log.states)
+        truth = pole_from_state(sequence.truth_model, sequence.truth.states[:n])
+        out["pole_height_err_mm_mean"] = float(np.mean(np.abs(estimate[:, 2] - truth[:, 2])))
+        out["pole_base_err_mm_mean"] = float(np.mean(
+            np.linalg.norm(estimate[:, :2] - truth[:, :2], axis=1)))
+    return out
+
+
+def meets_targets(summary: dict[str, Any]) -> bool:
+    """Whether a run meets :data:`ACCURACY_TARGETS` (a missing figure fails)."""
+    return all(summary.get(key) is not None and summary[key] <= limit
+               for key, limit in ACCURACY_TARGETS.items())
+
+
+# --------------------------------------------------------------------------- sections
+def per_iteration_ms(outcome: TrackOutcome) -> dict[str, float]:
+    """Milliseconds per Gauss-Newton iteration by Table 4.1 row; ``other`` is the rest of
+    the ``step`` time (prediction, grey conversion outside the timers, bookkeeping)."""
+    k = 1e3 / max(outcome.iterations, 1)
+    out = {stage: k * outcome.stage_seconds[stage] for stage in STAGES}
+    out["state_estimation"] = out["jacobian"] + out["linear_solve"]
+    out["total"] = k * outcome.tracker_seconds
+    out["other"] = out["total"] - sum(out[stage] for stage in STAGES)
+    return out
+
+
+def speed_section(sequence: RenderedSequence, settings: Settings, progress: bool
+                  ) -> dict[str, Any]:
+    """Section (a): ms per iteration, mono and stereo, best of the passes."""
+    frames = min(settings.speed_frames, sequence.n_frames)
+    clip = replace(sequence, images=sequence.images[:frames])
+    out: dict[str, Any] = {"speed_frames": frames, "speed_passes": settings.speed_passes,
+                           "speed_iterations_per_frame": DEFAULT_ITERATIONS}
+    for label, cameras in (("mono", (0,)), ("stereo", None)):
+        seq = clip.cameras(cameras)
+        track_sequence(replace(seq, images=seq.images[:2]), FeatureTrackerOptions())  # warm
+        passes = [track_sequence(seq, FeatureTrackerOptions(), f"speed {label}", progress)
+                  for _ in range(settings.speed_passes)]
+        best = min(passes, key=lambda o: o.tracker_seconds)
+        stages = per_iteration_ms(best)
+        stages["features_per_iteration"] = best.features_per_frame
+        out[f"per_iteration_{label}"] = stages
+        out[f"ms_per_iteration_{label}"] = stages["total"]
+        out[f"speedup_vs_thesis_{label}"] = THESIS_TABLE_4_1_MS["total"] / stages["total"]
+        out[f"speedup_vs_thesis_{label}_without_overlay"] = (
+            THESIS_TABLE_4_1_MS["total"] - THESIS_TABLE_4_1_MS["overlay_display"]
+        ) / stages["total"]
+    out["thesis_table_4_1_ms"] = dict(THESIS_TABLE_4_1_MS)
+    return out
+
+
+def ablation_section(sequence: RenderedSequence, settings: Settings, progress: bool
+                     ) -> dict[str, dict[str, Any]]:
+    """Section (d): each variant on whole-hand stereo (black cloth, exact model)."""
+    out = {}
+    for name in settings.ablations:
+        changes = dict(ABLATIONS[name])
+        if changes.get("links") == "thesis":
+            changes["links"] = thesis_whole_hand_links(sequence.scenario.model)
+        options = FeatureTrackerOptions(**changes)
+        outcome = track_sequence(sequence, options, f"ablation: {name}", progress)
+        out[name] = accuracy_summary(sequence, outcome) | {"options": ABLATIONS[name]}
+    return out
+
+
+def iterations_run(ablations: dict[str, dict[str, Any]], k: int) -> dict[str, Any] | None:
+    """The ablation run that differs from the defaults at most by ``k`` iterations per
+    frame, or None."""
+    for r in ablations.values():
+        options = r["options"]
+        if options == {"iterations_per_frame": k} or (not options and k == DEFAULT_ITERATIONS):
+            return r
+    return None
+
+
+def choose_iterations(ablations: dict[str, dict[str, Any]]) -> tuple[int, bool]:
+    """The smallest of :data:`ITERATION_CHOICES` whose ablation run meets the targets, and
+    whether one did (else the tracker's default)."""
+    for k in ITERATION_CHOICES:
+        run = iterations_run(ablations, k)
+        if run is not None and meets_targets(run):
+            return k, True
+    return DEFAULT_ITERATIONS, False
+
+
+def end_to_end_section(sequence: RenderedSequence, iterations: int, settings: Settings
+                       ) -> dict[str, Any]:
+    """Section (b): write camera 0 as an FFV1 video dataset, then decode and track it
+    (no progress bar: it would be timed too)."""
+    mono = sequence.cameras((0,))
+    frames = mono.n_frames if settings.e2e_frames is None else \
+        min(settings.e2e_frames, mono.n_frames)
+    scenario = mono.scenario
+    out: dict[str, Any] = {"fps_end_to_end_iterations": iterations, "e2e_frames": frames}
+    with tempfile.TemporaryDirectory(prefix="digiteyes-bench-") as tmp:
+        folder = Path(tmp) / "sequence"
+        with SequenceWriter(folder, scenario.model, mono.rig, scenario.initial_state,
+                            scenario.fps, video=True) as writer:
+            for images in mono.images[:frames]:
+                writer.write_frame(images)
+        with open_sequence(folder) as seq:
+            start = time.perf_counter()
+            decoded = sum(1 for _ in seq)
+            out["fps_decode"] = decoded / (time.perf_counter() - start)
+        options = FeatureTrackerOptions(iterations_per_frame=iterations)
+        for key, overlay in (("fps_end_to_end", False), ("fps_end_to_end_overlay", True)):
+            start = time.perf_counter()
+            with open_sequence(folder) as seq:
+                tracker = FeatureTracker(seq.model, seq.rig, options)
+                run = run_tracker(tracker, seq.model, seq.rig, iter(seq), seq.initial_state,
+                                  Path(tmp) / key, fps=seq.fps, total=seq.n_frames,
+                                  overlay=overlay, progress=False)
+            out[key] = run.n_frames / (time.perf_counter() - start)
+            out[f"{key}_tracker_only"] = run.tracker_fps
+    return out
+
+
+def accuracy_section(iteration_counts: Sequence[int], settings: Settings,
+                     reuse: dict[tuple, RenderedSequence], known: dict[int, dict[str, Any]],
+                     progress: bool) -> dict[int, dict[str, Any]]:
+    """Section (c): every case x background x model, at each of ``iteration_counts``.
+
+    Returns ``{iterations: {case: {background: {model: figures}}}}``. ``reuse`` holds
+    already rendered sequences by (scenario, background, model); ``known`` maps an
+    iteration count to the whole-hand stereo black exact figures when that run was
+    already made (an ablation run), so it is not repeated."""
+    out = {k: {case: {bg: {} for bg in BACKGROUNDS} for case in ACCURACY_CASES}
+           for k in iteration_counts}
+    scenarios = dict.fromkeys(case[0] for case in ACCURACY_CASES.values())
+    for name in scenarios:
+        scenario = build_scenario(name, seed=SEED, n_frames=settings.frames)
+        for background in BACKGROUNDS:
+            for model in MODELS:
+                key = (name, background, model)
+                sequence = reuse.get(key) or render_sequence(
+                    scenario, background, model == "perturbed", progress=progress)
+                for case, (scenario_name, cameras, pole) in ACCURACY_CASES.items():
+                    if scenario_name != name:
+                        continue
+                    seq = sequence.cameras(cameras)
+                    for k in iteration_counts:
+                        if k in known and (case, background, model) == (
+                                "whole-hand stereo", "black", "exact"):
+                            out[k][case][background][model] = known[k]
+                            continue
+                        outcome = track_sequence(
+                            seq, FeatureTrackerOptions(iterations_per_frame=k),
+                            f"{case} {background} {model} {k} it", progress)
+                        out[k][case][background][model] = accuracy_summary(seq, outcome, pole)
+    return out
+
+
+# --------------------------------------------------------------------------- run
+@contextlib.contextmanager
+def _one_thread() -> Iterator[str]:
+    """Run OpenCV (and NumPy's BLAS, if ``threadpoolctl`` is importable) on one thread;
+    yields a note saying which."""
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        try:
+            from threadpoolctl import threadpool_limits
+        except ImportError:
+            env = blas_info()["env"]
+            if env:
+                yield ("OpenCV on 1 thread; BLAS threads as set before start: "
+                       + ", ".join(f"{k}={v}" for k, v in env.items()))
+            else:
+                yield ("OpenCV on 1 thread; BLAS threads not limited (threadpoolctl not "
+                       "installed): set OPENBLAS_NUM_THREADS=1 before starting for one core")
+        else:
+            with threadpool_limits(limits=1):
+                yield "OpenCV and BLAS on 1 thread (threadpoolctl)"
+    finally:
+        cv2.setNumThreads(threads)
+
+
+def run(json_path: str | None = None, quick: bool = False, *, progress: bool = True) -> dict:
+    """Run the tracker benchmark, print its tables, optionally write JSON.
+
+    Parameters
+    ----------
+    json_path : write the result to this JSON file if given.
+    quick : a smoke run (30 frames per scenario, five ablations, one speed pass).
+    progress : tqdm progress bars on stderr.
+
+    Returns
+    -------
+    dict
+        ``machine``, ``threads``, ``settings``; section (a): ``ms_per_iteration_mono``,
+        ``ms_per_iteration_stereo``, ``per_iteration_mono``, ``per_iteration_stereo``
+        (ms per Table 4.1 row), ``speedup_vs_thesis_mono``/``_stereo``,
+        ``thesis_table_4_1_ms``; (b): ``fps_end_to_end``, ``fps_end_to_end_iterations``,
+        ``fps_end_to_end_overlay``, ``fps_decode``, ``targets_met``; (c): ``accuracy``
+        [case][background][model] -> per-run figures at ``accuracy_iterations`` (the
+        end-to-end setting), ``accuracy_default_iterations`` the same at the tracker's
+        default of 5 (None when that is the end-to-end setting); (d): ``ablations``
+        [variant] -> per-run figures. See the module docstring.
+    """
+    settings = QUICK if quick else FULL
+    started = time.perf_counter()
+    machine = machine_info()
+    result: dict[str, Any] = {
+        "benchmark": "tracker", "quick": quick, "machine": machine,
+        "settings": {"seed": SEED, "noise_sigma": NOISE_SIGMA,
+                     "perturb_link_length": PERTURB_LINK_LENGTH,
+                     "frames_per_scenario": settings.frames or "scenario length",
+                     "accuracy_targets": ACCURACY_TARGETS, "image": "640x480 grey"},
+    }
+    with _one_thread() as threads:
+        result["threads"] = threads
+        print("\n".join([f"tracker benchmark{' (quick)' if quick else ''}",
+                         *machine_lines(machine), f"threads: {threads}", ""]), flush=True)
+        whole = build_scenario("whole-hand", seed=SEED, n_frames=settings.frames)
+        base = render_sequence(whole, progress=progress)
+
+        result |= speed_section(base, settings, progress)
+        print(format_speed(result) + "\n", flush=True)
+
+        result["ablations"] = ablation_section(base, settings, progress)
+        iterations, met = choose_iterations(result["ablations"])
+        result["targets_met"] = met
+        print(format_ablations(result) + "\n", flush=True)
+
+        result |= end_to_end_section(base, iterations, settings)
+        print(format_end_to_end(result) + "\n", flush=True)
+
+        counts = list(dict.fromkeys((iterations, DEFAULT_ITERATIONS)))
+        known = {k: {key: v for key, v in run.items() if key != "options"}
+                 for k in counts if (run := iterations_run(result["ablations"], k))}
+        accuracy = accuracy_section(counts, settings, {("whole-hand", "black", "exact"): base},
+                                    known, progress)
+        result["accuracy_iterations"] = iterations
+        result["accuracy"] = accuracy[iterations]
+        result["accuracy_default_iterations"] = None if iterations == DEFAULT_ITERATIONS \
+            else accuracy[DEFAULT_ITERATIONS]
+        print(format_accuracy(result), flush=True)
+    result["wall_seconds"] = time.perf_counter() - started
+    print(f"\nbenchmark wall time {result['wall_seconds']:.0f} s", flush=True)
+    if json_path is not None:
+        Path(json_path).write_text(json.dumps(result, indent=2, allow_nan=False) + "\n",
+                                   encoding="utf-8")
+    return result
+
+
+# --------------------------------------------------------------------------- tables
+def _table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
+    """Aligned plain-text rows: first column left, the others right."""
+    widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header))]
+
+    def line(row: Sequence[str]) -> str:
+        return "  ".join([str(row[0]).ljust(widths[0]),
+                          *(str(c).rjust(w) for c, w in zip(row[1:], widths[1:], strict=True))])
+
+    return [line(header), "  ".join("-" * w for w in widths), *(line(r) for r in rows)]
+
+
+def _f(value: float | None, fmt: str = ".1f") -> str:
+    return "n/a" if value is None else f"{value:{fmt}}"
+
+
+def format_speed(result: dict) -> str:
+    """Section (a) as a table: Table 4.1 rows, thesis vs mono vs stereo."""
+    thesis = result["thesis_table_4_1_ms"]
+    mono, stereo = result["per_iteration_mono"], result["per_iteration_stereo"]
+    rows = []
+    labels = [("forward kinematics", "forward_kinematics"),
+              ("feature detection", "feature_detection"),
+              ("state estimation", "state_estimation"), ("  Jacobian", "jacobian"),
+              ("  linear solve", "linear_solve"),
+              ("other (prediction, bookkeeping)", "other"),
+              ("overlay display", "overlay_display"), ("total", "total")]
+    for label, key in labels:
+        ref = thesis.get(key)
+        cells = []
+        for ours in (mono, stereo):
+            value = ours.get(key)
+            cells += [_f(value, ".2f"), f"{ref / value:.0f}x" if ref and value else ""]
+        if key == "overlay_display":
+            cells = ["not measured", "", "not measured", ""]
+        rows.append([label, _f(ref), *cells])
+    lines = [f"(a) ms per Gauss-Newton iteration, full hand (28 states), every link and tip, "
+             f"{result['speed_iterations_per_frame']} iterations/frame, best of "
+             f"{result['speed_passes']} pass(es) over {result['speed_frames']} whole-hand "
+             "frames",
+             *_table(["Table 4.1 row", "thesis 68040", "mono", "speed-up", "stereo",
+                      "speed-up"], rows),
+             f"features measured per iteration: mono {mono['features_per_iteration']:.0f}, "
+             f"stereo {stereo['features_per_iteration']:.0f} (thesis: 35 residuals)",
+             f"speed-up of the total without the thesis's overlay display (136.2 ms): mono "
+             f"{result['speedup_vs_thesis_mono_without_overlay']:.0f}x, stereo "
+             f"{result['speedup_vs_thesis_stereo_without_overlay']:.0f}x"]
+    return "\n".join(lines)
+
+
+RUN_COLUMNS = ("tip mm", "joint deg", "palm mm", "palm deg", "life", "lost", "ms/frame")
+
+
+def _run_cells(r: dict) -> list[str]:
+    return [_f(r["fingertip_err_mm_mean"], ".2f"), _f(r["joint_angle_err_deg_rms"], ".2f"),
+            _f(r["palm_pos_err_mm_mean"], ".2f"), _f(r["palm_rot_err_deg_mean"], ".2f"),
+            f"{r['track_life_frames']}/{r['frames']}", str(r["lost_frames"]),
+            _f(r["ms_per_frame"])]
+
+
+def format_ablations(result: dict) -> str:
+    """Section (d) as a table."""
+    rows = [[name, *_run_cells(r)] for name, r in result["ablations"].items()]
+    target = ", ".join(f"{k} <= {v:g}" for k, v in ACCURACY_TARGETS.items())
+    return "\n".join([
+        "(d) ablations: whole-hand stereo, black cloth, exact model; mean fingertip error, "
+        "joint-angle RMS, mean palm position / rotation error, track life, frames flagged "
+        "lost, tracker ms per frame",
+        *_table(["variant", *RUN_COLUMNS], rows),
+        f"targets for the end-to-end iterations: {target}"])
+
+
+def format_end_to_end(result: dict) -> str:
+    """Section (b) as a table."""
+    k = result["fps_end_to_end_iterations"]
+    met = "meets" if result["targets_met"] else "NO choice in 1, 2, 3, 5 meets"
+    rows = [["decode only (FFV1 video)", _f(result["fps_decode"]), ""],
+            ["decode + track, no overlay", _f(result["fps_end_to_end"]),
+             _f(result["fps_end_to_end_tracker_only"])],
+            ["decode + track + overlay video", _f(result["fps_end_to_end_overlay"]),
+             _f(result["fps_end_to_end_overlay_tracker_only"])]]
+    return "\n".join([
+        f"(b) end to end, whole-hand seen by camera 0, {result['e2e_frames']} frames of "
+        f"video, {k} iteration(s)/frame ({met} the accuracy targets on whole-hand stereo)",
+        *_table(["pipeline", "frames/s", "tracker only"], rows)])
+
+
+def format_accuracy(result: dict) -> str:
+    """Section (c) as one table per iteration count: a row per case x background x model."""
+    tables = [(result["accuracy_iterations"], result["accuracy"], "the end-to-end setting")]
+    if result.get("accuracy_default_iterations") is not None:
+        tables.append((DEFAULT_ITERATIONS, result["accuracy_default_iterations"],
+                       "the tracker's default"))
+    lines = [f"(c) accuracy; 'perturbed': images of a hand with link lengths off by up to "
+             f"{100 * PERTURB_LINK_LENGTH:g} %, tracked with the nominal model; "
+             "pole h: mean error of the 3D-mouse pole height"]
+    for iterations, accuracy, label in tables:
+        rows = []
+        for case, by_background in accuracy.items():
+            for background, by_model in by_background.items():
+                for model, r in by_model.items():
+                    pole = _f(r.get("pole_height_err_mm_mean"), ".2f") \
+                        if "pole_height_err_mm_mean" in r else ""
+                    rows.append([f"{case} / {background} / {model}", *_run_cells(r), pole])
+        lines += ["", f"{iterations} iteration(s)/frame ({label})",
+                  *_table(["case / background / model", *RUN_COLUMNS, "pole h mm"], rows)]
+    return "\n".join(lines)
+
+
+def format_report(result: dict) -> str:
+    """All tables of a result, machine first (what :func:`run` prints)."""
+    return "\n\n".join([
+        "\n".join([f"tracker benchmark{' (quick)' if result['quick'] else ''}",
+                   *machine_lines(result["machine"]), f"threads: {result['threads']}"]),
+        format_speed(result), format_ablations(result), format_end_to_end(result),
+        format_accuracy(result)])
