@@ -39,5 +39,5 @@ def test_palm_edges_are_measured_at_the_true_state_and_never_labelled() -> None:
     kin = forward_kinematics(hand, q)
     meas = measure_features(view.image, cam, hand, kin, links=EDGES, tips=())
     assert meas.link_valid.sum() >= 2, meas.link_reason
-    r, _, layout = feature_residuals(meas, cam, kin)
+    r, _, _ = feature_residuals(meas, cam, kin)
     assert np.sqrt(np.mean(r**2)) < 1.5
