@@ -46,7 +46,7 @@ def demo(output: str, scenario_name: str, frames: int | None, iterations: int, s
     sequence = open_sequence(out / "sequence")
 
     click.echo(f"2/3 tracking with {iterations} Gauss-Newton iterations per frame")
-    options = tracker_options(iterations, 20.0, "all", sequence.model, None, "none")
+    options = tracker_options(iterations, 20.0, "default", sequence.model, None, "none")
     tracker = FeatureTracker(sequence.model, sequence.rig, options)
     run = run_tracker(tracker, sequence.model, sequence.rig, iter(sequence),
                       sequence.initial_state, out / "track", fps=sequence.fps,

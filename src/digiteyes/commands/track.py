@@ -15,7 +15,12 @@ from digiteyes.io import open_sequence, open_video_frames
 from digiteyes.kinematics import State
 from digiteyes.models import load_model
 from digiteyes.pipeline import TrackingRun, run_tracker
-from digiteyes.trackers import FeatureTracker, FeatureTrackerOptions, thesis_whole_hand_links
+from digiteyes.trackers import (
+    FeatureTracker,
+    FeatureTrackerOptions,
+    all_features,
+    thesis_whole_hand_links,
+)
 
 HELP = """Track INPUT with the DigitEyes feature tracker (thesis Sec. 4.3).
 
@@ -29,7 +34,8 @@ and summary.json into OUT. Ctrl-C keeps every frame tracked so far.
 def tracker_options(iterations: int, window: float, links: str, model, robust: str | None,
                     prediction: str) -> FeatureTrackerOptions:
     """Tracker settings from the command-line choices (shared with ``digiteyes demo``)."""
-    chosen = thesis_whole_hand_links(model) if links == "thesis" else None
+    chosen = {"default": None, "all": all_features(model),
+              "thesis": thesis_whole_hand_links(model)}[links]
     return FeatureTrackerOptions(
         iterations_per_frame=iterations,
         features=FeatureOptions(window_px=window),
@@ -68,8 +74,11 @@ def print_run(run: TrackingRun) -> None:
               help="Gauss-Newton iterations per frame.")
 @click.option("--window", type=click.FloatRange(min=2.0), default=20.0, show_default=True,
               help="Feature search window, pixels (thesis Table 4.2).")
-@click.option("--links", type=click.Choice(["all", "thesis"]), default="all", show_default=True,
-              help="Track every link and tip, or the thesis's set (Sec. 4.3.3).")
+@click.option("--links", type=click.Choice(["default", "all", "thesis"]), default="default",
+              show_default=True,
+              help="Features to measure: default (all but the hand's interpenetrating middle "
+                   "and ring proximal links), all, or the thesis's set (Sec. 4.3.3, no palm "
+                   "edges).")
 @click.option("--robust", type=click.Choice(["huber", "tukey"]), default=None,
               help="Robust loss on the feature residuals.")
 @click.option("--prediction", type=click.Choice(["none", "constant-velocity"]),

@@ -14,25 +14,22 @@ from numba import njit
 
 @njit(cache=True)
 def fk_kernel(Q, theta0, d0, a, cos_alpha, sin_alpha, theta_state, d_state, order, parent,
-              base_state, world, shape):  # pragma: no cover - compiled
-    """Fill ``world`` and ``shape`` (N, F, 4, 4) for the states ``Q`` (N, n_q).
+              base_state, shape):  # pragma: no cover - compiled
+    """Fill ``shape`` (N, F, 4, 4) with the shape-frame poses of the states ``Q`` (N, n_q).
 
-    ``world[n, r]`` is frame r, ``shape[n, r] = world[n, r] Rot_z(theta_r)`` (thesis eq. 2.4)
-    and the frames after row r are ``shape[n, r] Trans_z(d) Trans_x(a) Rot_x(alpha)``
-    (the rest of thesis eq. 2.2).
+    Row r's frame ``W`` is its parent's outgoing transform (or the base pose at the root);
+    ``shape[n, r] = W Rot_z(theta_r)`` (thesis eq. 2.4), and the frames after row r are
+    ``shape[n, r] Trans_z(d) Trans_x(a) Rot_x(alpha)`` (the rest of thesis eq. 2.2).
+    Transforms are rigid, so only their 3x4 part is computed.
     """
     n_states = Q.shape[0]
     n_frames = theta0.shape[0]
     outgoing = np.empty((n_frames, 3, 4))
+    W = np.empty((3, 4))
     for n in range(n_states):
         for idx in range(n_frames):
             r = order[idx]
             p = parent[r]
-            W = world[n, r]
-            W[3, 0] = 0.0
-            W[3, 1] = 0.0
-            W[3, 2] = 0.0
-            W[3, 3] = 1.0
             if p < 0:
                 if base_state >= 0:
                     w = Q[n, base_state]
@@ -90,7 +87,7 @@ def fk_kernel(Q, theta0, d0, a, cos_alpha, sin_alpha, theta_state, d_state, orde
 
 
 @njit(cache=True)
-def jacobian_kernel(world, shape, q, rows, p_shape, moved, joint_row, theta_state, base_state,
+def jacobian_kernel(shape, q, rows, p_shape, moved, joint_row, theta_state, base_state,
                     root, col_of_q, quaternion_form, p_world, J):  # pragma: no cover - compiled
     """Fill ``p_world`` (N, P, 3) with the world positions of points ``p_shape`` (P, 3) fixed
     in the shape frames of ``rows``, and ``J`` (N, P, 3, n_cols) with their Jacobian columns
@@ -100,7 +97,7 @@ def jacobian_kernel(world, shape, q, rows, p_shape, moved, joint_row, theta_stat
     rotation: ``e_k x (p - t)`` (tangent) or ``G(q)[:, k] x (p - t)`` (quaternion form,
     :func:`digiteyes.kinematics.rotations.quaternion_rate_matrix`).
     """
-    n_states = world.shape[0]
+    n_states = shape.shape[0]
     n_points = rows.shape[0]
     n_q = joint_row.shape[0]
     G = np.zeros((3, 4))
@@ -130,13 +127,13 @@ def jacobian_kernel(world, shape, q, rows, p_shape, moved, joint_row, theta_stat
                 if jr < 0 or not moved[rows[p], s]:
                     continue
                 col = col_of_q[s]
-                ax = world[n, jr, 0, 2]
-                ay = world[n, jr, 1, 2]
-                az = world[n, jr, 2, 2]
+                ax = shape[n, jr, 0, 2]
+                ay = shape[n, jr, 1, 2]
+                az = shape[n, jr, 2, 2]
                 if theta_state[jr] == s:
-                    rx = px - world[n, jr, 0, 3]
-                    ry = py - world[n, jr, 1, 3]
-                    rz = pz - world[n, jr, 2, 3]
+                    rx = px - shape[n, jr, 0, 3]
+                    ry = py - shape[n, jr, 1, 3]
+                    rz = pz - shape[n, jr, 2, 3]
                     J[n, p, 0, col] = ay * rz - az * ry
                     J[n, p, 1, col] = az * rx - ax * rz
                     J[n, p, 2, col] = ax * ry - ay * rx
@@ -145,9 +142,9 @@ def jacobian_kernel(world, shape, q, rows, p_shape, moved, joint_row, theta_stat
                     J[n, p, 1, col] = ay
                     J[n, p, 2, col] = az
             if base_state >= 0:
-                rx = px - world[n, root, 0, 3]
-                ry = py - world[n, root, 1, 3]
-                rz = pz - world[n, root, 2, 3]
+                rx = px - shape[n, root, 0, 3]
+                ry = py - shape[n, root, 1, 3]
+                rz = pz - shape[n, root, 2, 3]
                 k0 = base_state
                 if quaternion_form:
                     for j in range(4):

@@ -8,6 +8,7 @@ matrix products (all chains and all states at once; DESIGN.md Sec. 8).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -42,9 +43,26 @@ class Kinematics:
 
     model: KinematicModel
     q: np.ndarray
-    T_world_frame: np.ndarray
     T_world_shape: np.ndarray
     batched: bool
+
+    @cached_property
+    def T_world_frame(self) -> np.ndarray:
+        """Row frames (N, F, 4, 4): each shape frame turned back by ``Rot_z(-theta_r)``.
+
+        Computed on first use: the maths (Jacobians included) only needs the shape frames,
+        whose z axes and origins are those of the row frames.
+        """
+        model = self.model
+        theta = np.broadcast_to(model.theta, (len(self.q), model.n_frames)).copy()
+        joints = model.theta_state >= 0
+        theta[:, joints] += self.q[:, model.theta_state[joints]]
+        c, s = np.cos(theta)[..., None], np.sin(theta)[..., None]
+        frame = self.T_world_shape.copy()
+        x_axis, y_axis = self.T_world_shape[..., :3, 0], self.T_world_shape[..., :3, 1]
+        frame[..., :3, 0] = x_axis * c - y_axis * s
+        frame[..., :3, 1] = x_axis * s + y_axis * c
+        return frame
 
     def _out(self, array: np.ndarray) -> np.ndarray:
         return array if self.batched else array[0]
@@ -107,10 +125,8 @@ def forward_kinematics(model: KinematicModel, q: np.ndarray) -> Kinematics:
     :class:`~digiteyes.errors.StateError` for a wrong size or non-finite values.
     """
     Q, batched = as_state_batch(model, q)
-    n = len(Q)
-    world = np.empty((n, model.n_frames, 4, 4))
-    shape = np.empty((n, model.n_frames, 4, 4))
+    shape = np.empty((len(Q), model.n_frames, 4, 4))
     fk_kernel(Q, model.theta, model.d, model.a, model.cos_alpha, model.sin_alpha,
               model.theta_state, model.d_state, model.order, model.parent,
-              -1 if model.base_state is None else model.base_state, world, shape)
-    return Kinematics(model, Q, world, shape, batched)
+              -1 if model.base_state is None else model.base_state, shape)
+    return Kinematics(model, Q, shape, batched)

@@ -61,7 +61,7 @@ def point_jacobian(
     n_cols = model.n_q if quaternion_form else model.n_v
     col_of_q = np.arange(model.n_q) if quaternion_form else model.q_to_v
     J = np.zeros((n, len(rows), 3, n_cols))
-    jacobian_kernel(kin.T_world_frame, kin.T_world_shape, kin.q, rows, p_shape,
+    jacobian_kernel(kin.T_world_shape, kin.q, rows, p_shape,
                     model.shape_moved_by, model.joint_row, model.theta_state,
                     -1 if model.base_state is None else model.base_state, model.root,
                     col_of_q, quaternion_form, p_world, J)

@@ -9,6 +9,7 @@ from digiteyes.trackers.feature_tracker import (
     THESIS_EXCLUDED_LINKS,
     FeatureTracker,
     FeatureTrackerOptions,
+    all_features,
     thesis_whole_hand_links,
 )
 from digiteyes.trackers.parameterisation import StateParameterisation
@@ -17,5 +18,5 @@ from digiteyes.trackers.prediction import StatePredictor
 __all__ = [
     "THESIS_EXCLUDED_LINKS", "TIMING_STAGES", "FeatureTracker", "FeatureTrackerOptions",
     "StateParameterisation", "StatePredictor", "TrackResult", "Tracker",
-    "thesis_whole_hand_links",
+    "all_features", "thesis_whole_hand_links",
 ]

@@ -50,7 +50,14 @@ from digiteyes.trackers.prediction import PREDICTIONS, PredictionKind, StatePred
 
 THESIS_EXCLUDED_LINKS = ("middle.proximal", "ring.proximal")
 """Links the thesis's whole-hand experiment did not measure (Sec. 4.3.3: the proximal
-phalanges of the middle two fingers, which were always occluded)."""
+phalanges of the middle two fingers, which were always occluded). In the Appendix A model
+they also interpenetrate (anchors 15 mm apart, radii 10 + 9 mm), so the silhouette edges
+between them do not exist; the default feature set leaves them out too."""
+
+
+def all_features(model: KinematicModel) -> tuple[str, ...]:
+    """Every cylinder link, tracked edge and tip of ``model``."""
+    return tuple(link.name for link in model.links if link.kind in ("link", "edge", "tip"))
 
 
 def thesis_whole_hand_links(model: KinematicModel) -> tuple[str, ...]:
@@ -70,8 +77,10 @@ class FeatureTrackerOptions:
     iterations_per_frame : Gauss-Newton iterations per frame; each re-measures the
         features at the current iterate.
     features : feature-search settings (window size, slices, contrast).
-    links : names of the cylinder links and tips to measure; ``None`` for all of them.
-        :func:`thesis_whole_hand_links` gives the thesis's whole-hand set.
+    links : names of the cylinder links, edges and tips to measure; ``None`` for the
+        default set: every one but :data:`THESIS_EXCLUDED_LINKS`. :func:`all_features`
+        gives every one, :func:`thesis_whole_hand_links` the thesis's whole-hand set
+        (no palm edges).
     axis_points : residual points per link along its axis (2: base and end; 1: base only,
         as the thesis, Sec. 4.3.1).
     conditioning : weights of ``S`` for (quaternion/rotation, translation, joint angle),
@@ -281,7 +290,7 @@ class FeatureTracker:
                         ) -> tuple[list[str], list[str]]:
         features = [link for link in model.links if link.kind in ("link", "edge", "tip")]
         if names is None:
-            chosen = features
+            chosen = [link for link in features if link.name not in THESIS_EXCLUDED_LINKS]
         else:
             by_name = {link.name: link for link in features}
             unknown = [n for n in names if n not in by_name]
