@@ -120,7 +120,7 @@ class FeatureTrackerOptions:
     max_residual_rms_px: float | None = None
     growth_frames: int = 5
     growth_factor: float = 2.0
-    growth_min_px: float = 1.0
+    growth_min_px: float = 3.0
 
     def __post_init__(self) -> None:
         if isinstance(self.iterations_per_frame, bool) or not isinstance(
