@@ -1,4 +1,5 @@
-"""The machine a benchmark ran on: CPU, cores, Python and library versions, BLAS threads.
+"""The machine a benchmark ran on (CPU, cores, Python and library versions, BLAS threads)
+and how a suite reports (:func:`emit`: the table, then the JSON file).
 
 Shared by every module of :mod:`digiteyes.benchmarks`, so that all their tables and JSON
 files describe the machine the same way.
@@ -7,9 +8,11 @@ files describe the machine the same way.
 from __future__ import annotations
 
 import importlib
+import json
 import os
 import platform
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 
@@ -114,3 +117,13 @@ def machine_lines(info: dict[str, object]) -> list[str]:
         f"OpenCV {info['opencv']}",
         f"         BLAS {blas['library'] or 'unknown'}: {threads}",
     ]
+
+
+def emit(result: dict, table: str, json_path: str | None) -> dict:
+    """Print a suite's table and, if ``json_path`` is given, write its result as JSON
+    (strict: NaN and infinities are refused); returns ``result``."""
+    print(table)
+    if json_path is not None:
+        Path(json_path).write_text(json.dumps(result, indent=2, allow_nan=False) + "\n",
+                                   encoding="utf-8")
+    return result

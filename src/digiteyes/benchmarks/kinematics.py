@@ -21,15 +21,13 @@ by other processes); the printed table also shows the median. Run it with
 
 from __future__ import annotations
 
-import json
 import statistics
 import timeit
 from collections.abc import Callable
-from pathlib import Path
 
 import numpy as np
 
-from digiteyes.benchmarks._machine import machine_info
+from digiteyes.benchmarks._machine import emit, machine_info
 from digiteyes.kinematics import (
     KinematicModel,
     forward_kinematics,
@@ -187,10 +185,7 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
         "median": figures(1),
         "machine": machine_info(extra=("pinocchio",)),
     }
-    print(format_table(result))
-    if json_path is not None:
-        Path(json_path).write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
-    return result
+    return emit(result, format_table(result), json_path)
 
 
 def format_table(result: dict) -> str:

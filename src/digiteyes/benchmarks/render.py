@@ -18,15 +18,13 @@ with ``digiteyes bench render [--json FILE] [--quick]``.
 
 from __future__ import annotations
 
-import json
 import statistics
 import timeit
-from pathlib import Path
 
 import cv2
 import numpy as np
 
-from digiteyes.benchmarks._machine import machine_info
+from digiteyes.benchmarks._machine import emit, machine_info
 from digiteyes.camera import Camera
 from digiteyes.kinematics import KinematicModel, load_model
 from digiteyes.render import RenderOptions, render_views
@@ -111,10 +109,7 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
         "median": {key: med for key, (_, med) in rates.items()},
         "machine": machine_info(),
     }
-    print(format_table(result))
-    if json_path is not None:
-        Path(json_path).write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
-    return result
+    return emit(result, format_table(result), json_path)
 
 
 def format_table(result: dict) -> str:

@@ -52,7 +52,6 @@ docs/benchmarks.md explains the tables.
 from __future__ import annotations
 
 import contextlib
-import json
 import tempfile
 import time
 from collections.abc import Iterator, Sequence
@@ -65,7 +64,7 @@ import numpy as np
 from tqdm import tqdm
 
 from digiteyes.apps.mouse3d import pole_from_state
-from digiteyes.benchmarks._machine import blas_info, machine_info, machine_lines
+from digiteyes.benchmarks._machine import blas_info, emit, machine_info, machine_lines
 from digiteyes.camera import Rig
 from digiteyes.evaluate import evaluate_run
 from digiteyes.io import GroundTruth, SequenceWriter, StateLog, open_sequence
@@ -513,11 +512,7 @@ def run(json_path: str | None = None, quick: bool = False, *, progress: bool = T
             else accuracy[DEFAULT_ITERATIONS]
         print(format_accuracy(result), flush=True)
     result["wall_seconds"] = time.perf_counter() - started
-    print(f"\nbenchmark wall time {result['wall_seconds']:.0f} s", flush=True)
-    if json_path is not None:
-        Path(json_path).write_text(json.dumps(result, indent=2, allow_nan=False) + "\n",
-                                   encoding="utf-8")
-    return result
+    return emit(result, f"\nbenchmark wall time {result['wall_seconds']:.0f} s", json_path)
 
 
 # --------------------------------------------------------------------------- tables
