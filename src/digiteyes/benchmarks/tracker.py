@@ -628,11 +628,3 @@ def format_accuracy(result: dict) -> str:
                   *_table(["case / background / model", *RUN_COLUMNS, "pole h mm"], rows)]
     return "\n".join(lines)
 
-
-def format_report(result: dict) -> str:
-    """All tables of a result, machine first (what :func:`run` prints)."""
-    return "\n\n".join([
-        "\n".join([f"tracker benchmark{' (quick)' if result['quick'] else ''}",
-                   *machine_lines(result["machine"]), f"threads: {result['threads']}"]),
-        format_speed(result), format_ablations(result), format_end_to_end(result),
-        format_accuracy(result)])

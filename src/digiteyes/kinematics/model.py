@@ -209,7 +209,6 @@ class KinematicModel:
                 elif self.base_state is not None:
                     moved[r, self.base_state:self.base_state + 7] = True
         # A shape frame also turns with its own row's theta (thesis eq. 2.4).
-        self.frame_moved_by = moved
         shape_moved = moved.copy()
         own = theta_state >= 0
         shape_moved[np.flatnonzero(own), theta_state[own]] = True
