@@ -1,5 +1,6 @@
 """The machine a benchmark ran on (CPU, cores, Python and library versions, BLAS threads)
-and how a suite reports (:func:`emit`: the table, then the JSON file).
+how a suite times a call (:func:`seconds_per_call`) and how it reports (:func:`emit`:
+the table, then the JSON file).
 
 Shared by every module of :mod:`digiteyes.benchmarks`, so that all their tables and JSON
 files describe the machine the same way.
@@ -11,6 +12,7 @@ import importlib
 import json
 import os
 import platform
+import timeit
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -127,3 +129,17 @@ def emit(result: dict, table: str, json_path: str | None) -> dict:
         Path(json_path).write_text(json.dumps(result, indent=2, allow_nan=False) + "\n",
                                    encoding="utf-8")
     return result
+
+
+def seconds_per_call(fn, repeat: int, min_time: float) -> list[float]:
+    """Seconds per call of ``fn`` in each of ``repeat`` timed runs.
+
+    ``fn`` is called once first (numba compilation, caches); each run then makes as many
+    calls as needed to last ``min_time`` seconds (at least one).
+    """
+    fn()
+    timer = timeit.Timer(fn)
+    number = 1
+    while (elapsed := timer.timeit(number)) < min_time:
+        number = max(number * 2, int(number * 1.2 * min_time / max(elapsed, 1e-9)))
+    return [t / number for t in timer.repeat(repeat=repeat, number=number)]

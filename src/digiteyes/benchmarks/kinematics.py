@@ -22,12 +22,11 @@ by other processes); the printed table also shows the median. Run it with
 from __future__ import annotations
 
 import statistics
-import timeit
 from collections.abc import Callable
 
 import numpy as np
 
-from digiteyes.benchmarks._machine import emit, machine_info
+from digiteyes.benchmarks._machine import emit, machine_info, seconds_per_call
 from digiteyes.kinematics import (
     KinematicModel,
     forward_kinematics,
@@ -69,12 +68,7 @@ def _seconds_per_call(fn: Callable[[], object], repeat: int, min_time: float
 
     Each run makes as many calls as needed to last ``min_time`` seconds (at least one).
     """
-    fn()  # warm up: numba compilation, caches
-    timer = timeit.Timer(fn)
-    number = 1
-    while (elapsed := timer.timeit(number)) < min_time:
-        number = max(number * 2, int(number * 1.2 * min_time / max(elapsed, 1e-9)))
-    runs = [t / number for t in timer.repeat(repeat=repeat, number=number)]
+    runs = seconds_per_call(fn, repeat, min_time)
     return min(runs), statistics.median(runs)
 
 

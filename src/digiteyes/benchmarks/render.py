@@ -19,12 +19,11 @@ with ``digiteyes bench render [--json FILE] [--quick]``.
 from __future__ import annotations
 
 import statistics
-import timeit
 
 import cv2
 import numpy as np
 
-from digiteyes.benchmarks._machine import emit, machine_info
+from digiteyes.benchmarks._machine import emit, machine_info, seconds_per_call
 from digiteyes.camera import Camera
 from digiteyes.kinematics import KinematicModel, load_model
 from digiteyes.render import RenderOptions, render_views
@@ -54,12 +53,7 @@ def _cameras() -> list[Camera]:
 
 def _frames_per_second(fn, repeat: int, min_time: float) -> tuple[float, float]:
     """(best, median) calls per second of ``fn`` over ``repeat`` runs of >= min_time s."""
-    fn()  # warm up: numba compilation, cached backdrops
-    timer = timeit.Timer(fn)
-    number = 1
-    while (elapsed := timer.timeit(number)) < min_time:
-        number = max(number * 2, int(number * 1.2 * min_time / max(elapsed, 1e-9)))
-    rates = [number / t for t in timer.repeat(repeat=repeat, number=number)]
+    rates = [1.0 / t for t in seconds_per_call(fn, repeat, min_time)]
     return max(rates), statistics.median(rates)
 
 
