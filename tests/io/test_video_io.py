@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import av
 import numpy as np
 import pytest
 
@@ -68,3 +69,37 @@ def test_writer_rejects_bad_frames(tmp_path):
     writer.close()
     with pytest.raises(DatasetError, match="unknown video codec"):
         VideoWriter(tmp_path / "z.avi", 30, "divx")
+
+
+def _encode_yuv(path, images, encoder, pix_fmt):
+    """Encode grey images with FFmpeg's own grey -> YUV conversion (as cameras deliver)."""
+    with av.open(str(path), "w") as container:
+        stream = container.add_stream(encoder, rate=30)
+        stream.width, stream.height, stream.pix_fmt = images[0].shape[1], images[0].shape[0], \
+            pix_fmt
+        for image in images:
+            frame = av.VideoFrame.from_ndarray(image, format="gray").reformat(format=pix_fmt)
+            container.mux(stream.encode(frame))
+        container.mux(stream.encode())
+
+
+@pytest.mark.parametrize(("encoder", "pix_fmt", "suffix"),
+                         [("libx264", "yuv420p", ".mp4"), ("mjpeg", "yuvj420p", ".avi")])
+def test_grey_from_luma_plane_matches_ffmpeg_conversion(tmp_path, encoder, pix_fmt, suffix):
+    # Limited-range (x264) and full-range (webcam MJPEG) luma must both come out as
+    # FFmpeg's own YUV -> grey conversion would give them.
+    rng = np.random.default_rng(4)
+    ramp = np.linspace(0, 255, 64)[None, :] + np.zeros((48, 1))
+    images = [np.clip(ramp + rng.normal(0, 20, ramp.shape), 0, 255).astype(np.uint8)
+              for _ in range(3)]
+    path = tmp_path / f"clip{suffix}"
+    _encode_yuv(path, images, encoder, pix_fmt)
+    with av.open(str(path)) as container:
+        want = [f.to_ndarray(format="gray") for f in container.decode(video=0)]
+    with VideoReader(path, gray=True) as reader:
+        got = list(reader)
+    assert len(got) == len(want) == 3
+    for g, w in zip(got, want, strict=True):
+        assert g.shape == w.shape and g.dtype == np.uint8
+        assert np.abs(g.astype(int) - w).max() <= 1
+        assert w.max() - w.min() > 200  # the full grey range survived

@@ -231,11 +231,14 @@ class Camera:
         """Camera pose in the world (inverse of ``T_cam_world``)."""
         return np.linalg.inv(self.T_cam_world)
 
-    @property
+    @cached_property
     def centre_world(self) -> np.ndarray:
-        """Optical centre in world mm (for orthographic cameras: the frame origin)."""
+        """Optical centre in world mm (for orthographic cameras: the frame origin);
+        read-only, computed once (the feature trackers ask for it at every iteration)."""
         R, t = self.T_cam_world[:3, :3], self.T_cam_world[:3, 3]
-        return -R.T @ t
+        centre = -R.T @ t
+        centre.setflags(write=False)
+        return centre
 
     def to_camera(self, p_world: np.ndarray) -> np.ndarray:
         """World points (..., 3) in camera coordinates (..., 3), mm."""

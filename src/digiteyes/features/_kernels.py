@@ -281,3 +281,130 @@ def tips_kernel(gray, params, view, perspective, shapes, rows, axis_rows, radii,
         mean_shift = total / found if found > 0 else np.nan
         measured[i, 0] = bx + mean_shift * dx if code[i] == 0 else np.nan
         measured[i, 1] = by + mean_shift * dy if code[i] == 0 else np.nan
+
+
+@njit(cache=True)
+def _across(params, cx, cy, cz, ux, uy, uz, wx, wy, wz, r, phi, nx, ny):  # pragma: no cover
+    """Image coordinate along ``(nx, ny)`` of the circle point at angle ``phi``."""
+    c, s = r * np.cos(phi), r * np.sin(phi)
+    u, v, _, _, _ = project_point(params, cx + c * ux + s * wx, cy + c * uy + s * wy,
+                                  cz + c * uz + s * wz)
+    return nx * u + ny * v
+
+
+@njit(cache=True)
+def contour_points_kernel(shapes, rows, at, radii, view, perspective, params, normal,
+                          local):  # pragma: no cover - compiled
+    """Extreme points along the image direction ``normal[k]`` of the projected cross-section
+    circle ``at[k]`` mm along the axis of ``rows[k]``, into ``local`` (K, 2, 3) in the link's
+    shape frame, mm (docs/features.md, "Width residual").
+
+    The search starts at the contour points where viewing rays graze the cylinder
+    (:func:`~digiteyes.features.slices.tangent_pair`) and refines their angle on the circle
+    by Newton steps on central differences of the image coordinate."""
+    tangent = np.empty((2, 3))
+    h = 1e-4
+    for k in range(rows.shape[0]):
+        T = shapes[rows[k]]
+        ox, oy, oz = T[0, 3], T[1, 3], T[2, 3]
+        ex, ey, ez = T[0, 0], T[1, 0], T[2, 0]
+        cx, cy, cz = ox + at[k] * ex, oy + at[k] * ey, oz + at[k] * ez
+        tangent_pair(cx, cy, cz, ex, ey, ez, radii[k], view, perspective, False, tangent)
+        # circle basis: u towards the first contour point, w = e x u
+        ux, uy, uz = tangent[0, 0] - cx, tangent[0, 1] - cy, tangent[0, 2] - cz
+        norm = np.sqrt(ux * ux + uy * uy + uz * uz)
+        ux, uy, uz = ux / norm, uy / norm, uz / norm
+        wx, wy, wz = ey * uz - ez * uy, ez * ux - ex * uz, ex * uy - ey * ux
+        dx, dy, dz = tangent[1, 0] - cx, tangent[1, 1] - cy, tangent[1, 2] - cz
+        nx, ny = normal[k, 0], normal[k, 1]
+        for j in range(2):
+            phi = 0.0 if j == 0 else np.arctan2(dx * wx + dy * wy + dz * wz,
+                                                dx * ux + dy * uy + dz * uz)
+            for _ in range(2):  # close start: two steps (checked in test_width_residuals.py)
+                g0 = _across(params, cx, cy, cz, ux, uy, uz, wx, wy, wz, radii[k], phi, nx, ny)
+                gp = _across(params, cx, cy, cz, ux, uy, uz, wx, wy, wz, radii[k], phi + h,
+                             nx, ny)
+                gm = _across(params, cx, cy, cz, ux, uy, uz, wx, wy, wz, radii[k], phi - h,
+                             nx, ny)
+                curvature = gp - 2.0 * g0 + gm
+                if curvature == 0.0:
+                    break
+                phi -= 0.5 * h * (gp - gm) / curvature
+            c, s = radii[k] * np.cos(phi), radii[k] * np.sin(phi)
+            px = cx + c * ux + s * wx - ox
+            py = cy + c * uy + s * wy - oy
+            pz = cz + c * uz + s * wz - oz
+            for i in range(3):
+                local[k, j, i] = T[0, i] * px + T[1, i] * py + T[2, i] * pz
+
+
+@njit(cache=True)
+def residual_rows_kernel(w, dw, J_point, jacobian, axis_points, n_link_rows, line, tip,
+                         normal, side, middle, width_weight, max_width_error, r, J, points_px,
+                         keep):  # pragma: no cover - compiled
+    """Residual rows and their Jacobian (docs/features.md Sec. 3) from the projected model
+    points; returns the number of rows M written to ``r`` (M,), ``J`` (M, n) and
+    ``points_px`` (M, 2).
+
+    The P points are, in order: ``axis_points`` per link line ``line`` (L, 3), one per tip
+    ``tip`` (T, 2) and the two contour points of each of the K width links. ``w`` (P, 2)
+    are their pixels, ``dw`` (P, 2, 3) the projection Jacobians and ``J_point`` (P, 3, n)
+    the point Jacobians (read only if ``jacobian``). Width rows (module docstring of
+    ``residuals.py``) use the slice normals ``normal`` (K, 2), side lines ``side``
+    (K, 2, 3) and the image points ``middle`` (K, 2) where the measured width is taken;
+    ``keep`` (K,) tells which pass the ``max_width_error`` check (only those are written).
+    """
+    n_cols = J.shape[1]
+    n_tips = tip.shape[0]
+    first_width = n_link_rows + n_tips
+    dwq = np.zeros((2, 2, n_cols))  # d pixel / d state of (up to) two points
+    m = 0
+    for p in range(first_width):
+        if jacobian:
+            for i in range(2):
+                for c in range(n_cols):
+                    dwq[0, i, c] = (dw[p, i, 0] * J_point[p, 0, c] + dw[p, i, 1] * J_point[p, 1, c]
+                                    + dw[p, i, 2] * J_point[p, 2, c])
+        if p < n_link_rows:
+            a, b, rho = line[p // axis_points, 0], line[p // axis_points, 1], line[
+                p // axis_points, 2]
+            r[m] = a * w[p, 0] + b * w[p, 1] - rho
+            for c in range(n_cols if jacobian else 0):
+                J[m, c] = a * dwq[0, 0, c] + b * dwq[0, 1, c]
+            points_px[m, 0], points_px[m, 1] = w[p, 0], w[p, 1]
+            m += 1
+            continue
+        t = p - n_link_rows
+        for i in range(2):
+            r[m] = w[p, i] - tip[t, i]
+            for c in range(n_cols if jacobian else 0):
+                J[m, c] = dwq[0, i, c]
+            points_px[m, 0], points_px[m, 1] = w[p, 0], w[p, 1]
+            m += 1
+    for k in range(keep.shape[0]):
+        a, b = first_width + 2 * k, first_width + 2 * k + 1
+        nx, ny = normal[k, 0], normal[k, 1]
+        across = (w[b, 0] - w[a, 0]) * nx + (w[b, 1] - w[a, 1]) * ny
+        sign = -1.0 if across < 0.0 else 1.0
+        mx, my = side[k, 0, 0] - side[k, 1, 0], side[k, 0, 1] - side[k, 1, 1]
+        measured = mx * middle[k, 0] + my * middle[k, 1] - (side[k, 0, 2] - side[k, 1, 2])
+        residual = sign * across - measured
+        keep[k] = abs(residual) <= max_width_error * sign * across
+        if not keep[k]:
+            continue
+        r[m] = width_weight * residual
+        if jacobian:
+            for j in range(2):
+                for i in range(2):
+                    for c in range(n_cols):
+                        q = a + j
+                        dwq[j, i, c] = (dw[q, i, 0] * J_point[q, 0, c]
+                                        + dw[q, i, 1] * J_point[q, 1, c]
+                                        + dw[q, i, 2] * J_point[q, 2, c])
+            for c in range(n_cols):
+                J[m, c] = width_weight * sign * (nx * (dwq[1, 0, c] - dwq[0, 0, c])
+                                                 + ny * (dwq[1, 1, c] - dwq[0, 1, c]))
+        points_px[m, 0] = 0.5 * (w[a, 0] + w[b, 0])
+        points_px[m, 1] = 0.5 * (w[a, 1] + w[b, 1])
+        m += 1
+    return m

@@ -173,6 +173,8 @@ class FeatureMeasurement:
     edge_points : (L, 2, S, 2) detected edge points, NaN where none was found.
     edge_inlier : (L, 2, S) bool, edge points kept by the robust fit.
     slice_centres : (L, S, 2) slice centres on the projected axis.
+    slice_fractions : (S,) where the slices cross each link, as fractions of its length from
+        its base (the same for every link).
     slice_normal : (L, 2) unit image normal of each projected axis (slice direction).
     slice_ends : (L, S, 2, 2) ends of each slice's searched span (both sides' ranges).
     contour_offsets : (L, S, 2) predicted silhouette offsets along the normal (side 0 < 0).
@@ -197,6 +199,7 @@ class FeatureMeasurement:
     edge_points: np.ndarray
     edge_inlier: np.ndarray
     slice_centres: np.ndarray
+    slice_fractions: np.ndarray
     slice_normal: np.ndarray
     slice_ends: np.ndarray
     contour_offsets: np.ndarray
@@ -324,7 +327,8 @@ def measure_features(
                 *tip.values())
     tip_code = tip.pop("code")
     return FeatureMeasurement(
-        camera=camera.name, link_ids=tracked.link_ids, link_valid=link_code == 0,
+        camera=camera.name, link_ids=tracked.link_ids,
+        slice_fractions=_fractions(options.end_margin, n_slices)[2:], link_valid=link_code == 0,
         link_reason=_LINK_CODES[link_code], tip_ids=tracked.tip_ids, tip_valid=tip_code == 0,
         tip_reason=_TIP_CODES[tip_code], **link, **tip)
 
@@ -430,7 +434,8 @@ def project_features(
         link_valid=link_ok, link_reason=np.where(link_ok, "ok", "behind-camera"),
         n_edges=np.zeros((n_links, 2), dtype=int), side_lines=np.full((n_links, 2, 3), np.nan),
         edge_points=np.zeros((n_links, 2, 0, 2)), edge_inlier=np.zeros((n_links, 2, 0), bool),
-        slice_centres=np.zeros((n_links, 0, 2)), slice_normal=normal,
+        slice_centres=np.zeros((n_links, 0, 2)), slice_fractions=np.zeros(0),
+        slice_normal=normal,
         slice_ends=np.zeros((n_links, 0, 2, 2)), contour_offsets=np.zeros((n_links, 0, 2)),
         tip_ids=tip_ids, predicted_tip=w_tip, measured_tip=np.where(tip_ok[:, None], w_tip, np.nan),
         tip_valid=tip_ok, tip_reason=np.where(tip_ok, "ok", "behind-camera"),

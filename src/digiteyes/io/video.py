@@ -16,6 +16,7 @@ from fractions import Fraction
 from pathlib import Path
 
 import av
+import cv2
 import numpy as np
 
 from digiteyes.errors import DatasetError
@@ -120,6 +121,33 @@ class VideoWriter:
         self.close()
 
 
+#: pixel formats whose first plane is the luma (Y) channel at full image size
+_LUMA_FIRST = frozenset({"yuv420p", "yuv422p", "yuv444p", "yuvj420p", "yuvj422p", "yuvj444p",
+                         "nv12", "nv21"})
+#: limited-range luma (16..235, ITU-R BT.601/709) to full-range grey (0..255)
+_LIMITED_TO_FULL = np.clip(np.round((np.arange(256) - 16) * (255 / 219)), 0, 255
+                           ).astype(np.uint8)
+
+
+def _gray_image(frame: av.VideoFrame) -> np.ndarray:
+    """A decoded frame as a full-range grey ``uint8`` (H, W) image.
+
+    Grey frames are copied as they are. For YUV frames the luma plane is read directly
+    and, if it is limited range, stretched to 0..255 by a table: the same grey values
+    as FFmpeg's own conversion, at a fraction of its cost (about 1.5 ms per
+    640x480 frame saved). Other formats go through FFmpeg's conversion.
+    """
+    name = frame.format.name
+    if name not in _LUMA_FIRST:
+        return frame.to_ndarray(format="gray")
+    plane = frame.planes[0]
+    luma = np.frombuffer(plane, np.uint8).reshape(plane.height, plane.line_size)
+    luma = luma[:, :plane.width]
+    if name.startswith("yuvj") or frame.color_range == 2:  # 2: AVCOL_RANGE_JPEG (full)
+        return luma.copy()
+    return cv2.LUT(luma, _LIMITED_TO_FULL)
+
+
 class VideoReader:
     """Decode one video file frame by frame (opened at once, so errors come early).
 
@@ -140,7 +168,11 @@ class VideoReader:
         if not self._container.streams.video:
             self._container.close()
             raise DatasetError(f"{self.path}: holds no video stream")
-        self._frames = self._container.decode(video=0)
+        stream = self._container.streams.video[0]
+        # FFmpeg decodes the next frames in its own threads (no GIL) while Python tracks
+        # this one: 10-25 % more frames per second end to end (docs/benchmarks.md).
+        stream.thread_type = "FRAME"
+        self._frames = self._container.decode(stream)
 
     def read(self) -> np.ndarray | None:
         """The next frame, or None after the last one."""
@@ -154,7 +186,9 @@ class VideoReader:
             self.close()
             return None
         self.n_read += 1
-        return frame.to_ndarray(format="gray" if self.gray else "rgb24")
+        if self.gray:
+            return _gray_image(frame)
+        return frame.to_ndarray(format="rgb24")
 
     def __iter__(self) -> Iterator[np.ndarray]:
         while (image := self.read()) is not None:

@@ -83,6 +83,11 @@ class FeatureTrackerOptions:
         (no palm edges).
     axis_points : residual points per link along its axis (2: base and end; 1: base only,
         as the thesis, Sec. 4.3.1).
+    width_weight : weight of the link-width residuals, the depth cue that one camera
+        otherwise lacks (:mod:`digiteyes.features.residuals`; docs/features.md). 0 gives
+        the thesis's residuals only.
+    max_width_error : width rows whose measured width is off the predicted one by more
+        than this fraction are left out.
     conditioning : weights of ``S`` for (quaternion/rotation, translation, joint angle),
         thesis eq. 2.22 and Table 4.2: 1, 10, 1000 (px^2 per squared step unit).
     use_conditioning : False drops ``S`` (plain Gauss-Newton; an ablation).
@@ -108,6 +113,8 @@ class FeatureTrackerOptions:
     features: FeatureOptions = field(default_factory=FeatureOptions)
     links: tuple[str, ...] | None = None
     axis_points: int = 2
+    width_weight: float = 1.0
+    max_width_error: float = 0.15
     conditioning: tuple[float, float, float] = (1.0, 10.0, 1000.0)
     use_conditioning: bool = True
     damping: Damping = "fixed"
@@ -155,7 +162,9 @@ class FeatureTrackerOptions:
             raise ValueError(
                 f"robust_loss must be None, 'huber' or 'tukey', got {self.robust_loss!r}"
             )
-        positive = ["robust_scale_px", "growth_factor"]
+        if not (np.isfinite(self.width_weight) and self.width_weight >= 0):
+            raise ValueError(f"width_weight must be >= 0, got {self.width_weight!r}")
+        positive = ["robust_scale_px", "growth_factor", "max_width_error"]
         if self.max_residual_rms_px is not None:
             positive.append("max_residual_rms_px")
         for name in positive:
@@ -216,9 +225,11 @@ class _FeatureProblem:
                                     tracker.tip_names)
             timings["feature_detection"] += time.perf_counter() - start
             start = time.perf_counter()
-            r, J, layout = feature_residuals(meas, camera, kin, jacobian=jacobian,
-                                             form=self.param.form,
-                                             axis_points=tracker.options.axis_points)
+            r, J, layout = feature_residuals(
+                meas, camera, kin, jacobian=jacobian, form=self.param.form,
+                axis_points=tracker.options.axis_points,
+                width_weight=tracker.options.width_weight,
+                max_width_error=tracker.options.max_width_error)
             rs.append(r)
             Js.append(J)
             measurements.append(meas)

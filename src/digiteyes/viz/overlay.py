@@ -165,7 +165,7 @@ def draw_features(
             f = residual_layout.feature[row]
             if residual_layout.kind[row] == "link":
                 canvas.line(p, _foot(meas.line[f], p), RESIDUAL, 2)
-            elif residual_layout.component[row] == 0:
+            elif residual_layout.kind[row] == "tip" and residual_layout.component[row] == 0:
                 canvas.line(p, meas.measured_tip[f], RESIDUAL, 2)
     if camera is not None:
         canvas.text(np.array([4.0, 12.0]), camera.name, TRACKER)
