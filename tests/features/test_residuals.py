@@ -1,5 +1,6 @@
 """Feature residuals and their analytic Jacobians (thesis eq. 2.17-2.20, report eq. 2-3,
-6-10) against central finite differences stepped through ``integrate``."""
+6-10) against central finite differences stepped through ``integrate``; width residuals
+(docs/features.md, "Width residual"): zero at the true state, exact Jacobian, error check."""
 
 from __future__ import annotations
 
@@ -12,9 +13,11 @@ from digiteyes import load_model
 from digiteyes.camera import Camera
 from digiteyes.errors import StateError
 from digiteyes.features import feature_residuals, project_features
+from digiteyes.features.slices import cylinder_tangent_points
 from digiteyes.kinematics import forward_kinematics, integrate
 from digiteyes.kinematics.rotations import quaternion_from_rotvec
 
+FRACTIONS = np.array([0.3, 0.5, 0.7])  # slice positions of the synthetic measurements
 CAMERAS = {
     "perspective": Camera.create(
         "persp", [[800.0, 0.0, 319.5], [0.0, 790.0, 239.5], [0.0, 0.0, 1.0]], 640, 480,
@@ -143,3 +146,98 @@ def test_layout_and_invalid_features(hand):
     batch = forward_kinematics(hand, np.stack([hand.neutral()] * 2))
     with pytest.raises(StateError, match="one state"):
         feature_residuals(meas, camera, batch)
+
+
+def measured_sides(model, camera, q_meas, widen=1.0, tilt_deg=0.0):
+    """Exact features of ``q_meas`` plus side lines through the projected contour points of
+    each cylinder's middle slice, ``widen`` times as far apart and each turned outwards by
+    ``tilt_deg``. Returns the measurement and the true middle-slice widths (L,), px."""
+    kin = forward_kinematics(model, q_meas)
+    meas = project_features(camera, model, kin)
+    n_links = len(meas.link_ids)
+    centres = np.empty((n_links, len(FRACTIONS), 2))
+    sides = np.full((n_links, 2, 3), np.nan)
+    widths = np.full(n_links, np.nan)
+    for k, index in enumerate(meas.link_ids):
+        link = model.links[index]
+        T = kin.T_world_shape[0, link.row]
+        points = T[:3, 3] + FRACTIONS[:, None] * link.length * T[:3, 0]
+        centres[k] = camera.project(points)
+        if link.kind != "link":
+            continue
+        contour = camera.project(cylinder_tangent_points(camera, points[1], T[:3, 0],
+                                                         link.radius))
+        n = meas.slice_normal[k]
+        offsets = np.sort((contour - centres[k, 1]) @ n)
+        widths[k] = offsets[1] - offsets[0]
+        for side, offset in enumerate(offsets * widen):
+            angle = np.radians(tilt_deg) * (1 if side else -1)
+            c, s = np.cos(angle), np.sin(angle)
+            normal = np.array([c * n[0] - s * n[1], s * n[0] + c * n[1]])
+            sides[k, side] = [*normal, normal @ (centres[k, 1] + offset * n)]
+    meas = dataclasses.replace(meas, side_lines=sides, slice_centres=centres,
+                               slice_fractions=FRACTIONS)
+    return meas, widths
+
+
+def width_rows(model, meas, camera, q, **kw):
+    r, J, layout = feature_residuals(meas, camera, forward_kinematics(model, q),
+                                     width_weight=1.0, **kw)
+    rows = layout.rows("width")
+    return r, J, layout, rows
+
+
+@pytest.mark.parametrize("name", ["perspective", "orthographic"])
+def test_width_rows_vanish_at_the_true_state(hand, name):
+    camera = CAMERAS[name]
+    q = random_hand_state(hand, np.random.default_rng(20))
+    meas, widths = measured_sides(hand, camera, q)
+    r, _J, layout, rows = width_rows(hand, meas, camera, q)
+    cylinders = [k for k, i in enumerate(meas.link_ids) if hand.links[i].kind == "link"]
+    assert len(rows) == len(cylinders) == 15  # palm edges have no width
+    np.testing.assert_array_equal(layout.feature[rows], cylinders)
+    np.testing.assert_array_equal(layout.link_index[rows], meas.link_ids[cylinders])
+    assert np.all(widths[cylinders] > 3.0)
+    # The model's width is the extent of the projected cross-section along the slice; it
+    # differs from the distance of the silhouette lines by a second-order amount.
+    assert np.abs(r[rows]).max() < (0.05 if name == "perspective" else 1e-9)
+    # Without a weight the rows are left out (the thesis's residuals only).
+    r_plain, _, plain = feature_residuals(meas, camera, forward_kinematics(hand, q))
+    assert len(plain.rows("width")) == 0 and len(r_plain) == len(r) - len(rows)
+
+
+@pytest.mark.parametrize("name", ["perspective", "orthographic"])
+def test_width_jacobian_matches_finite_differences(hand, name):
+    camera = CAMERAS[name]
+    # At the state the features were measured at (slice normals = projected axis normals),
+    # which is where the tracker linearises: it measures again at every iterate.
+    q = random_hand_state(hand, np.random.default_rng(21))
+    meas, _ = measured_sides(hand, camera, q, widen=1.08, tilt_deg=3.0)
+    r, J, _layout, rows = width_rows(hand, meas, camera, q, max_width_error=1e6)
+    assert len(rows) == 15 and np.abs(r[rows]).max() > 0.3
+    h = 1e-6
+    J_fd = np.empty_like(J)
+    for i in range(hand.n_v):
+        step = np.zeros(hand.n_v)
+        step[i] = h
+        plus = width_rows(hand, meas, camera, integrate(hand, q, step), max_width_error=1e6)
+        minus = width_rows(hand, meas, camera, integrate(hand, q, -step), max_width_error=1e6)
+        J_fd[:, i] = (plus[0] - minus[0]) / (2 * h)
+    # Orthographic widths do not depend on the pose (J ~ 0): compare absolutely there.
+    scale = max(np.linalg.norm(J[rows]), 1.0)
+    assert np.linalg.norm(J[rows] - J_fd[rows]) / scale < 1e-6
+    assert np.linalg.norm(J - J_fd) / np.linalg.norm(J) < 1e-6
+
+
+def test_widths_far_off_the_prediction_are_left_out(hand):
+    camera = CAMERAS["perspective"]
+    q = random_hand_state(hand, np.random.default_rng(23))
+    meas, widths = measured_sides(hand, camera, q, widen=1.3)
+    _r, _J, _layout, rows = width_rows(hand, meas, camera, q, max_width_error=0.15)
+    assert len(rows) == 0
+    r, _J, layout, rows = width_rows(hand, meas, camera, q, max_width_error=0.5)
+    assert len(rows) == 15
+    # predicted minus measured: 30 % of the true width, too narrow a prediction
+    np.testing.assert_allclose(r[rows], -0.3 * widths[layout.feature[rows]], atol=0.05)
+    with pytest.raises(ValueError, match="width_weight"):
+        feature_residuals(meas, camera, forward_kinematics(hand, q), width_weight=-1.0)

@@ -320,7 +320,7 @@ def contour_points_kernel(shapes, rows, at, radii, view, perspective, params, no
         for j in range(2):
             phi = 0.0 if j == 0 else np.arctan2(dx * wx + dy * wy + dz * wz,
                                                 dx * ux + dy * uy + dz * uz)
-            for _ in range(2):  # close start: two steps (checked in test_width_residuals.py)
+            for _ in range(2):  # close start: two steps (checked in test_residuals.py)
                 g0 = _across(params, cx, cy, cz, ux, uy, uz, wx, wy, wz, radii[k], phi, nx, ny)
                 gp = _across(params, cx, cy, cz, ux, uy, uz, wx, wy, wz, radii[k], phi + h,
                              nx, ny)
