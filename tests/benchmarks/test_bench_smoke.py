@@ -56,6 +56,21 @@ def test_stage_split_and_accuracy_of_a_short_run(whole_hand):
     assert summary["track_life_frames"] == whole_hand.n_frames
 
 
+def test_rim_shading_biases_the_measured_widths(whole_hand):
+    """Section (e)'s diagnosis: measured at the true states, link widths come out narrower
+    under Lambert shading (darker towards the silhouette) than under flat shading, where
+    they match the model."""
+    scenario = whole_hand.scenario
+    flat = bench.render_sequence(scenario, flat=True, cameras=(0,))
+    assert len(flat.rig) == 1 and flat.rig.cameras[0] is whole_hand.rig.cameras[0]
+    assert flat.truth.keypoints_2d.shape[1] == 1
+    lambert = bench.width_bias(whole_hand, every=1)
+    even = bench.width_bias(flat, every=1)
+    assert abs(even["width_bias_px_mean"]) < 0.1 and even["width_bias_px_link_rms"] < 0.2
+    assert lambert["width_bias_px_mean"] < even["width_bias_px_mean"] - 0.2
+    assert lambert["width_bias_px_link_rms"] > 2 * even["width_bias_px_link_rms"]
+
+
 def test_pole_error_uses_the_true_hand():
     scenario = build_scenario("mouse", seed=0, n_frames=45)
     scenario = replace(scenario, states=scenario.states[36:40])  # the index finger is up
@@ -113,7 +128,12 @@ def test_tiny_run_writes_finite_json(monkeypatch, tmp_path, capsys):
                 assert all(math.isfinite(summary[k]) for k in RUN_KEYS), case
                 assert ("pole_height_err_mm_mean" in summary) == (case == "mouse")
     assert set(stored["ablations"]) == set(tiny.ablations)
+    assert set(stored["shading"]) == {"lambert", "flat"}
+    for by_shading in stored["shading"].values():
+        assert math.isfinite(by_shading["width_bias_px_mean"])
+        for label in ("with_width", "without_width"):
+            assert all(math.isfinite(by_shading[label][k]) for k in RUN_KEYS)
     out = capsys.readouterr().out
     assert "machine:" in out
-    for section in ("(a)", "(b)", "(c)", "(d)"):
+    for section in ("(a)", "(b)", "(c)", "(d)", "(e)"):
         assert section in out

@@ -116,15 +116,19 @@ def test_dark_object_on_bright_background(stick, flat_camera, stick_state, capsu
     assert not wrong.link_valid[0] and not wrong.tip_valid[0]
 
 
-def test_rgb_uint8_image_gives_the_grey_result(stick, flat_camera, stick_state, capsule_image):
+def test_uint8_float_and_rgb_images_give_the_same_result(stick, flat_camera, stick_state,
+                                                         capsule_image):
     q = stick_state(-30.0, 3.0, 0.2)
     a, b = truth(stick, flat_camera, q)
-    grey = np.round(capsule_image(a, b, RADIUS)).astype(np.uint8)
-    rgb = np.repeat(grey[..., None], 3, axis=2)
-    m_grey = measure(grey, stick, flat_camera, q)
-    m_rgb = measure(rgb, stick, flat_camera, q)
-    np.testing.assert_allclose(m_rgb.line, m_grey.line, atol=1e-6)
-    np.testing.assert_allclose(m_rgb.measured_tip, m_grey.measured_tip, atol=1e-6)
+    grey = np.round(capsule_image(a, b, RADIUS, noise=3.0, rng=np.random.default_rng(1))
+                    ).clip(0, 255).astype(np.uint8)
+    m_grey = measure(grey, stick, flat_camera, q)  # uint8 pixels, read without conversion
+    assert m_grey.link_valid[0] and m_grey.tip_valid[0]
+    for other in (grey.astype(np.float32), np.repeat(grey[..., None], 3, axis=2)):
+        m = measure(other, stick, flat_camera, q)
+        np.testing.assert_array_equal(m.edge_points, m_grey.edge_points)
+        np.testing.assert_array_equal(m.line, m_grey.line)
+        np.testing.assert_array_equal(m.measured_tip, m_grey.measured_tip)
 
 
 def test_off_image_and_foreshortened_links(stick, flat_camera, stick_state):

@@ -20,9 +20,12 @@ from digiteyes.features.slices import (
 def test_prepare_image_gray_rgb_and_float():
     rng = np.random.default_rng(0)
     gray8 = rng.integers(0, 256, (12, 17), dtype=np.uint8)
-    out = prepare_image(gray8)
-    assert out.dtype == np.float32 and out.shape == (12, 17)
-    np.testing.assert_array_equal(out, gray8.astype(np.float32))
+    assert prepare_image(gray8) is gray8  # read as is: no copy, no conversion
+    strided = prepare_image(gray8[:, ::2])
+    assert strided.dtype == np.uint8 and strided.flags.c_contiguous
+    np.testing.assert_array_equal(strided, gray8[:, ::2])
+    np.testing.assert_array_equal(prepare_image(gray8.astype(np.int16)), gray8)
+    assert prepare_image(gray8.astype(np.int16)).dtype == np.float32
     rgb = rng.integers(0, 256, (12, 17, 3), dtype=np.uint8)
     np.testing.assert_array_equal(prepare_image(rgb), cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY))
     ready = np.ascontiguousarray(gray8, dtype=np.float32)

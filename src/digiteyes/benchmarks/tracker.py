@@ -1,7 +1,7 @@
 """Feature-tracker benchmark: speed per Gauss-Newton iteration, end-to-end frame rate,
 accuracy against ground truth on the synthetic scenarios, and ablations.
 
-Four sections (DESIGN.md Sec. 7, issue 4 item 8), every figure measured on this machine:
+Five sections (DESIGN.md Sec. 7, issue 4 item 8), every figure measured on this machine:
 
 a. **Cost per iteration** of the full hand (28 states, every link and tip measured,
    640 x 480 images), one camera of the whole-hand rig (*mono*) and both (*stereo*),
@@ -41,6 +41,11 @@ d. **Ablations** on whole-hand stereo, black cloth, exact model, from the tracke
    the other prediction (constant velocity vs the previous estimate), the thesis's
    quaternion form, Tukey loss, the thesis's link set.
 
+e. **One camera's limit**: whole-hand camera 0 (black cloth, exact model, 5 iterations)
+   rendered with the default Lambert shading and with flat shading (ambient light only),
+   each tracked with and without the width residuals, with the bias of the measured link
+   widths at the true states (key ``shading``; docs/benchmarks.md (e)).
+
 The images are rendered in memory (grey, sensor noise 2 grey levels, seeds as
 ``digiteyes render --seed 0``); nothing is kept on disk. OpenCV runs on one thread;
 NumPy's BLAS is limited to one thread with ``threadpoolctl`` when it is importable,
@@ -67,8 +72,9 @@ from digiteyes.apps.mouse3d import pole_from_state
 from digiteyes.benchmarks._machine import blas_info, emit, machine_info, machine_lines
 from digiteyes.camera import Rig
 from digiteyes.evaluate import evaluate_run
+from digiteyes.features import FeatureOptions, feature_residuals, measure_features
 from digiteyes.io import GroundTruth, SequenceWriter, StateLog, open_sequence
-from digiteyes.kinematics import KinematicModel
+from digiteyes.kinematics import KinematicModel, forward_kinematics
 from digiteyes.pipeline import run_tracker
 from digiteyes.render import RenderOptions, perturb_model, render_views
 from digiteyes.render.scenarios import Scenario, build_scenario
@@ -173,21 +179,29 @@ class RenderedSequence:
 
 
 def render_sequence(scenario: Scenario, background: str = "black", perturbed: bool = False,
-                    seed: int = SEED, progress: bool = False) -> RenderedSequence:
+                    seed: int = SEED, progress: bool = False, flat: bool = False,
+                    cameras: Sequence[int] | None = None) -> RenderedSequence:
     """Render every frame of ``scenario`` through its rig (grey, noise
     :data:`NOISE_SIGMA`), from a hand perturbed by :data:`PERTURB_LINK_LENGTH` if asked;
-    seeds as ``digiteyes render --seed``."""
+    seeds as ``digiteyes render --seed``. ``flat`` lights the skin evenly (ambient light
+    only: no shading towards the silhouette); ``cameras`` renders only those cameras of
+    the rig (None: all)."""
     model = scenario.model
     truth_model = perturb_model(model, link_length=PERTURB_LINK_LENGTH, rng=seed) \
         if perturbed else model
     options = RenderOptions(background=background, noise_sigma=NOISE_SIGMA,
                             background_seed=seed)
+    if flat:
+        options = replace(options, ambient=1.0)
+    rig = scenario.rig if cameras is None else Rig(tuple(scenario.rig.cameras[i]
+                                                          for i in cameras))
     images, kp3, kp2, visible = [], [], [], []
     names: tuple[str, ...] = ()
-    label = f"render {scenario.name} {background} {'perturbed' if perturbed else 'exact'}"
+    label = (f"render {scenario.name} {background} {'perturbed' if perturbed else 'exact'}"
+             f"{' flat' if flat else ''}")
     for t in tqdm(range(scenario.n_frames), desc=label, unit="frame", leave=False,
                   disable=not progress):
-        views = render_views(truth_model, scenario.states[t], scenario.rig, options,
+        views = render_views(truth_model, scenario.states[t], rig, options,
                              np.random.default_rng([seed, t]))
         images.append([v.image for v in views])
         names = tuple(views[0].keypoint_names)
@@ -196,7 +210,7 @@ def render_sequence(scenario: Scenario, background: str = "black", perturbed: bo
         visible.append(np.stack([v.visible for v in views]))
     truth = GroundTruth(np.array(scenario.states, dtype=float), names, np.array(kp3),
                         np.array(kp2), np.array(visible))
-    return RenderedSequence(scenario, scenario.rig, images, truth, truth_model)
+    return RenderedSequence(scenario, rig, images, truth, truth_model)
 
 
 # --------------------------------------------------------------------------- tracking
@@ -332,6 +346,46 @@ def ablation_section(sequence: RenderedSequence, settings: Settings, progress: b
         options = FeatureTrackerOptions(**changes)
         outcome = track_sequence(sequence, options, f"ablation: {name}", progress)
         out[name] = accuracy_summary(sequence, outcome) | {"options": ABLATIONS[name]}
+    return out
+
+
+def width_bias(sequence: RenderedSequence, every: int = 5) -> dict[str, float]:
+    """How far the measured link widths are from the true ones, measured at the true
+    states of every ``every``-th frame in the first camera: ``width_bias_px_mean`` (mean
+    of measured minus true width over every width row, px) and
+    ``width_bias_px_link_rms`` (RMS over links of each link's mean bias: the part that
+    bends the fingers rather than moving the whole hand)."""
+    model, camera = sequence.scenario.model, sequence.rig.cameras[0]
+    tracker = FeatureTracker(model, Rig((camera,)))
+    by_link: dict[int, list[float]] = {}
+    for t in range(0, sequence.n_frames, every):
+        kin = forward_kinematics(model, sequence.truth.states[t])
+        meas = measure_features(sequence.images[t][0], camera, model, kin, FeatureOptions(),
+                                tracker.link_names, tracker.tip_names)
+        r, _, layout = feature_residuals(meas, camera, kin, jacobian=False, width_weight=1.0)
+        for row in layout.rows("width"):
+            by_link.setdefault(int(layout.link_index[row]), []).append(-float(r[row]))
+    means = np.array([np.mean(v) for v in by_link.values()])
+    return {"width_bias_px_mean": float(np.mean(np.concatenate(list(by_link.values())))),
+            "width_bias_px_link_rms": float(np.sqrt(np.mean(means**2)))}
+
+
+def shading_section(settings: Settings, progress: bool) -> dict[str, dict[str, Any]]:
+    """Section (e): what limits one camera. Whole-hand seen by camera 0, black cloth,
+    exact model, the default 5 iterations, with the renderer's Lambert shading and with
+    flat shading: per shading the width bias (:func:`width_bias`) and the accuracy with
+    and without the width residuals."""
+    whole = build_scenario("whole-hand", seed=SEED, n_frames=settings.frames)
+    out: dict[str, dict[str, Any]] = {}
+    for shading in ("lambert", "flat"):
+        sequence = render_sequence(whole, progress=progress, flat=shading == "flat",
+                                   cameras=(0,))
+        out[shading] = width_bias(sequence)
+        for label, weight in (("with_width", FeatureTrackerOptions().width_weight),
+                              ("without_width", 0.0)):
+            outcome = track_sequence(sequence, FeatureTrackerOptions(width_weight=weight),
+                                     f"shading: {shading} {label}", progress)
+            out[shading][label] = accuracy_summary(sequence, outcome)
     return out
 
 
@@ -471,7 +525,8 @@ def run(json_path: str | None = None, quick: bool = False, *, progress: bool = T
         [case][background][model] -> per-run figures at ``accuracy_iterations`` (the
         end-to-end setting), ``accuracy_default_iterations`` the same at the tracker's
         default of 5 (None when that is the end-to-end setting); (d): ``ablations``
-        [variant] -> per-run figures. See the module docstring.
+        [variant] -> per-run figures; (e): ``shading`` [lambert|flat] -> width bias and
+        per-run figures with and without the width residuals. See the module docstring.
     """
     settings = QUICK if quick else FULL
     started = time.perf_counter()
@@ -510,7 +565,10 @@ def run(json_path: str | None = None, quick: bool = False, *, progress: bool = T
         result["accuracy"] = accuracy[iterations]
         result["accuracy_default_iterations"] = None if iterations == DEFAULT_ITERATIONS \
             else accuracy[DEFAULT_ITERATIONS]
-        print(format_accuracy(result), flush=True)
+        print(format_accuracy(result) + "\n", flush=True)
+
+        result["shading"] = shading_section(settings, progress)
+        print(format_shading(result), flush=True)
     result["wall_seconds"] = time.perf_counter() - started
     return emit(result, f"\nbenchmark wall time {result['wall_seconds']:.0f} s", json_path)
 
@@ -628,3 +686,18 @@ def format_accuracy(result: dict) -> str:
                   *_table(["case / background / model", *RUN_COLUMNS, "pole h mm"], rows)]
     return "\n".join(lines)
 
+
+def format_shading(result: dict) -> str:
+    """Section (e) as a table."""
+    rows = []
+    for shading, r in result["shading"].items():
+        for label in ("with_width", "without_width"):
+            rows.append([f"{shading} / {label.replace('_', ' ')}",
+                         _f(r["width_bias_px_mean"], "+.2f"),
+                         _f(r["width_bias_px_link_rms"], ".2f"), *_run_cells(r[label])])
+    return "\n".join([
+        f"(e) one camera: whole-hand camera 0, black cloth, exact model, {DEFAULT_ITERATIONS} "
+        "iterations/frame; Lambert shading (the default) vs flat shading (even skin, no "
+        "darkening towards the silhouette); width bias: measured minus true link width at the "
+        "true states (mean; RMS over links of the per-link means), px",
+        *_table(["shading / residuals", "width bias", "per link", *RUN_COLUMNS], rows)])

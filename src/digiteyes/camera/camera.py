@@ -53,7 +53,7 @@ def project_point(params, px, py, pz):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _project_kernel(params, points, w, J, jacobian):  # pragma: no cover - compiled
+def project_kernel(params, points, w, J, jacobian):  # pragma: no cover - compiled
     """Pixels ``w`` (P, 2) and, if ``jacobian``, ``dw/dp_world`` ``J`` (P, 2, 3)."""
     fx, s, fy = params[12], params[13], params[15]
     for i in range(points.shape[0]):
@@ -262,7 +262,7 @@ class Camera:
         flat = np.ascontiguousarray(p.reshape(-1, 3))
         w = np.empty((len(flat), 2))
         J = np.empty((len(flat), 2, 3)) if jacobian else np.empty((0, 2, 3))
-        _project_kernel(self.projection_params, flat, w, J, jacobian)
+        project_kernel(self.projection_params, flat, w, J, jacobian)
         return w.reshape(*lead, 2), J.reshape(*lead, 2, 3) if jacobian else None
 
     def depth(self, p_world: np.ndarray) -> np.ndarray:

@@ -70,7 +70,7 @@ def smoothed_derivative(prof, response):  # pragma: no cover - compiled
         response[j] = (prof[j + 2] - prof[j - 2] + 2.0 * (prof[j + 1] - prof[j - 1])) / 3.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def peak_in_range(prof, inside, response, c, sign, half_window, first, step, min_contrast,
                   side_samples):  # pragma: no cover - compiled
     """Strongest local maximum of ``sign * response`` within ``c +- half_window`` (px along

@@ -50,10 +50,13 @@ import numpy as np
 
 from digiteyes.camera import Camera
 from digiteyes.errors import StateError
-from digiteyes.features._kernels import contour_points_kernel, residual_rows_kernel
+from digiteyes.features._residual_kernels import RESIDUAL_KINDS, feature_residuals_kernel
 from digiteyes.features.measure import FeatureMeasurement
 from digiteyes.features.slices import view_of
-from digiteyes.kinematics import KinematicModel, Kinematics, point_jacobian
+from digiteyes.kinematics import KinematicModel, Kinematics
+from digiteyes.kinematics.jacobian import jacobian_tables
+
+_KIND_NAMES = np.array(RESIDUAL_KINDS)
 
 
 @dataclass(frozen=True)
@@ -63,7 +66,8 @@ class ResidualLayout:
     Attributes
     ----------
     camera : camera name of the measurement.
-    kind : (M,) ``"link"``, ``"tip"`` or ``"width"``.
+    kind_code : (M,) position of each row's kind in ``RESIDUAL_KINDS``
+        (``"link"``, ``"tip"``, ``"width"``).
     feature : (M,) position in ``meas.link_ids`` (links, widths) or ``meas.tip_ids`` (tips).
     link_index : (M,) index into ``model.links``.
     component : (M,) link rows: number of the axis point (0 = base); tip rows: 0 = x, 1 = y;
@@ -72,55 +76,27 @@ class ResidualLayout:
     """
 
     camera: str
-    kind: np.ndarray
+    kind_code: np.ndarray
     feature: np.ndarray
     link_index: np.ndarray
     component: np.ndarray
     points_px: np.ndarray
 
     @property
+    def kind(self) -> np.ndarray:
+        """(M,) kind of each row: ``"link"``, ``"tip"`` or ``"width"``."""
+        return _KIND_NAMES[self.kind_code]
+
+    @property
     def n_rows(self) -> int:
         """Number of residual rows M."""
-        return len(self.kind)
+        return len(self.kind_code)
 
     def rows(self, kind: str) -> np.ndarray:
         """Row indices of one kind (``"link"``, ``"tip"`` or ``"width"``)."""
-        return np.flatnonzero(self.kind == kind)
-
-
-@dataclass(frozen=True)
-class _Rows:
-    """Model points and row labels for a set of valid features (cached per selection)."""
-
-    rows: np.ndarray  # shape-frame row of each model point
-    p_shape: np.ndarray  # the points in their shape frames, mm
-    n_link_rows: int
-    kind: np.ndarray
-    link_index: np.ndarray
-    component: np.ndarray
-
-    @staticmethod
-    @lru_cache(maxsize=256)
-    def build(model: KinematicModel, link_ids: tuple[int, ...], tip_ids: tuple[int, ...],
-              axis_points: int) -> _Rows:
-        fractions = np.linspace(0.0, 1.0, axis_points) if axis_points > 1 else np.zeros(1)
-        lengths = np.array([model.links[i].length for i in link_ids], dtype=float)
-        rows = np.concatenate([np.repeat([model.links[i].row for i in link_ids], axis_points),
-                               [model.links[i].row for i in tip_ids]]).astype(int)
-        n_link_rows = len(link_ids) * axis_points
-        p_shape = np.zeros((len(rows), 3))
-        p_shape[:n_link_rows, 0] = (lengths[:, None] * fractions[None, :]).ravel()
-        arrays = dict(
-            rows=rows, p_shape=p_shape,
-            kind=np.array(["link"] * n_link_rows + ["tip"] * (2 * len(tip_ids)), dtype=str),
-            link_index=np.concatenate([np.repeat(np.array(link_ids, dtype=int), axis_points),
-                                       np.repeat(np.array(tip_ids, dtype=int), 2)]),
-            component=np.concatenate([np.tile(np.arange(axis_points), len(link_ids)),
-                                      np.tile([0, 1], len(tip_ids))]).astype(int),
-        )
-        for a in arrays.values():
-            a.setflags(write=False)  # shared between calls through the cache
-        return _Rows(n_link_rows=n_link_rows, **arrays)
+        if kind not in RESIDUAL_KINDS:
+            raise ValueError(f"kind must be one of {', '.join(RESIDUAL_KINDS)}, got {kind!r}")
+        return np.flatnonzero(self.kind_code == RESIDUAL_KINDS.index(kind))
 
 
 def feature_residuals(
@@ -169,47 +145,26 @@ def feature_residuals(
             f"feature_residuals needs the kinematics of one state, got "
             f"{kin.T_world_shape.shape[0]}"
         )
-    links = np.flatnonzero(meas.link_valid)
-    tips = np.flatnonzero(meas.tip_valid)
-    rows_of = _Rows.build(kin.model, tuple(meas.link_ids[links]), tuple(meas.tip_ids[tips]),
-                          axis_points)
-    n_link_rows, n_rows = rows_of.n_link_rows, len(rows_of.rows)
-    widths = _width_links(meas, kin.model) if width_weight > 0 else np.zeros(0, dtype=int)
-    rows, p_shape = rows_of.rows, rows_of.p_shape
-    if len(widths):
-        w_rows, w_shape = _contour_points(meas, camera, kin, widths)
-        rows, p_shape = np.concatenate([rows, w_rows]), np.concatenate([p_shape, w_shape])
-
-    if jacobian:
-        p_world, J_point = point_jacobian(kin, rows, p_shape, form=form)
-        if J_point.ndim == 4:
-            p_world, J_point = p_world[0], J_point[0]
-    else:
-        p_world = kin.points(rows, p_shape).reshape(-1, 3)
-        J_point = np.zeros((len(rows), 3, 0))
-    w, dw = camera.project_with_jacobian(p_world, jacobian=jacobian)
-    if dw is None:
-        dw = np.zeros((len(rows), 2, 3))
-    n_max = n_rows + len(tips) + len(widths)
-    r = np.empty(n_max)
-    J = np.empty((n_max, J_point.shape[-1]))
+    model = kin.model
+    n_links, n_tips = len(meas.link_ids), len(meas.tip_ids)
+    n_max = axis_points * n_links + 2 * n_tips + n_links
+    n_cols = (model.n_q if form == "quaternion" else model.n_v) if jacobian else 0
+    r, J = np.empty(n_max), np.empty((n_max, n_cols))
     points_px = np.empty((n_max, 2))
-    keep = np.empty(len(widths), dtype=bool)
-    middle = meas.slice_centres[widths, meas.slice_centres.shape[1] // 2] if len(widths) \
-        else np.zeros((0, 2))
-    n = residual_rows_kernel(w, dw, J_point, jacobian, axis_points, n_link_rows,
-                             meas.line[links], meas.measured_tip[tips],
-                             meas.slice_normal[widths], meas.side_lines[widths], middle,
-                             float(width_weight), float(max_width_error), r, J, points_px, keep)
-    kind, link_index, component = rows_of.kind, rows_of.link_index, rows_of.component
-    feature = np.concatenate([np.repeat(links, axis_points), np.repeat(tips, 2)])
-    if len(widths):
-        widths = widths[keep]
-        kind = np.concatenate([kind, np.full(len(widths), "width")])
-        feature = np.concatenate([feature, widths])
-        link_index = np.concatenate([link_index, meas.link_ids[widths]])
-        component = np.concatenate([component, np.zeros(len(widths), dtype=int)])
-    layout = ResidualLayout(camera=meas.camera, kind=kind, feature=feature,
+    labels = np.empty((4, n_max), dtype=np.int64)  # kind code, feature, link index, component
+    middle = meas.slice_centres.shape[1] // 2
+    view, perspective = view_of(camera)
+    n = feature_residuals_kernel(
+        kin.T_world_shape, kin.q, jacobian_tables(model, form),
+        (camera.projection_params, view, perspective),
+        (meas.link_ids, meas.link_valid, meas.line, meas.side_lines, meas.slice_normal,
+         meas.slice_centres[:, middle] if middle else np.zeros((n_links, 2)),
+         float(meas.slice_fractions[middle]) if middle else 0.5,
+         meas.tip_ids, meas.tip_valid, meas.measured_tip),
+        _link_table(model), axis_points, float(width_weight),
+        float(max_width_error), jacobian, r, J, points_px, *labels)
+    kind_code, feature, link_index, component = labels[:, :n]
+    layout = ResidualLayout(camera=meas.camera, kind_code=kind_code, feature=feature,
                             link_index=link_index, component=component, points_px=points_px[:n])
     return r[:n], J[:n] if jacobian else None, layout
 
@@ -226,24 +181,3 @@ def _link_table(model: KinematicModel) -> tuple[np.ndarray, ...]:
     for a in table:
         a.setflags(write=False)  # shared between calls through the cache
     return table
-
-
-def _width_links(meas: FeatureMeasurement, model: KinematicModel) -> np.ndarray:
-    """Positions in ``meas.link_ids`` of valid cylinder links with both side lines."""
-    both = np.isfinite(meas.side_lines).all(axis=(1, 2))
-    return np.flatnonzero(meas.link_valid & both & _link_table(model)[0][meas.link_ids])
-
-
-def _contour_points(meas: FeatureMeasurement, camera: Camera, kin: Kinematics,
-                    widths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Shape-frame rows and coordinates (2K, 3) of the two contour points of the middle
-    slice's cross-section of each link in ``widths`` (positions in ``meas.link_ids``), mm."""
-    _, rows, lengths, radii = _link_table(kin.model)
-    ids = meas.link_ids[widths]
-    middle = meas.slice_fractions[len(meas.slice_fractions) // 2]
-    view, perspective = view_of(camera)
-    local = np.empty((len(ids), 2, 3))
-    contour_points_kernel(kin.T_world_shape[0], rows[ids], middle * lengths[ids], radii[ids],
-                          view, perspective, camera.projection_params,
-                          meas.slice_normal[widths], local)
-    return np.repeat(rows[ids], 2), local.reshape(-1, 3)

@@ -4,7 +4,7 @@ A *slice* is a short line segment in the image along which the intensity profile
 Link trackers use slices perpendicular to the projected link axis (report Fig. 5, thesis
 Fig. 4.2); tip trackers use slices along the axis, beyond the distal link. This module
 
-* converts an image once to a grey float32 array (:func:`prepare_image`);
+* converts an image once to a grey uint8 or float32 array (:func:`prepare_image`);
 * predicts where the silhouette of a cylinder or a sphere lies around its projected axis
   or centre (:func:`cylinder_tangent_points`, :func:`sphere_tangent_points`), from the
   exact tangent points of the viewing rays, which the caller projects with
@@ -29,24 +29,28 @@ from digiteyes.errors import CameraError
 
 
 def prepare_image(image: np.ndarray) -> np.ndarray:
-    """Grey float32 copy of an image (H, W), (H, W, 1), (H, W, 3) RGB or (H, W, 4) RGBA.
+    """Grey (H, W) array of an image (H, W), (H, W, 1), (H, W, 3) RGB or (H, W, 4) RGBA,
+    as the compiled samplers read it: uint8 or float32, C-contiguous.
 
-    Grey levels keep the input scale (0..255 for uint8). A C-contiguous float32 (H, W)
-    array is returned as is, so trackers can convert a frame once and measure it in every
-    Gauss-Newton iteration without copies.
+    Grey levels keep the input scale (0..255 for uint8). A C-contiguous uint8 or float32
+    grey image is returned as is (no copy: converting a 640x480 frame to float32 cost
+    more than 0.1 ms, docs/features.md "Performance"); other grey types become float32;
+    colour is converted to grey.
     """
     image = np.asarray(image)
     if image.ndim == 3 and image.shape[2] == 1:
         image = image[..., 0]
     if image.ndim == 2:
-        if image.dtype == np.float32 and image.flags.c_contiguous:
+        if image.dtype in (np.uint8, np.float32) and image.flags.c_contiguous:
             return image
+        if image.dtype == np.uint8:
+            return np.ascontiguousarray(image)
         return np.ascontiguousarray(image, dtype=np.float32)
     if image.ndim == 3 and image.shape[2] in (3, 4):
         code = cv2.COLOR_RGB2GRAY if image.shape[2] == 3 else cv2.COLOR_RGBA2GRAY
         source = image if image.dtype in (np.uint8, np.float32) else image.astype(np.float32)
-        return np.ascontiguousarray(cv2.cvtColor(np.ascontiguousarray(source), code),
-                                    dtype=np.float32)
+        grey = cv2.cvtColor(np.ascontiguousarray(source), code)
+        return grey if grey.dtype == np.uint8 else np.ascontiguousarray(grey, dtype=np.float32)
     raise CameraError(
         f"images must be (H, W) grey or (H, W, 3) RGB arrays, got shape {image.shape}"
     )
@@ -176,16 +180,18 @@ def sphere_tangent_points(
 
 @njit(cache=True, inline="always")
 def bilinear(gray, x, y):  # pragma: no cover - compiled
-    """Bilinear grey level at pixel ``(x, y)``; NaN unless ``0 <= x < W - 1`` and
-    ``0 <= y < H - 1`` (the whole neighbourhood inside the image)."""
+    """Bilinear grey level at pixel ``(x, y)`` of a uint8 or float image; NaN unless
+    ``0 <= x < W - 1`` and ``0 <= y < H - 1`` (the whole neighbourhood inside the image)."""
     # Plain float comparisons (NaN fails them): the chained int/float form compiled to
     # code 2.5 times slower for the whole sample (docs/features.md, "Performance").
     if x >= 0.0 and y >= 0.0 and x < float(gray.shape[1] - 1) and y < float(gray.shape[0] - 1):
         x0, y0 = int(x), int(y)
         fx, fy = x - x0, y - y0
-        top = gray[y0, x0] + fx * (gray[y0, x0 + 1] - gray[y0, x0])
-        bottom = gray[y0 + 1, x0] + fx * (gray[y0 + 1, x0 + 1] - gray[y0 + 1, x0])
-        return top + fy * (bottom - top)
+        # float() first: differences of uint8 pixels would wrap around
+        a, b = float(gray[y0, x0]), float(gray[y0, x0 + 1])
+        c, d = float(gray[y0 + 1, x0]), float(gray[y0 + 1, x0 + 1])
+        top = a + fx * (b - a)
+        return top + fy * (c + fx * (d - c) - top)
     return np.nan
 
 
@@ -211,7 +217,7 @@ def sample_profiles(
 
     Parameters
     ----------
-    gray : (H, W) float32 image from :func:`prepare_image`.
+    gray : (H, W) grey image (:func:`prepare_image` gives one).
     origins : (..., 2) slice origins, px.
     directions : (..., 2) unit slice directions (broadcast against ``origins``).
     offsets : (J,) sample positions along each slice, px.
@@ -225,7 +231,7 @@ def sample_profiles(
                                               np.asarray(directions, dtype=float))
     lead, n = origins.shape[:-1], len(offsets)
     profiles = np.empty((int(np.prod(lead)), n))
-    _sample_kernel(np.ascontiguousarray(gray, dtype=np.float32),
+    _sample_kernel(prepare_image(gray),
                    np.ascontiguousarray(origins.reshape(-1, 2)),
                    np.ascontiguousarray(directions.reshape(-1, 2)),
                    np.asarray(offsets, dtype=float), profiles)

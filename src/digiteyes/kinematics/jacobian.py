@@ -18,14 +18,29 @@ Columns of states that do not move the point are zero.
 
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import Literal
 
 import numpy as np
 
 from digiteyes.kinematics._kernels import jacobian_kernel
 from digiteyes.kinematics.forward import Kinematics
+from digiteyes.kinematics.model import KinematicModel
 
 JacobianForm = Literal["tangent", "quaternion"]
+
+
+@lru_cache(maxsize=64)
+def jacobian_tables(model: KinematicModel, form: JacobianForm) -> tuple:
+    """What :func:`~digiteyes.kinematics._kernels.jacobian_kernel` needs from ``model``, in
+    its argument order: ``shape_moved_by, joint_row, theta_state, base_state, root,
+    col_of_q, quaternion_form``. ``col_of_q`` maps each state number to its Jacobian
+    column (``n_q`` columns in the quaternion form, ``n_v`` in the tangent form)."""
+    quaternion_form = form == "quaternion"
+    col_of_q = np.arange(model.n_q) if quaternion_form else model.q_to_v
+    return (model.shape_moved_by, model.joint_row, model.theta_state,
+            -1 if model.base_state is None else model.base_state, model.root,
+            np.ascontiguousarray(col_of_q, dtype=np.int64), quaternion_form)
 
 
 def point_jacobian(
@@ -52,19 +67,14 @@ def point_jacobian(
     """
     if form not in ("tangent", "quaternion"):
         raise ValueError(f"form must be 'tangent' or 'quaternion', got {form!r}")
-    model = kin.model
     rows = np.ascontiguousarray(rows, dtype=np.int64)
     p_shape = np.ascontiguousarray(p_shape, dtype=float).reshape(len(rows), 3)
     n = len(kin.q)
+    tables = jacobian_tables(kin.model, form)
     p_world = np.empty((n, len(rows), 3))
-    quaternion_form = form == "quaternion"
-    n_cols = model.n_q if quaternion_form else model.n_v
-    col_of_q = np.arange(model.n_q) if quaternion_form else model.q_to_v
+    n_cols = kin.model.n_q if form == "quaternion" else kin.model.n_v
     J = np.zeros((n, len(rows), 3, n_cols))
-    jacobian_kernel(kin.T_world_shape, kin.q, rows, p_shape,
-                    model.shape_moved_by, model.joint_row, model.theta_state,
-                    -1 if model.base_state is None else model.base_state, model.root,
-                    col_of_q, quaternion_form, p_world, J)
+    jacobian_kernel(kin.T_world_shape, kin.q, rows, p_shape, *tables, p_world, J)
     if not kin.batched:
         return p_world[0], J[0]
     return p_world, J

@@ -20,6 +20,7 @@ pseudo-inverse step of thesis Sec. 4.3.2 step 6.
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -119,6 +120,7 @@ def gauss_newton(
     options = GaussNewtonOptions() if options is None else options
     n_v = int(problem.n_v)
     S = _check_conditioning(options, n_v)
+    S_diagonal = None if S is None else np.diag(S)
     loss, scale = options.robust_loss, options.scale_px
     levenberg = options.damping == "levenberg-marquardt"
     summary = SolverSummary()
@@ -135,11 +137,10 @@ def gauss_newton(
     summary.termination = "max_iterations"
     while summary.iterations < options.max_iterations:
         start = time.perf_counter()
-        w = robust_weights(r, loss, scale)
-        JW = J * w[:, None]
+        JW = J if loss is None else J * robust_weights(r, loss, scale)[:, None]
         H = JW.T @ J
         g = JW.T @ r
-        A = H if S is None else H + np.diag(S)
+        A = H if S is None else H + S_diagonal
         if levenberg:
             h = np.diag(H)
             A = A + lam * np.diag(np.maximum(h, 1e-6 * max(float(h.max()), 1e-300)))
@@ -152,7 +153,7 @@ def gauss_newton(
         if not finite:
             summary.termination = "singular"
             break
-        step = float(np.linalg.norm(dv))
+        step = math.sqrt(float(dv @ dv))
         last = summary.iterations + 1 >= options.max_iterations or step <= options.step_tolerance
         r_new, J_new = evaluate(problem, x_new, levenberg or not last, summary)
         cost_new = float(robust_cost(r_new, loss, scale).sum()) if len(r_new) else np.inf
