@@ -1,5 +1,6 @@
-"""Fixtures for the feature tests: a one-link "stick" model, an orthographic camera with
-1 px per mm (so image geometry is world geometry), and an exact capsule rasteriser."""
+"""Fixtures for the feature tests (the one-link "stick" model is in tests/conftest.py): an
+orthographic camera with 1 px per mm (so image geometry is world geometry), and an exact
+capsule rasteriser."""
 
 from __future__ import annotations
 
@@ -9,32 +10,8 @@ import numpy as np
 import pytest
 
 from digiteyes.camera import Camera
-from digiteyes.kinematics import KinematicModel, parse_model_text
-
-STICK = """
-model stick
-description one cylinder link (radius 8 mm, 60 mm long) ending in a tip sphere
-[states]
-q0  base.qw  quat
-q1  base.qx  quat
-q2  base.qy  quat
-q3  base.qz  quat
-q4  base.x   trans
-q5  base.y   trans
-q6  base.z   trans
-q7  joint    angle
-[frames]
-0   -           pose:q0  0  0   0  -       1
-1   stick.link  q7       0  60  0  cyl(8)  2
-2   stick.tip   0        0  0   0  tip(8)  -
-"""
 
 WIDTH, HEIGHT = 200, 160
-
-
-@pytest.fixture(scope="session")
-def stick() -> KinematicModel:
-    return KinematicModel(parse_model_text(STICK))
 
 
 @pytest.fixture(scope="session")

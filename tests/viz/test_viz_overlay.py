@@ -9,29 +9,13 @@ from digiteyes.camera import Camera
 from digiteyes.errors import CameraError
 from digiteyes.features import feature_residuals, project_features
 from digiteyes.features.measure import FeatureMeasurement, measure_features
-from digiteyes.kinematics import KinematicModel, forward_kinematics, parse_model_text
+from digiteyes.kinematics import forward_kinematics
 from digiteyes.viz.overlay import EDGE_IN, MEASURED, RESIDUAL, TRACKER, draw_features
-
-STICK = """
-model stick
-[states]
-q0 base.qw quat
-q1 base.qx quat
-q2 base.qy quat
-q3 base.qz quat
-q4 base.x trans
-q5 base.y trans
-q6 base.z trans
-[frames]
-0 - pose:q0 0 0 0 - 1
-1 stick.link 0 0 60 0 cyl(8) 2
-2 stick.tip 0 0 0 0 tip(8) -
-"""
 
 
 @pytest.fixture(scope="module")
-def scene():
-    model = KinematicModel(parse_model_text(STICK))
+def scene(stick):
+    model = stick
     K = np.array([[1.0, 0.0, 79.5], [0.0, 1.0, 59.5], [0.0, 0.0, 1.0]])
     camera = Camera.create("flat", K, 160, 120, np.eye(4), projection="orthographic")
     q = model.neutral()

@@ -50,6 +50,10 @@ def headline_rows(metrics: dict[str, Any]) -> list[tuple[str, str]]:
     """The headline numbers of :func:`~digiteyes.evaluate.metrics.evaluate_run` as
     (label, formatted value) rows, for the CLI table and the report."""
     rows: list[tuple[str, str]] = []
+
+    def pair(label: str, first: float, second: float, unit: str) -> None:
+        rows.append((label, f"{_fmt(first, '')} / {_fmt(second, unit)}"))
+
     tip = metrics.get("fingertip_error_mm")
     if tip:
         rows.append(("fingertip error mean / median / max",
@@ -57,24 +61,19 @@ def headline_rows(metrics: dict[str, Any]) -> list[tuple[str, str]]:
                      f"{_fmt(tip['max'], 'mm')}"))
     kp = metrics.get("keypoint_error_mm")
     if kp:
-        rows.append(("joint (keypoint) 3D error mean / max",
-                     f"{_fmt(kp['mean'], '')} / {_fmt(kp['max'], 'mm')}"))
+        pair("joint (keypoint) 3D error mean / max", kp["mean"], kp["max"], "mm")
     ang = metrics.get("joint_angle_error_deg")
     if ang:
-        rows.append(("joint angle error RMS / mean abs",
-                     f"{_fmt(ang['rms'], '')} / {_fmt(ang['mean_abs'], 'deg')}"))
+        pair("joint angle error RMS / mean abs", ang["rms"], ang["mean_abs"], "deg")
     palm = metrics.get("palm")
     if palm:
-        rows.append(("palm position error mean / max",
-                     f"{_fmt(palm['position_error_mm']['mean'], '')} / "
-                     f"{_fmt(palm['position_error_mm']['max'], 'mm')}"))
-        rows.append(("palm orientation error mean / max",
-                     f"{_fmt(palm['orientation_error_deg']['mean'], '')} / "
-                     f"{_fmt(palm['orientation_error_deg']['max'], 'deg')}"))
+        position, orientation = palm["position_error_mm"], palm["orientation_error_deg"]
+        pair("palm position error mean / max", position["mean"], position["max"], "mm")
+        pair("palm orientation error mean / max", orientation["mean"], orientation["max"],
+             "deg")
     rep = metrics.get("reprojection_error_px")
     if rep:
-        rows.append(("2D reprojection error mean / max",
-                     f"{_fmt(rep['mean'], '')} / {_fmt(rep['max'], 'px')}"))
+        pair("2D reprojection error mean / max", rep["mean"], rep["max"], "px")
     life = metrics["track_life"]
     lost = "" if life["lost_at_frame"] is None else \
         f" (lost at frame {life['lost_at_frame']}: {life['reason']})"

@@ -96,22 +96,17 @@ def plot_palm_trajectory(t: np.ndarray, est_quat: np.ndarray, true_quat: np.ndar
     fig = new_figure(9.0, 7.0)
     fig.subplots_adjust(left=0.09, right=0.98, bottom=0.08, top=0.93, wspace=0.25)
     axes = fig.subplots(4, 2, sharex=True, squeeze=False)
-    for j, label in enumerate(("Qw", "Qx", "Qy", "Qz")):
-        ax = axes[j, 0]
-        ax.plot(t, est_quat[:, j], color="tab:blue", label="estimate", **ESTIMATE_STYLE)
-        if true_quat is not None:
-            ax.plot(t, true_quat[:, j], color="k", label="truth", **TRUTH_STYLE)
-        ax.set_ylabel(label)
-        ax.grid(alpha=0.3)
-        _min_span(ax, [est_quat[:, j], None if true_quat is None else true_quat[:, j]], 0.1)
-    for j, label in enumerate(("Tx (mm)", "Ty (mm)", "Tz (mm)")):
-        ax = axes[j, 1]
-        ax.plot(t, est_trans[:, j], color="tab:orange", label="estimate", **ESTIMATE_STYLE)
-        if true_trans is not None:
-            ax.plot(t, true_trans[:, j], color="k", label="truth", **TRUTH_STYLE)
-        ax.set_ylabel(label)
-        ax.grid(alpha=0.3)
-        _min_span(ax, [est_trans[:, j], None if true_trans is None else true_trans[:, j]], 2.0)
+    columns = ((0, ("Qw", "Qx", "Qy", "Qz"), est_quat, true_quat, "tab:blue", 0.1),
+               (1, ("Tx (mm)", "Ty (mm)", "Tz (mm)"), est_trans, true_trans, "tab:orange", 2.0))
+    for col, labels, estimate, truth, color, span in columns:
+        for j, label in enumerate(labels):
+            ax = axes[j, col]
+            ax.plot(t, estimate[:, j], color=color, label="estimate", **ESTIMATE_STYLE)
+            if truth is not None:
+                ax.plot(t, truth[:, j], color="k", label="truth", **TRUTH_STYLE)
+            ax.set_ylabel(label)
+            ax.grid(alpha=0.3)
+            _min_span(ax, [estimate[:, j], None if truth is None else truth[:, j]], span)
     axes[3, 1].axis("off")
     axes[0, 0].legend(fontsize="small")
     axes[0, 1].legend(fontsize="small")
