@@ -45,7 +45,14 @@ def test_stage_split_and_accuracy_of_a_short_run(whole_hand):
     # the stage timers sit inside step(): together they cannot exceed its total
     assert 0 <= ms["other"] < ms["total"]
     assert ms["state_estimation"] == pytest.approx(ms["jacobian"] + ms["linear_solve"])
-    assert ms["total"] == pytest.approx(1e3 * outcome.tracker_seconds / outcome.iterations)
+    assert ms["total_with_shading"] == pytest.approx(
+        1e3 * outcome.tracker_seconds / outcome.iterations)
+    # the shading prediction is once per frame, outside the iterations' total
+    shading = outcome.stage_seconds["shading"]
+    assert shading > 0
+    assert ms["shading_per_frame"] == pytest.approx(1e3 * shading / whole_hand.n_frames)
+    assert ms["total"] == pytest.approx(ms["total_with_shading"]
+                                        - 1e3 * shading / outcome.iterations)
 
     summary = bench.accuracy_summary(whole_hand, outcome)
     for key in RUN_KEYS:
@@ -131,7 +138,7 @@ def test_tiny_run_writes_finite_json(monkeypatch, tmp_path, capsys):
     assert set(stored["shading"]) == {"lambert", "flat"}
     for by_shading in stored["shading"].values():
         assert math.isfinite(by_shading["width_bias_px_mean"])
-        for label in ("with_width", "without_width"):
+        for label in ("corrected", "with_width", "without_width"):
             assert all(math.isfinite(by_shading[label][k]) for k in RUN_KEYS)
     out = capsys.readouterr().out
     assert "machine:" in out

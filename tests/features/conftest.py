@@ -1,6 +1,6 @@
 """Fixtures for the feature tests (the one-link "stick" model is in tests/conftest.py): an
-orthographic camera with 1 px per mm (so image geometry is world geometry), and an exact
-capsule rasteriser."""
+orthographic camera with 1 px per mm (so image geometry is world geometry), an exact
+capsule rasteriser, and an open hand in front of a perspective camera."""
 
 from __future__ import annotations
 
@@ -9,7 +9,9 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
+from digiteyes import load_model
 from digiteyes.camera import Camera
+from digiteyes.kinematics import KinematicModel
 
 WIDTH, HEIGHT = 200, 160
 
@@ -62,3 +64,23 @@ def capsule_image() -> Callable[..., np.ndarray]:
         return image
 
     return make
+
+
+@pytest.fixture(scope="session")
+def scene() -> tuple[KinematicModel, np.ndarray, Camera]:
+    """An open right hand, palm towards a camera 430 mm away, thumb spread (no overlaps)."""
+    model = load_model("hand")
+    q = model.neutral()
+    for finger, spread in zip(("index", "middle", "ring", "little"), (-20, -5, 8, 22),
+                              strict=True):
+        q[model.state_index(f"{finger}.abd")] = np.radians(spread)
+        q[model.state_index(f"{finger}.mcp")] = np.radians(15)
+        q[model.state_index(f"{finger}.pip")] = np.radians(20)
+        q[model.state_index(f"{finger}.dip")] = np.radians(10)
+    q[model.state_index("thumb.cmc_flex")] = np.radians(40)
+    q[model.state_index("thumb.mp")] = np.radians(10)
+    q[model.state_index("thumb.ip")] = np.radians(10)
+    q[4:7] = [0.0, -50.0, 0.0]
+    camera = Camera.look_at("front", eye=[0.0, -200.0, 380.0], target=[0.0, 0.0, 0.0],
+                            up=[0.0, 1.0, 0.0])
+    return model, q, camera

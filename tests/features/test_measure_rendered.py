@@ -4,33 +4,10 @@ camera, shaded capsules, cloth backdrop, sensor noise)."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
-from digiteyes import load_model
-from digiteyes.camera import Camera
 from digiteyes.features import feature_residuals, measure_features
 from digiteyes.kinematics import forward_kinematics, integrate
 from digiteyes.render import RenderOptions, render_views
-
-
-@pytest.fixture(scope="module")
-def scene():
-    """An open right hand, palm towards a camera 430 mm away, thumb spread (no overlaps)."""
-    model = load_model("hand")
-    q = model.neutral()
-    for finger, spread in zip(("index", "middle", "ring", "little"), (-20, -5, 8, 22),
-                              strict=True):
-        q[model.state_index(f"{finger}.abd")] = np.radians(spread)
-        q[model.state_index(f"{finger}.mcp")] = np.radians(15)
-        q[model.state_index(f"{finger}.pip")] = np.radians(20)
-        q[model.state_index(f"{finger}.dip")] = np.radians(10)
-    q[model.state_index("thumb.cmc_flex")] = np.radians(40)
-    q[model.state_index("thumb.mp")] = np.radians(10)
-    q[model.state_index("thumb.ip")] = np.radians(10)
-    q[4:7] = [0.0, -50.0, 0.0]
-    camera = Camera.look_at("front", eye=[0.0, -200.0, 380.0], target=[0.0, 0.0, 0.0],
-                            up=[0.0, 1.0, 0.0])
-    return model, q, camera
 
 
 def rms(r: np.ndarray) -> float:

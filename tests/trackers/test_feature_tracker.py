@@ -124,6 +124,34 @@ def test_blank_frames_flag_loss_and_tracking_resumes(rig, true_states, frames):
     assert np.sqrt(np.mean(tips**2)) < 4.0 and tips.max() < 10.0
 
 
+def test_shading_correction_steadies_one_camera(rig, true_states, frames):
+    """With one camera the width rows set the depth; the shading correction removes their
+    inward bias, so the palm and the fingers come out nearer the truth than without it."""
+    mono = Rig(rig.cameras[:1])
+    first = [f[:1] for f in frames]
+    outcomes = {}
+    for correct in (True, False):
+        tracker = FeatureTracker(HAND, mono, FeatureTrackerOptions(shading_correction=correct))
+        results = track(tracker, true_states, first)
+        assert (len(tracker.edge_bias) == 1) == correct
+        assert (tracker.shading is not None) == correct
+        joints, tips, palm = errors(results, true_states)
+        outcomes[correct] = np.sqrt(np.mean(joints**2)), np.mean(tips), np.mean(palm)
+        assert not any(r.lost for r in results)
+    assert outcomes[True][0] < 0.8 * outcomes[False][0]
+    assert outcomes[True][2] < outcomes[False][2]
+
+
+def test_no_shading_correction_over_clutter(rig, true_states):
+    options = RenderOptions(background="clutter", noise_sigma=2.0)
+    frames = [[v.image for v in render_views(HAND, q, rig, options, rng=k)]
+              for k, q in enumerate(true_states[:2])]
+    tracker = FeatureTracker(HAND, rig)
+    track(tracker, true_states[:2], frames)
+    assert tracker.shading.backdrop_texture > tracker.options.max_backdrop_texture
+    assert tracker.edge_bias == []
+
+
 def test_result_fields_and_timings(rig, true_states, frames):
     options = FeatureTrackerOptions(iterations_per_frame=3, links=thesis_whole_hand_links(HAND))
     tracker = FeatureTracker(HAND, rig, options)
@@ -205,6 +233,9 @@ def test_errors(rig, true_states, frames):
     ({"max_residual_rms_px": 0.0}, "max_residual_rms_px"),
     ({"growth_frames": 0}, "growth_frames"),
     ({"features": {"window_px": 20}}, "FeatureOptions"),
+    ({"shading_every": 0}, "shading_every"),
+    ({"blur_sigma_px": -1.0}, "blur_sigma_px"),
+    ({"max_backdrop_texture": 0.0}, "max_backdrop_texture"),
 ])
 def test_options_are_validated(kwargs, match):
     with pytest.raises(ValueError, match=match):

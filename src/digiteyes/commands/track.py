@@ -32,7 +32,7 @@ and summary.json into OUT. Ctrl-C keeps every frame tracked so far.
 
 
 def tracker_options(iterations: int, window: float, links: str, model, robust: str | None,
-                    prediction: str) -> FeatureTrackerOptions:
+                    prediction: str, shading: bool = True) -> FeatureTrackerOptions:
     """Tracker settings from the command-line choices (shared with ``digiteyes demo``)."""
     chosen = {"default": None, "all": all_features(model),
               "thesis": thesis_whole_hand_links(model)}[links]
@@ -42,6 +42,7 @@ def tracker_options(iterations: int, window: float, links: str, model, robust: s
         links=chosen,
         robust_loss=robust,
         prediction=prediction,
+        shading_correction=shading,
     )
 
 
@@ -84,6 +85,10 @@ def print_run(run: TrackingRun) -> None:
 @click.option("--prediction", type=click.Choice(["none", "constant-velocity"]),
               default="none", show_default=True,
               help="Start each frame from the previous estimate (thesis) or extrapolate.")
+@click.option("--shading/--no-shading", default=True, show_default=True,
+              help="Correct the edges for skin shading, predicted from a light fitted on the "
+                   "first frame (docs/features.md); off is about 6 ms per frame and camera "
+                   "faster.")
 @click.option("--frames", "max_frames", type=click.IntRange(min=1), default=None,
               help="Track at most this many frames.")
 @click.option("--fps", type=click.FloatRange(min=0.1), default=None,
@@ -92,8 +97,8 @@ def print_run(run: TrackingRun) -> None:
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 def track(inputs: tuple[str, ...], model_name: str | None, rig_path: str | None,
           init_path: str | None, output: str, iterations: int, window: float, links: str,
-          robust: str | None, prediction: str, max_frames: int | None, fps: float | None,
-          no_overlay: bool, quiet: bool) -> None:
+          robust: str | None, prediction: str, shading: bool, max_frames: int | None,
+          fps: float | None, no_overlay: bool, quiet: bool) -> None:
     dataset = None
     if len(inputs) == 1 and Path(inputs[0]).is_dir():
         dataset = open_sequence(inputs[0])
@@ -125,7 +130,7 @@ def track(inputs: tuple[str, ...], model_name: str | None, rig_path: str | None,
     if first is None:
         raise DatasetError(f"{inputs[0]}: no frames to track")
     rig.check_images(first)
-    options = tracker_options(iterations, window, links, model, robust, prediction)
+    options = tracker_options(iterations, window, links, model, robust, prediction, shading)
     tracker = FeatureTracker(model, rig, options)
     run = run_tracker(tracker, model, rig, chain([first], frames), np.asarray(initial),
                       output, fps=rate, total=total, overlay=not no_overlay,

@@ -48,7 +48,9 @@ def _hit_ball(ox, oy, oz, dx, dy, dz, cx, cy, cz, r):  # pragma: no cover - comp
 @njit(cache=True, error_model="numpy")
 def _hit_capsule(ox, oy, oz, dx, dy, dz, P):  # pragma: no cover - compiled
     """Nearest hit with a capsule: the lateral cylinder surface between the end planes,
-    or either end ball (the end discs lie inside the balls)."""
+    or the end ball on the side where the ray meets the infinite cylinder. Both balls lie
+    inside that cylinder, so a ray that misses it misses the capsule, and a ray that
+    enters it between the end planes hits nothing nearer."""
     ax, ay, az, bx, by, bz, r = P[0], P[1], P[2], P[3], P[4], P[5], P[6]
     ex, ey, ez = bx - ax, by - ay, bz - az
     px, py, pz = ox - ax, oy - ay, oz - az
@@ -58,14 +60,19 @@ def _hit_capsule(ox, oy, oz, dx, dy, dz, P):  # pragma: no cover - compiled
     qa = ee * (dx * dx + dy * dy + dz * dz) - ed * ed
     qb = ee * (dx * px + dy * py + dz * pz) - ep * ed
     qc = ee * (px * px + py * py + pz * pz) - ep * ep - r * r * ee
-    t = np.inf
     h = qb * qb - qa * qc
-    if h >= 0.0 and qa > 1e-12 * ee:
+    if qa > 1e-12 * ee:
+        if h < 0.0:
+            return np.inf
         tb = (-qb - math.sqrt(h)) / qa
         y = ep + tb * ed
         if 0.0 < y < ee and tb > _NEAR:
-            t = tb
-    t = min(t, _hit_ball(ox, oy, oz, dx, dy, dz, ax, ay, az, r))
+            return tb
+        if y <= 0.0:
+            return _hit_ball(ox, oy, oz, dx, dy, dz, ax, ay, az, r)
+        if y >= ee:
+            return _hit_ball(ox, oy, oz, dx, dy, dz, bx, by, bz, r)
+    t = _hit_ball(ox, oy, oz, dx, dy, dz, ax, ay, az, r)
     return min(t, _hit_ball(ox, oy, oz, dx, dy, dz, bx, by, bz, r))
 
 

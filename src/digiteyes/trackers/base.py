@@ -10,8 +10,8 @@ import numpy as np
 
 from digiteyes.solvers import SolverSummary
 
-TIMING_STAGES = ("prediction", "forward_kinematics", "feature_detection", "jacobian",
-                 "linear_solve", "total")
+TIMING_STAGES = ("prediction", "shading", "forward_kinematics", "feature_detection",
+                 "jacobian", "linear_solve", "total")
 
 
 @dataclass

@@ -34,6 +34,7 @@ import numpy as np
 from digiteyes.camera import Rig
 from digiteyes.errors import StateError
 from digiteyes.features import FeatureOptions, feature_residuals, measure_features
+from digiteyes.features.appearance import EdgeBias, ShadingModel, edge_bias, fit_shading
 from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import KinematicModel, forward_kinematics, validate_state
 from digiteyes.solvers import (
@@ -91,6 +92,21 @@ class FeatureTrackerOptions:
     conditioning : weights of ``S`` for (quaternion/rotation, translation, joint angle),
         thesis eq. 2.22 and Table 4.2: 1, 10, 1000 (px^2 per squared step unit).
     use_conditioning : False drops ``S`` (plain Gauss-Newton; an ablation).
+    shading_correction : predict the image of the model under a shading model fitted on
+        the first frame, search it for features too and subtract the residuals found
+        there (:mod:`digiteyes.features.appearance`): removes the inward pull of skin
+        shading on the measured edges. False gives the plain feature residuals.
+    shading_every : frames between two predictions of the shading bias (1: every frame).
+    blur_sigma_px : optical blur of the cameras in the shading prediction, px.
+    static_backdrop : the cameras do not move, so the prediction may draw the model over
+        the backdrop they saw around it in the first frame; False draws it over a uniform
+        backdrop of the level seen around the model.
+    max_backdrop_texture : no shading correction when the backdrop around the model in
+        the first frame has more texture than this (RMS grey levels,
+        :attr:`~digiteyes.features.appearance.ShadingModel.backdrop_texture`): in clutter
+        the backdrop's own edges, not the shading, dominate the feature errors, and a
+        prediction that measures them where they were makes the track worse
+        (docs/features.md).
     damping : ``"fixed"`` (thesis) or ``"levenberg-marquardt"``.
     robust_loss : ``None``, ``"huber"`` or ``"tukey"`` on the feature residuals.
     robust_scale_px : scale of the robust loss, pixels.
@@ -117,6 +133,11 @@ class FeatureTrackerOptions:
     max_width_error: float = 0.15
     conditioning: tuple[float, float, float] = (1.0, 10.0, 1000.0)
     use_conditioning: bool = True
+    shading_correction: bool = True
+    shading_every: int = 1
+    blur_sigma_px: float = 0.0
+    static_backdrop: bool = True
+    max_backdrop_texture: float = 6.0
     damping: Damping = "fixed"
     robust_loss: RobustLoss | None = None
     robust_scale_px: float = 5.0
@@ -164,7 +185,8 @@ class FeatureTrackerOptions:
             )
         if not (np.isfinite(self.width_weight) and self.width_weight >= 0):
             raise ValueError(f"width_weight must be >= 0, got {self.width_weight!r}")
-        positive = ["robust_scale_px", "growth_factor", "max_width_error"]
+        positive = ["robust_scale_px", "growth_factor", "max_width_error",
+                    "max_backdrop_texture"]
         if self.max_residual_rms_px is not None:
             positive.append("max_residual_rms_px")
         for name in positive:
@@ -175,6 +197,11 @@ class FeatureTrackerOptions:
             raise ValueError(
                 f"max_invalid_fraction must be in [0, 1], got {self.max_invalid_fraction!r}"
             )
+        if not isinstance(self.shading_every, int | np.integer) or self.shading_every < 1:
+            raise ValueError(f"shading_every must be a positive integer, got "
+                             f"{self.shading_every!r}")
+        if not (np.isfinite(self.blur_sigma_px) and self.blur_sigma_px >= 0):
+            raise ValueError(f"blur_sigma_px must be >= 0, got {self.blur_sigma_px!r}")
         if not isinstance(self.growth_frames, int | np.integer) or self.growth_frames < 1:
             raise ValueError(f"growth_frames must be a positive integer, got "
                              f"{self.growth_frames!r}")
@@ -230,6 +257,9 @@ class _FeatureProblem:
                 axis_points=tracker.options.axis_points,
                 width_weight=tracker.options.width_weight,
                 max_width_error=tracker.options.max_width_error)
+            if tracker.edge_bias:
+                r -= tracker.edge_bias[len(rs)].of_rows(layout.kind_code, layout.link_index,
+                                                        layout.component)
             rs.append(r)
             Js.append(J)
             measurements.append(meas)
@@ -295,6 +325,8 @@ class FeatureTracker:
         self._rms_history: deque[float] = deque(maxlen=opts.growth_frames)
         self._frame_index = 0
         self.state: np.ndarray | None = None
+        self.shading: ShadingModel | None = None
+        self.edge_bias: list[EdgeBias] = []
 
     @staticmethod
     def _split_features(model: KinematicModel, names: tuple[str, ...] | None
@@ -318,9 +350,13 @@ class FeatureTracker:
             raise ValueError(f"no cylinder link or tip to track in model {model.name!r}")
         return links, tips
 
-    def reset(self, initial_state: np.ndarray) -> None:
+    def reset(self, initial_state: np.ndarray, shading: ShadingModel | None = None) -> None:
         """Start a new track from ``initial_state`` (n_q,); a non-unit quaternion is
-        normalised, joint states are clipped into their limits when ``clip_to_limits``."""
+        normalised, joint states are clipped into their limits when ``clip_to_limits``.
+
+        With ``shading_correction``, ``shading`` is the scene's shading model; None fits
+        one (:func:`~digiteyes.features.appearance.fit_shading`) on the first frame at
+        ``initial_state``, which must therefore show the model where it is."""
         q = np.asarray(getattr(initial_state, "q", initial_state), dtype=float)
         if q.shape != (self.model.n_q,):
             raise StateError(
@@ -332,6 +368,8 @@ class FeatureTracker:
         self.predictor.reset(q)
         self._rms_history.clear()
         self._frame_index = 0
+        self.shading = shading
+        self.edge_bias = []
 
     def step(self, frames: Sequence[np.ndarray]) -> TrackResult:
         """Estimate the state for one set of frames (one image per camera, rig order).
@@ -350,6 +388,10 @@ class FeatureTracker:
         start = time.perf_counter()
         images = [prepare_image(frame) for frame in frames]
         timings["feature_detection"] += time.perf_counter() - start
+        if self.options.shading_correction:
+            start = time.perf_counter()
+            self._predict_edge_bias(images, predicted)
+            timings["shading"] = time.perf_counter() - start
         problem = _FeatureProblem(self, images, timings)
         q, summary = gauss_newton(problem, predicted, self.solver_options)
         timings["linear_solve"] = summary.timings["linear_solve"]
@@ -360,6 +402,24 @@ class FeatureTracker:
         self._frame_index += 1
         timings["total"] = time.perf_counter() - start_total
         return result
+
+    def _predict_edge_bias(self, images: list[np.ndarray], predicted: np.ndarray) -> None:
+        """Fit the shading model on the first frame, then predict each camera's edge bias
+        at the predicted state every ``shading_every`` frames (never over a textured
+        backdrop)."""
+        opts = self.options
+        if self.shading is None:
+            self.shading = fit_shading(images, self.rig, self.model, predicted,
+                                       opts.blur_sigma_px, opts.static_backdrop)
+        if self.shading.backdrop_texture > opts.max_backdrop_texture:
+            return
+        if self._frame_index % opts.shading_every == 0 or not self.edge_bias:
+            self.edge_bias = [
+                edge_bias(self.shading, self.model, predicted, camera, opts.features,
+                          self.link_names, self.tip_names, axis_points=opts.axis_points,
+                          width_weight=opts.width_weight,
+                          max_width_error=opts.max_width_error)
+                for camera in self.rig]
 
     def _result(self, q: np.ndarray, predicted: np.ndarray, summary: SolverSummary,
                 final: _Evaluation, timings: dict[str, float]) -> TrackResult:
