@@ -64,7 +64,7 @@ def test_fit_with_sensor_noise_and_a_cloth_backdrop(scene):
 def test_predicted_image_is_the_renderers(scene):
     model, q, camera = scene
     rendered = render_views(model, q, [camera], LIGHTING)[0].image
-    predicted = true_shading(LIGHTING).render(model, q, camera)
+    predicted = true_shading(LIGHTING).render(forward_kinematics(model, q), camera)
     assert predicted.shape == rendered.shape and predicted.dtype == np.float32
     assert np.abs(predicted - rendered).max() <= 0.5 + 1e-3  # the renderer rounds to uint8
 

@@ -310,7 +310,7 @@ def per_iteration_ms(outcome: TrackOutcome) -> dict[str, float]:
     ``shading_per_frame`` (ms per frame) and ``total_with_shading`` (ms per iteration with
     it charged to the iterations too)."""
     k = 1e3 / max(outcome.iterations, 1)
-    shading = outcome.stage_seconds.get("shading", 0.0)
+    shading = outcome.stage_seconds["shading"]
     out = {stage: k * outcome.stage_seconds[stage] for stage in STAGES}
     out["state_estimation"] = out["jacobian"] + out["linear_solve"]
     out["total"] = k * (outcome.tracker_seconds - shading)

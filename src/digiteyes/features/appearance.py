@@ -4,7 +4,7 @@ Skin darkens towards a finger's silhouette where its surface turns away from the
 The intensity derivative then peaks inside the silhouette rather than on it, so the
 measured side lines of a link sit inwards of the projected contour: measured widths are
 too narrow, one camera reads the finger as farther away, and the joints bend to match
-(docs/features.md, "Shading and the width bias"; ``digiteyes bench tracker`` section (e)).
+(docs/features.md, "Width residual"; ``digiteyes bench tracker`` section (e)).
 
 The cure here is analysis by synthesis, in the spirit of the thesis's appearance
 templates (Ch. 3): predict the image of the model, run the same feature search on it,
@@ -35,9 +35,8 @@ from digiteyes.errors import StateError
 from digiteyes.features.measure import FeatureOptions, measure_features
 from digiteyes.features.residuals import feature_residuals
 from digiteyes.features.slices import prepare_image
-from digiteyes.kinematics import KinematicModel, forward_kinematics
-from digiteyes.render.distortion import distortion_warp
-from digiteyes.render.pixels import PixelGrid
+from digiteyes.kinematics import KinematicModel, Kinematics, forward_kinematics
+from digiteyes.render.distortion import camera_canvas
 from digiteyes.render.raster import Raster, rasterise
 from digiteyes.render.scene import Scene, build_scene
 
@@ -90,9 +89,10 @@ class ShadingModel:
     blur_sigma: float = 0.0
     backdrop_texture: float = 0.0
 
-    def render(self, model: KinematicModel, q: np.ndarray, camera: Camera) -> np.ndarray:
-        """The predicted grey image (H, W) float32 of state ``q`` in ``camera``."""
-        scene = build_scene(model, forward_kinematics(model, q))
+    def render(self, kin: Kinematics, camera: Camera) -> np.ndarray:
+        """The predicted grey image (H, W) float32 of the posed model ``kin`` (one state)
+        in ``camera``."""
+        scene = build_scene(kin.model, kin)
         light_cam = camera.T_cam_world[:3, :3] @ self.light_world
         raster = _rasterise(scene, camera, light_cam)
         backdrop = self.backdrops.get(camera.name)
@@ -109,10 +109,7 @@ class ShadingModel:
 def _rasterise(scene: Scene, camera: Camera, light_cam: np.ndarray) -> Raster:
     """Ray cast the world ``scene`` in ``camera`` with shade ``max(0, n . light_cam)`` (no
     ambient term), warped through the lens distortion if the camera has any."""
-    grid = PixelGrid.from_camera(camera)
-    warp = distortion_warp(camera)
-    if warp is not None:
-        grid = grid.canvas(warp.u_min, warp.v_min, warp.canvas_width, warp.canvas_height)
+    grid, warp = camera_canvas(camera)
     raster = rasterise(scene.transformed(camera.T_cam_world), grid, light_cam, 0.0)
     if warp is None:
         return raster
@@ -138,21 +135,19 @@ def fit_shading(images: Sequence[np.ndarray], rig: Rig, model: KinematicModel,
     normals, levels, backdrop, detail = [], [], [], []
     backdrops: dict[str, np.ndarray] = {}
     for camera, image in zip(rig.cameras, images, strict=True):
-        gray = prepare_image(image)
+        gray = prepare_image(image).astype(np.float32)
         n_cam, hit = _normals(scene, camera)
         mask = hit.astype(np.uint8)
         interior = cv2.erode(mask, _disc(_INTERIOR_PX)).astype(bool)
-        grown = cv2.dilate(mask, _disc(_INTERIOR_PX))
-        ring = cv2.dilate(mask, _disc(_BACKDROP_PX)).astype(bool) & ~grown.astype(bool)
+        outside = ~cv2.dilate(mask, _disc(_INTERIOR_PX)).astype(bool)
+        ring = cv2.dilate(mask, _disc(_BACKDROP_PX)).astype(bool) & outside
         normals.append(n_cam[interior] @ camera.T_cam_world[:3, :3])  # rows n_world^T
         levels.append(gray[interior].astype(float))
         backdrop.append(gray[ring].astype(float))
-        outside = (~grown.astype(bool)).astype(np.float32)
-        mass = cv2.GaussianBlur(outside, (0, 0), _BACKDROP_SMOOTH_PX)
-        smooth = cv2.GaussianBlur(gray * outside, (0, 0), _BACKDROP_SMOOTH_PX)
-        detail.append(gray[ring] - smooth[ring] / mass[ring])
+        smooth, _ = _local_mean(gray, outside, _BACKDROP_SMOOTH_PX)
+        detail.append(gray[ring] - smooth[ring])
         if static_backdrop:
-            backdrops[camera.name] = _fill(gray.astype(np.float32), ~grown.astype(bool))
+            backdrops[camera.name] = _fill(gray, outside)
     n, level = np.concatenate(normals), np.concatenate(levels)
     if len(level) < 50:
         raise StateError(f"fit_shading: the model at this state covers only {len(level)} "
@@ -175,18 +170,28 @@ def _fill(image: np.ndarray, known: np.ndarray) -> np.ndarray:
     Gaussian-weighted mean of the known pixels around them, over ever wider
     neighbourhoods (:data:`_FILL_SIGMAS_PX`) until each has known pixels; NaN where none
     is known within the widest."""
-    weight = known.astype(np.float32)
     out = np.where(known, image, np.float32(np.nan))
     todo = ~known
     for sigma in _FILL_SIGMAS_PX:
         if not todo.any():
             break
-        mass = cv2.GaussianBlur(weight, (0, 0), sigma)
-        total = cv2.GaussianBlur(image * weight, (0, 0), sigma)
+        mean, mass = _local_mean(image, known, sigma)
         ready = todo & (mass > 1e-3)
-        out[ready] = total[ready] / mass[ready]
+        out[ready] = mean[ready]
         todo &= ~ready
     return out
+
+
+def _local_mean(image: np.ndarray, known: np.ndarray, sigma: float
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Gaussian-weighted mean (H, W) of the ``known`` pixels of ``image`` around every
+    pixel (normalised convolution, standard deviation ``sigma`` px), and the weight of
+    known pixels it rests on; the mean is NaN where that weight is 0."""
+    weight = known.astype(np.float32)
+    mass = cv2.GaussianBlur(weight, (0, 0), sigma)
+    total = cv2.GaussianBlur(image * weight, (0, 0), sigma)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return total / mass, mass
 
 
 def _fit_lambert(normals: np.ndarray, levels: np.ndarray) -> tuple[float, np.ndarray]:
@@ -250,7 +255,7 @@ def edge_bias(shading: ShadingModel, model: KinematicModel, q: np.ndarray, camer
         raise StateError(f"edge_bias needs one state of {model.n_q} numbers for model "
                          f"{model.name!r}, got shape {q.shape}")
     kin = forward_kinematics(model, q)
-    predicted = shading.render(model, q, camera)
+    predicted = shading.render(kin, camera)
     meas = measure_features(predicted, camera, model, kin, options, link_names, tip_names)
     r, _, layout = feature_residuals(meas, camera, kin, jacobian=False,
                                      axis_points=axis_points, width_weight=width_weight,

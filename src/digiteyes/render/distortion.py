@@ -17,6 +17,7 @@ import cv2
 import numpy as np
 
 from digiteyes.camera import Camera
+from digiteyes.render.pixels import PixelGrid
 
 _MAX_CANVAS_FACTOR = 3  # the canvas never exceeds this many image sizes per axis
 
@@ -38,6 +39,16 @@ class DistortionWarp:
         mode = cv2.INTER_NEAREST if nearest else cv2.INTER_LINEAR
         return cv2.remap(image, self.map_u, self.map_v, mode,
                          borderMode=cv2.BORDER_CONSTANT, borderValue=fill)
+
+
+def camera_canvas(cam: Camera) -> tuple[PixelGrid, DistortionWarp | None]:
+    """The grid to ray cast for ``cam`` and the warp that turns it into the camera's image:
+    the camera's own grid and None without distortion, else the warp's canvas."""
+    grid = PixelGrid.from_camera(cam)
+    warp = distortion_warp(cam)
+    if warp is not None:
+        grid = grid.canvas(warp.u_min, warp.v_min, warp.canvas_width, warp.canvas_height)
+    return grid, warp
 
 
 def distortion_warp(cam: Camera) -> DistortionWarp | None:

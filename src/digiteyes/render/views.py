@@ -21,10 +21,9 @@ from digiteyes.camera import Camera, Rig
 from digiteyes.errors import CameraError, StateError
 from digiteyes.kinematics import KinematicModel, forward_kinematics
 from digiteyes.render.backgrounds import background
-from digiteyes.render.distortion import distortion_warp
+from digiteyes.render.distortion import camera_canvas
 from digiteyes.render.keypoints import keypoints
 from digiteyes.render.options import RenderOptions
-from digiteyes.render.pixels import PixelGrid
 from digiteyes.render.raster import rasterise
 from digiteyes.render.scene import Scene, build_scene
 from digiteyes.render.sensor import expose
@@ -130,10 +129,7 @@ def _render_camera(world: Scene, points: np.ndarray, names: tuple[str, ...],
     else:
         light = np.asarray(options.light_dir, dtype=float)
         light_cam = cam.T_cam_world[:3, :3] @ (light / np.linalg.norm(light))
-    grid = PixelGrid.from_camera(cam)
-    warp = distortion_warp(cam)
-    if warp is not None:
-        grid = grid.canvas(warp.u_min, warp.v_min, warp.canvas_width, warp.canvas_height)
+    grid, warp = camera_canvas(cam)
     raster = rasterise(scene, grid, light_cam, options.ambient)
     if options.supersample > 1:
         ss = options.supersample

@@ -245,7 +245,7 @@ class _FeatureProblem:
         kin = forward_kinematics(tracker.model, q)
         timings["forward_kinematics"] += time.perf_counter() - start
         rs, Js, measurements, layouts = [], [], [], []
-        for camera, image in zip(tracker.rig, self.images, strict=True):
+        for index, (camera, image) in enumerate(zip(tracker.rig, self.images, strict=True)):
             start = time.perf_counter()
             meas = measure_features(image, camera, tracker.model, kin,
                                     tracker.options.features, tracker.link_names,
@@ -258,8 +258,8 @@ class _FeatureProblem:
                 width_weight=tracker.options.width_weight,
                 max_width_error=tracker.options.max_width_error)
             if tracker.edge_bias:
-                r -= tracker.edge_bias[len(rs)].of_rows(layout.kind_code, layout.link_index,
-                                                        layout.component)
+                r -= tracker.edge_bias[index].of_rows(layout.kind_code, layout.link_index,
+                                                      layout.component)
             rs.append(r)
             Js.append(J)
             measurements.append(meas)
