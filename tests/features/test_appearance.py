@@ -3,10 +3,11 @@ predicts, against the renderer's own lighting and images."""
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
-from digiteyes.camera import Rig
+from digiteyes.camera import Camera, Rig
 from digiteyes.errors import StateError
 from digiteyes.features import FeatureOptions, feature_residuals, measure_features
 from digiteyes.features.appearance import ShadingModel, edge_bias, fit_shading
@@ -67,6 +68,22 @@ def test_predicted_image_is_the_renderers(scene):
     predicted = true_shading(LIGHTING).render(forward_kinematics(model, q), camera)
     assert predicted.shape == rendered.shape and predicted.dtype == np.float32
     assert np.abs(predicted - rendered).max() <= 0.5 + 1e-3  # the renderer rounds to uint8
+
+
+def test_predicted_image_through_lens_distortion(scene):
+    """With a distorted camera the drawing goes through the renderer's warp: away from the
+    silhouette (where the renderer blends coverage and the drawing does not) the two agree
+    to the renderer's rounding."""
+    model, q, camera = scene
+    distorted = Camera.create("barrel", camera.K, camera.width, camera.height,
+                              camera.T_cam_world, dist=[-0.25, 0.08, 0.0, 0.0, 0.0])
+    rendered = render_views(model, q, [distorted], LIGHTING)[0]
+    predicted = true_shading(LIGHTING).render(forward_kinematics(model, q), distorted)
+    hit = (rendered.labels >= 0).astype(np.uint8)
+    kernel = np.ones((5, 5), np.uint8)
+    away = (cv2.erode(hit, kernel) == hit) & (cv2.dilate(hit, kernel) == hit)
+    assert hit.sum() > 5000 and away.mean() > 0.9
+    assert np.abs(predicted - rendered.image)[away].max() <= 0.5 + 1e-3
 
 
 def test_edge_bias_cancels_the_shading_bias(scene):

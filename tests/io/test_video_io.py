@@ -71,6 +71,30 @@ def test_writer_rejects_bad_frames(tmp_path):
         VideoWriter(tmp_path / "z.avi", 30, "divx")
 
 
+def test_h264_crf_trades_size_for_fidelity(tmp_path):
+    """A noisy smooth image: the near-lossless default keeps the noise (bigger file, small
+    error), x264's default CRF 23 smooths it away (much smaller file, larger error)."""
+    rng = np.random.default_rng(4)
+    ramp = np.add.outer(np.arange(64.0), np.arange(96.0))
+    images = [np.clip(ramp + 60 + rng.normal(0, 3, ramp.shape), 0, 255).astype(np.uint8)
+              for _ in range(6)]
+    errors, sizes = {}, {}
+    for crf in (12, 23):
+        path = tmp_path / f"crf{crf}.mp4"
+        with VideoWriter(path, 30, "h264", crf=crf) as writer:
+            for image in images:
+                writer.write(image)
+        with VideoReader(path, gray=True) as reader:
+            errors[crf] = np.mean([np.abs(got.astype(float) - want).mean()
+                                   for got, want in zip(reader, images, strict=True)])
+        sizes[crf] = path.stat().st_size
+    assert sizes[23] < 0.5 * sizes[12]
+    assert errors[12] < 1.9 < errors[23]
+    for bad in (-1, 52, 2.5, True):
+        with pytest.raises(DatasetError, match="crf"):
+            VideoWriter(tmp_path / "bad.mp4", 30, "h264", crf=bad)
+
+
 def _encode_yuv(path, images, encoder, pix_fmt):
     """Encode grey images with FFmpeg's own grey -> YUV conversion (as cameras deliver)."""
     with av.open(str(path), "w") as container:

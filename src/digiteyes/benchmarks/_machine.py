@@ -8,18 +8,36 @@ files describe the machine the same way.
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import json
 import os
 import platform
 import timeit
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
+import cv2
+import numba
 import numpy as np
 
 BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 """Environment variables that fix the BLAS thread count when numpy is first imported."""
+
+
+@contextlib.contextmanager
+def kernel_threads(opencv: int, numba_kernels: int) -> Iterator[None]:
+    """Run OpenCV and numba's parallel kernels (the ray cast, the link measurement) on the
+    given numbers of threads (``numba_kernels`` at most ``NUMBA_NUM_THREADS``), restoring
+    both after."""
+    before = cv2.getNumThreads(), numba.get_num_threads()
+    cv2.setNumThreads(opencv)
+    numba.set_num_threads(min(numba_kernels, numba.config.NUMBA_NUM_THREADS))
+    try:
+        yield
+    finally:
+        cv2.setNumThreads(before[0])
+        numba.set_num_threads(before[1])
 
 
 def cpu_model() -> str:

@@ -20,10 +20,9 @@ from __future__ import annotations
 
 import statistics
 
-import cv2
 import numpy as np
 
-from digiteyes.benchmarks._machine import emit, machine_info, seconds_per_call
+from digiteyes.benchmarks._machine import emit, kernel_threads, machine_info, seconds_per_call
 from digiteyes.camera import Camera
 from digiteyes.kinematics import KinematicModel, load_model
 from digiteyes.render import RenderOptions, render_views
@@ -80,17 +79,13 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
     model = load_model("hand")
     q = relaxed_hand_state(model)
     cameras = _cameras()
-    threads = cv2.getNumThreads()
-    cv2.setNumThreads(1)
-    try:
+    with kernel_threads(opencv=1, numba_kernels=1):
         rates = {}
         for key, (_, n_cameras, options) in CASES.items():
             rng = np.random.default_rng(0)
             rates[key] = _frames_per_second(
                 lambda o=options, n=n_cameras, r=rng: render_views(model, q, cameras[:n], o, r),
                 repeat, min_time)
-    finally:
-        cv2.setNumThreads(threads)
     covered = int((render_views(model, q, cameras[:1])[0].labels >= 0).sum())
     result = {
         "benchmark": "render",

@@ -16,7 +16,7 @@ Link reason codes index ``LINK_REASONS`` and tip codes ``TIP_REASONS`` (measure.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from digiteyes.camera.camera import project_point
 from digiteyes.features.edges import peak_in_range, smoothed_derivative
@@ -42,30 +42,34 @@ def _profile(gray, ox, oy, dx, dy, j_first, step, prof, inside, response):  # pr
     smoothed_derivative(prof, response)
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def links_kernel(gray, params, view, perspective, shapes, rows, lengths, radii, fractions,
                  min_axis_px, min_edge_points, half, step, min_contrast, polarity, loss,
                  max_fit_rms, cos_max_angle, max_width_error, side_samples,
                  w_ends, w_slices, normal, contour, line, code, n_edges, side_lines,
                  edge_points, edge_inlier, slice_ends):  # pragma: no cover - compiled
-    """Measure every link (docs/features.md Sec. 1); fills the (L, ...) output arrays."""
+    """Measure every link (docs/features.md Sec. 1); fills the (L, ...) output arrays.
+
+    Links are shared out among numba's threads, each with its own scratch arrays; a link
+    writes only its own rows of the outputs."""
     n_slices = w_slices.shape[1]
-    tangent = np.empty((2, 3))
-    w_tan = np.empty((n_slices, 2, 2))
-    position = np.empty((2, n_slices))
-    before = np.empty((2, n_slices))
-    after = np.empty((2, n_slices))
-    window = np.empty((2, n_slices))
-    moved = np.empty((n_slices, 2))
-    fit_line = np.empty((2, 3))
-    shifted = np.empty(3)
-    work = np.empty((3, n_slices))
-    unused = np.empty(n_slices, dtype=np.bool_)
-    count = np.empty(2, dtype=np.int64)
-    rms = np.empty(2)
     margin = max(side_samples, 3) + 1
-    prof_buf, inside_buf, response_buf = np.empty(128), np.empty(128, np.bool_), np.empty(128)
-    for i in range(rows.shape[0]):
+    for i in prange(rows.shape[0]):
+        tangent = np.empty((2, 3))
+        w_tan = np.empty((n_slices, 2, 2))
+        position = np.empty((2, n_slices))
+        before = np.empty((2, n_slices))
+        after = np.empty((2, n_slices))
+        window = np.empty((2, n_slices))
+        moved = np.empty((n_slices, 2))
+        fit_line = np.empty((2, 3))
+        shifted = np.empty(3)
+        work = np.empty((3, n_slices))
+        unused = np.empty(n_slices, dtype=np.bool_)
+        count = np.empty(2, dtype=np.int64)
+        rms = np.empty(2)
+        prof_buf, inside_buf, response_buf = (np.empty(128), np.empty(128, np.bool_),
+                                              np.empty(128))
         T = shapes[rows[i]]
         behind = False
         # Axis ends, slice centres and contour tangent points, projected.

@@ -37,7 +37,7 @@ from digiteyes.features.residuals import feature_residuals
 from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import KinematicModel, Kinematics, forward_kinematics
 from digiteyes.render.distortion import camera_canvas
-from digiteyes.render.raster import Raster, rasterise
+from digiteyes.render.raster import Raster, paint, rasterise
 from digiteyes.render.scene import Scene, build_scene
 
 _FIT_ROUNDS = 10
@@ -94,12 +94,17 @@ class ShadingModel:
         in ``camera``."""
         scene = build_scene(kin.model, kin)
         light_cam = camera.T_cam_world[:3, :3] @ self.light_world
-        raster = _rasterise(scene, camera, light_cam)
         backdrop = self.backdrops.get(camera.name)
         image = np.full((camera.height, camera.width), self.background_level, np.float32) \
             if backdrop is None else backdrop.copy()
-        hit = raster.labels >= 0
-        image[hit] = self.ambient_level + self.diffuse_level * raster.shade[hit]
+        grid, warp = camera_canvas(camera)
+        if warp is None:
+            paint(scene.transformed(camera.T_cam_world), grid, light_cam, self.ambient_level,
+                  self.diffuse_level, image)
+        else:
+            raster = _rasterise(scene, camera, light_cam)
+            hit = raster.labels >= 0
+            image[hit] = self.ambient_level + self.diffuse_level * raster.shade[hit]
         if self.blur_sigma > 0.0:
             image = cv2.GaussianBlur(image, (0, 0), self.blur_sigma,
                                      borderType=cv2.BORDER_REFLECT)

@@ -34,7 +34,13 @@ from digiteyes import __version__
 from digiteyes._files import read_json_object
 from digiteyes.camera import Rig, load_rig, save_rig
 from digiteyes.errors import DatasetError, StateError
-from digiteyes.io.video import VIDEO_CODECS, VideoReader, VideoWriter
+from digiteyes.io.video import (
+    DEFAULT_H264_CRF,
+    VIDEO_CODECS,
+    VideoReader,
+    VideoWriter,
+    checked_crf,
+)
 from digiteyes.kinematics import (
     KinematicModel,
     State,
@@ -275,6 +281,7 @@ class SequenceWriter:
     name : sequence name (default: the folder name). scenario : free JSON metadata.
     video : False for PNG frames; True or ``"ffv1"`` for one lossless FFV1 ``.mkv`` per
         camera; ``"h264"`` for one lossy H.264 ``.mp4`` per camera.
+    crf : H.264 constant rate factor (:class:`~digiteyes.io.video.VideoWriter`).
     overwrite : replace an existing sequence in ``folder``.
     resume : continue an incomplete PNG sequence after its last complete frame; the next
         frame to write is ``writer.n_written``. Starts afresh if the folder holds none.
@@ -292,7 +299,7 @@ class SequenceWriter:
     def __init__(self, folder: str | Path, model: KinematicModel, rig: Rig,
                  initial_state: np.ndarray, fps: float, *, name: str = "",
                  scenario: dict | None = None, video: bool | str = False,
-                 overwrite: bool = False, resume: bool = False,
+                 crf: int = DEFAULT_H264_CRF, overwrite: bool = False, resume: bool = False,
                  checkpoint_every: int = CHECKPOINT_EVERY, model_text: str | None = None
                  ) -> None:
         self.folder = Path(folder)
@@ -312,6 +319,7 @@ class SequenceWriter:
         if self.codec is not None and self.codec not in VIDEO_CODECS:
             raise DatasetError(f"unknown video codec {video!r}; expected True, "
                                f"{', '.join(map(repr, VIDEO_CODECS))} or False")
+        self.crf = checked_crf(crf)
         self.checkpoint_every = max(1, int(checkpoint_every))
         self.initial_state = State(model, np.asarray(initial_state, dtype=float))
         self.model_text = self._model_text(model_text)
@@ -509,7 +517,8 @@ class SequenceWriter:
         if not self._videos:
             self._color = colors.pop()
             suffix = VIDEO_CODECS[self.codec][0]
-            self._videos = [VideoWriter(self.folder / f"{c.name}{suffix}", self.fps, self.codec)
+            self._videos = [VideoWriter(self.folder / f"{c.name}{suffix}", self.fps, self.codec,
+                                        self.crf)
                             for c in self.rig.cameras]
         for writer, image in zip(self._videos, images, strict=True):
             writer.write(image)

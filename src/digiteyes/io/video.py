@@ -5,8 +5,11 @@ Two codecs are offered for writing (docs/dataset.md explains the choice):
 
 * ``"ffv1"`` (default): FFV1 in Matroska (``.mkv``), lossless, grey (``gray``) or colour
   (``bgr0``) pixels stored exactly, so ground truth and images stay consistent to the bit;
-* ``"h264"``: libx264 in MP4 (``.mp4``, ``yuv420p``), lossy (chroma subsampled, CRF 12) but
-  small and playable everywhere; needs even image sizes.
+* ``"h264"``: libx264 in MP4 (``.mp4``, ``yuv420p``), lossy (chroma subsampled; constant
+  rate factor 12 unless told, near lossless) but small and playable everywhere; needs even
+  image sizes. At CRF 12 the sensor noise of a rendered frame is kept, which costs some
+  80 KB per 640 x 480 frame; x264's own default, CRF 23, gives about 2 KB, the order of
+  a phone recording (docs/benchmarks.md, section (b)).
 """
 
 from __future__ import annotations
@@ -20,6 +23,9 @@ import cv2
 import numpy as np
 
 from digiteyes.errors import DatasetError
+
+DEFAULT_H264_CRF = 12
+"""H.264 constant rate factor of :class:`VideoWriter` (0 lossless .. 51 worst)."""
 
 #: codec name -> (file suffix, PyAV encoder, whether decoding returns the exact pixels)
 VIDEO_CODECS: dict[str, tuple[str, str, bool]] = {
@@ -35,6 +41,14 @@ def _rate(fps: float) -> Fraction:
     return Fraction(fps).limit_denominator(1001)
 
 
+def checked_crf(crf: int) -> int:
+    """``crf`` as an int if it is a valid H.264 constant rate factor (0 to 51), else
+    :class:`DatasetError`."""
+    if isinstance(crf, bool) or not isinstance(crf, int | np.integer) or not 0 <= crf <= 51:
+        raise DatasetError(f"H.264 crf must be an integer from 0 to 51, got {crf!r}")
+    return int(crf)
+
+
 class VideoWriter:
     """Encode images of one camera into a video file (context manager).
 
@@ -43,16 +57,19 @@ class VideoWriter:
     path : output file; its suffix should be that of the codec (``.mkv`` / ``.mp4``).
     fps : frames per second.
     codec : ``"ffv1"`` (lossless) or ``"h264"`` (lossy), see the module docstring.
+    crf : H.264 constant rate factor, 0 (lossless) to 51 (worst); ignored for FFV1.
 
     The first image fixes the size and the colour (grey ``(H, W)`` or RGB ``(H, W, 3)``);
     later images must match. OSError (disk full, unwritable folder) becomes
     :class:`DatasetError` naming the file.
     """
 
-    def __init__(self, path: str | Path, fps: float, codec: str = "ffv1") -> None:
+    def __init__(self, path: str | Path, fps: float, codec: str = "ffv1",
+                 crf: int = DEFAULT_H264_CRF) -> None:
         if codec not in VIDEO_CODECS:
             raise DatasetError(f"unknown video codec {codec!r}; expected one of "
                                f"{', '.join(VIDEO_CODECS)}")
+        self.crf = checked_crf(crf)
         self.path = Path(path)
         self.codec = codec
         self.rate = _rate(fps)
@@ -77,7 +94,7 @@ class VideoWriter:
             stream.pix_fmt = "gray" if image.ndim == 2 else "bgr0"
         else:
             stream.pix_fmt = "yuv420p"
-            stream.options = {"crf": "12", "preset": "medium"}
+            stream.options = {"crf": str(self.crf), "preset": "medium"}
         self._stream = stream
         self._shape = image.shape
 

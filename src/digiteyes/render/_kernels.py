@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 BALL, CAPSULE, BOX = 0, 1, 2
 N_PARAMS = 15
@@ -203,35 +203,110 @@ def _block(kind, P, intrinsics, perspective, scale, width, height, block):  # pr
 
 
 @njit(cache=True, error_model="numpy")
+def _ray(u, yn, intrinsics, perspective, scale):  # pragma: no cover - compiled
+    """Origin (x, y; z = 0) and direction of the ray through column ``u`` of the row whose
+    normalised coordinate is ``yn`` (module docstring)."""
+    fx, s, cx = intrinsics[0], intrinsics[1], intrinsics[2]
+    xn = (u - cx - s * yn) / fx
+    if perspective:
+        return 0.0, 0.0, xn, yn, 1.0
+    return xn / scale, yn / scale, 0.0, 0.0, 1.0
+
+
+@njit(cache=True, error_model="numpy")
+def _reach(kind, P, u, yn, intrinsics, perspective, scale):  # pragma: no cover - compiled
+    """Discriminant of the ray through (u, yn) with a ball, or with the infinite cylinder
+    around a capsule's axis: >= 0 exactly when the ray's line meets it."""
+    ox, oy, dx, dy, dz = _ray(u, yn, intrinsics, perspective, scale)
+    if kind == BALL:
+        px, py, pz = ox - P[0], oy - P[1], -P[2]
+        b = dx * px + dy * py + dz * pz
+        return b * b - (dx * dx + dy * dy + dz * dz) * (px * px + py * py + pz * pz - P[3] * P[3])
+    ex, ey, ez = P[3] - P[0], P[4] - P[1], P[5] - P[2]
+    px, py, pz = ox - P[0], oy - P[1], -P[2]
+    ee = ex * ex + ey * ey + ez * ez
+    ed = ex * dx + ey * dy + ez * dz
+    ep = ex * px + ey * py + ez * pz
+    qa = ee * (dx * dx + dy * dy + dz * dz) - ed * ed
+    qb = ee * (dx * px + dy * py + dz * pz) - ep * ed
+    qc = ee * (px * px + py * py + pz * pz) - ep * ep - P[6] * P[6] * ee
+    return qb * qb - qa * qc
+
+
+@njit(cache=True, error_model="numpy")
+def _row_span(kind, P, yn, u_first, u_last, intrinsics, perspective, scale):  # pragma: no cover
+    """The columns of ``u_first..u_last`` in one row whose rays can meet a ball or
+    capsule, as an inclusive range (empty when first > last).
+
+    Along a row the ray is affine in u (its direction for perspective, its origin for
+    orthographic projections), so the discriminant of :func:`_reach` is a quadratic in u,
+    fixed by three samples. A capsule's end balls lie inside its infinite cylinder, so
+    every ray that hits the capsule has a non-negative cylinder discriminant. Where the
+    quadratic opens downwards its non-negative part is the interval between its roots
+    (widened by a pixel against rounding); otherwise the whole range is kept."""
+    if u_last <= u_first:
+        return u_first, u_last
+    x0, x2 = float(u_first), float(u_last)
+    mid, half = 0.5 * (x0 + x2), 0.5 * (x2 - x0)
+    h0 = _reach(kind, P, x0, yn, intrinsics, perspective, scale)
+    h1 = _reach(kind, P, mid, yn, intrinsics, perspective, scale)
+    h2 = _reach(kind, P, x2, yn, intrinsics, perspective, scale)
+    a = 0.5 * (h0 + h2) - h1  # h(mid + half t) = a t^2 + b t + h1
+    b = 0.5 * (h2 - h0)
+    if not a < -1e-12 * (abs(h0) + abs(h1) + abs(h2)):
+        return u_first, u_last
+    disc = b * b - 4.0 * a * h1
+    if disc < 0.0:
+        return 1, 0
+    root = math.sqrt(disc)
+    t_low = max((-b + root) / (2.0 * a), -2.0)
+    t_high = min((-b - root) / (2.0 * a), 2.0)
+    if t_low > t_high:
+        return 1, 0
+    return (max(u_first, math.floor(mid + half * t_low) - 1),
+            min(u_last, math.ceil(mid + half * t_high) + 1))
+
+
+@njit(cache=True, error_model="numpy", parallel=True)
 def cast_kernel(kinds, params, labels, far_labels, intrinsics, perspective, scale, light,
-                ambient, depth, label_image, shade):  # pragma: no cover - compiled
+                base, gain, depth, label_image, shade):  # pragma: no cover - compiled
     """Ray cast primitives into the z-buffer ``depth`` (H, W) float32 (start at inf),
     writing the nearest surface's label into ``label_image`` (H, W) int16 and its Lambert
-    factor ``ambient + (1 - ambient) max(0, n . light)`` into ``shade`` (H, W) float32.
+    shade ``base + gain max(0, n . light)`` into ``shade`` (H, W) float32; pixels no
+    primitive covers keep what the three images held.
 
     ``intrinsics`` = (fx, s, cx, fy, cy); ``scale`` = 1 / Z0 for scaled orthographic,
     1 otherwise; ``light`` (3,) unit vector towards the light. Surfaces that coincide (the
     end ball of a link and the start ball of the next) go to the earlier primitive: a
     later one must be nearer by a relative 1e-6 (float32 depth resolution is 6e-8), so
-    ties never speckle the label image.
+    ties never speckle the label image. Rows are shared out among numba's threads; each
+    row visits the primitives in order, so the result does not depend on the threads.
     """
-    fx, s, cx, fy, cy = intrinsics
+    fy, cy = intrinsics[3], intrinsics[4]
     height, width = depth.shape
-    block = np.empty(4, dtype=np.int64)
-    for k in range(kinds.shape[0]):
-        kind = kinds[k]
-        P = params[k]
-        near, far = labels[k], far_labels[k]
-        if not _block(kind, P, intrinsics, perspective, scale, width, height, block):
-            continue
-        for v in range(block[2], block[3] + 1):
-            yn = (v - cy) / fy
-            for u in range(block[0], block[1] + 1):
-                xn = (u - cx - s * yn) / fx
-                if perspective:
-                    ox, oy, dx, dy, dz = 0.0, 0.0, xn, yn, 1.0
-                else:
-                    ox, oy, dx, dy, dz = xn / scale, yn / scale, 0.0, 0.0, 1.0
+    n = kinds.shape[0]
+    blocks = np.empty((n, 4), dtype=np.int64)
+    present = np.zeros(n, dtype=np.bool_)
+    v_first, v_last = height, -1
+    for k in range(n):
+        present[k] = _block(kinds[k], params[k], intrinsics, perspective, scale, width,
+                            height, blocks[k])
+        if present[k]:
+            v_first = min(v_first, blocks[k, 2])
+            v_last = max(v_last, blocks[k, 3])
+    for v in prange(v_first, v_last + 1):
+        yn = (v - cy) / fy
+        for k in range(n):
+            if not present[k] or v < blocks[k, 2] or v > blocks[k, 3]:
+                continue
+            kind = kinds[k]
+            P = params[k]
+            u_first, u_last = blocks[k, 0], blocks[k, 1]
+            if kind != BOX:
+                u_first, u_last = _row_span(kind, P, yn, u_first, u_last, intrinsics,
+                                            perspective, scale)
+            for u in range(u_first, u_last + 1):
+                ox, oy, dx, dy, dz = _ray(u, yn, intrinsics, perspective, scale)
                 if kind == BALL:
                     t = _hit_ball(ox, oy, 0.0, dx, dy, dz, P[0], P[1], P[2], P[3])
                 elif kind == CAPSULE:
@@ -241,7 +316,7 @@ def cast_kernel(kinds, params, labels, far_labels, intrinsics, perspective, scal
                 if t < depth[v, u] * _TIE:
                     x, y, z = ox + t * dx, oy + t * dy, t * dz
                     depth[v, u] = t
-                    label_image[v, u] = far if kind == CAPSULE and \
-                        _beyond_end(P, x, y, z) else near
+                    label_image[v, u] = far_labels[k] if kind == CAPSULE and \
+                        _beyond_end(P, x, y, z) else labels[k]
                     cosine = _shade(kind, P, x, y, z, light)
-                    shade[v, u] = ambient + (1.0 - ambient) * max(cosine, 0.0)
+                    shade[v, u] = base + gain * max(cosine, 0.0)

@@ -2,11 +2,12 @@
 
 Each primitive is ray cast only inside the pixel block that bounds its projection (exact
 tangent bounds for balls and capsule ends, vertex bounds for boxes, the whole image for a
-primitive reaching behind a perspective camera); where its hit is nearer than the depth
-already stored, the pixel takes its depth, its label and its Lambert shading
-``ambient + (1 - ambient) max(0, n . l)`` (n the outward normal, l the direction towards
-a distant light). The loop is compiled
-(:mod:`digiteyes.render._kernels` says why).
+primitive reaching behind a perspective camera), and a ball or capsule only on the part
+of each row whose rays' lines meet it or its axis's infinite cylinder. Where its hit is
+nearer than the depth already stored, the pixel takes its depth, its label and its
+Lambert shading ``ambient + (1 - ambient) max(0, n . l)`` (n the outward normal, l the
+direction towards a distant light). :func:`paint` draws the same shading straight over an
+image. The loop is compiled (:mod:`digiteyes.render._kernels` says why).
 """
 
 from __future__ import annotations
@@ -46,8 +47,26 @@ def rasterise(scene: Scene, grid: PixelGrid, light_cam: np.ndarray,
     depth = np.full((grid.height, grid.width), np.inf, dtype=np.float32)
     labels = np.full((grid.height, grid.width), -1, dtype=np.int16)
     shade = np.zeros((grid.height, grid.width), dtype=np.float32)
-    cast_kernel(scene.kinds, scene.params, scene.labels, scene.far_labels, grid.intrinsics,
-                grid.perspective, grid.scale, np.asarray(light_cam, dtype=float), float(ambient),
-                depth,
-                labels, shade)
+    _cast(scene, grid, light_cam, ambient, 1.0 - ambient, depth, labels, shade)
     return Raster(depth, labels, shade)
+
+
+def paint(scene: Scene, grid: PixelGrid, light_cam: np.ndarray, base: float, gain: float,
+          image: np.ndarray) -> None:
+    """Draw a camera-frame scene over ``image`` (H, W) float32 of ``grid``, in place: the
+    model's pixels take the shade ``base + gain max(0, n . l)`` (``l`` = ``light_cam``),
+    the others keep their values. The same ray cast as :func:`rasterise` without its
+    depth, label and shade images (drawing the model over a backdrop in one pass)."""
+    if image.shape != (grid.height, grid.width) or image.dtype != np.float32:
+        raise ValueError(f"paint needs a float32 image of {grid.height} x {grid.width}, "
+                         f"got {image.dtype} {image.shape}")
+    depth = np.full(image.shape, np.inf, dtype=np.float32)
+    labels = np.empty(image.shape, dtype=np.int16)
+    _cast(scene, grid, light_cam, base, gain, depth, labels, image)
+
+
+def _cast(scene: Scene, grid: PixelGrid, light_cam: np.ndarray, base: float, gain: float,
+          depth: np.ndarray, labels: np.ndarray, shade: np.ndarray) -> None:
+    cast_kernel(scene.kinds, scene.params, scene.labels, scene.far_labels, grid.intrinsics,
+                grid.perspective, grid.scale, np.asarray(light_cam, dtype=float), float(base),
+                float(gain), depth, labels, shade)

@@ -17,6 +17,7 @@ Labels are indices into ``model.links``. Parameters are packed as in
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -83,25 +84,55 @@ def tip_of_link(model: KinematicModel) -> dict[int, int]:
 
 def build_scene(model: KinematicModel, kin: Kinematics, index: int = 0) -> Scene:
     """The primitives of state ``index`` of ``kin``, in world coordinates (mm)."""
-    T_shape = kin.T_world_shape[index]
+    layout = _layout(model)
+    T = kin.T_world_shape[index][layout.rows]  # (P, 4, 4): each primitive's shape frame
+    R, t = T[:, :3, :3], T[:, :3, 3]
+    local = layout.params
+    params = local.copy()
+    params[:, 0:3] = np.einsum("pij,pj->pi", R, local[:, 0:3]) + t
+    capsule = layout.kinds == CAPSULE
+    params[capsule, 3:6] = np.einsum("pij,pj->pi", R[capsule], local[capsule, 3:6]) \
+        + t[capsule]
+    box = layout.kinds == BOX
+    axes = local[box, 3:12].reshape(-1, 3, 3)  # (B, axis, xyz)
+    params[box, 3:12] = np.einsum("bkj,bij->bki", axes, R[box]).reshape(-1, 9)
+    return Scene(layout.kinds, layout.labels, layout.far_labels, params)
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """A model's primitives in their links' shape frames: a :class:`Scene` whose
+    ``params`` are local, and ``rows`` (P,) the frame row each one moves with."""
+
+    kinds: np.ndarray
+    labels: np.ndarray
+    far_labels: np.ndarray
+    params: np.ndarray
+    rows: np.ndarray
+
+
+@lru_cache(maxsize=32)
+def _layout(model: KinematicModel) -> _Layout:
+    """The model's primitives, built once: a cylinder link's capsule runs along shape +x
+    from the origin, a tip's ball sits at the origin, the palm's rounded slab is centred
+    at ``link.centre`` with the shape frame's axes."""
     tips = tip_of_link(model)
-    rows: list[tuple[int, int, int, np.ndarray]] = []
+    rows: list[tuple[int, int, int, int, np.ndarray]] = []
     for i, link in enumerate(model.links):
-        T = T_shape[link.row]
-        origin, R = T[:3, 3], T[:3, :3]
         if link.kind == "link":
-            end = origin + link.length * R[:, 0]
-            rows.append((CAPSULE, i, tips.get(i, i), _pack(origin, end, [link.radius])))
+            rows.append((CAPSULE, i, tips.get(i, i), link.row,
+                         _pack(np.zeros(3), [link.length, 0.0, 0.0], [link.radius])))
         elif link.kind == "tip":
-            rows.append((BALL, i, i, _pack(origin, [link.radius])))
+            rows.append((BALL, i, i, link.row, _pack(np.zeros(3), [link.radius])))
         elif link.kind == "palm":
-            centre = origin + R @ np.asarray(link.centre, dtype=float)
-            rows += [(kind, i, i, p) for kind, p in
-                     _rounded_slab(centre, R, 0.5 * np.asarray(link.size, dtype=float))]
-    return Scene(np.array([r[0] for r in rows], dtype=np.int8),
-                 np.array([r[1] for r in rows], dtype=np.int16),
-                 np.array([r[2] for r in rows], dtype=np.int16),
-                 np.stack([r[3] for r in rows]) if rows else np.zeros((0, N_PARAMS)))
+            rows += [(kind, i, i, link.row, p) for kind, p in
+                     _rounded_slab(np.asarray(link.centre, dtype=float), np.eye(3),
+                                   0.5 * np.asarray(link.size, dtype=float))]
+    return _Layout(np.array([r[0] for r in rows], dtype=np.int8),
+                   np.array([r[1] for r in rows], dtype=np.int16),
+                   np.array([r[2] for r in rows], dtype=np.int16),
+                   np.stack([r[4] for r in rows]) if rows else np.zeros((0, N_PARAMS)),
+                   np.array([r[3] for r in rows], dtype=np.intp))
 
 
 def _pack(*parts) -> np.ndarray:
