@@ -20,19 +20,19 @@ a. **Cost per iteration** of the full hand (28 states, every link and tip measur
 b. **End-to-end frames per second** of ``digiteyes track`` on a video: the whole-hand
    sequence seen by camera 0 is written as video datasets in a temporary folder
    (:data:`E2E_VIDEOS`: H.264 at x264's default quality, CRF 23, about 2 KB per frame,
-   the order of a phone recording, keys without suffix; near-lossless H.264 CRF 12, ``_crf12``; lossless
-   FFV1, ``_ffv1``; ``kb_per_frame...`` their sizes), then opened, decoded and tracked
-   with :func:`digiteyes.pipeline.run_tracker` (state log, summary, 3D views every 50
-   frames and the trajectory plots, as the command writes them), without the overlay
-   video (``fps_end_to_end``) and with it (``fps_end_to_end_overlay``): frames per second
-   of the per-frame loop (the streaming rate), with ``_with_outputs`` of the whole
-   command including the plots and views written at the end, with ``_tracker_only`` of
-   the tracker's ``step`` calls. The iterations per frame
-   (``fps_end_to_end_iterations``) are the fewest of 1-5 whose run on the CRF 23 video
-   meets the one-camera targets (mean fingertip error <= 8 mm, joint-angle RMS <= 5
-   degrees) against the ground truth: that run's own accuracy decides (``e2e_runs``: the
-   runs tried, and one at the default of 5; ``targets_met`` false and 5 iterations if
-   none meets them). numba's kernels use
+   the order of a phone recording, keys without suffix; near-lossless H.264 CRF 12,
+   ``_crf12``; lossless FFV1, ``_ffv1``; ``kb_per_frame...`` their sizes), then opened,
+   decoded and tracked with :func:`digiteyes.pipeline.run_tracker` (state log, summary,
+   3D views every 50 frames and the trajectory plots, as the command writes them),
+   without the overlay video (``fps_end_to_end``) and with it
+   (``fps_end_to_end_overlay``): frames per second of the per-frame loop (the streaming
+   rate), with ``_with_outputs`` of the whole command including the plots and views
+   written at the end, with ``_tracker_only`` of the tracker's ``step`` calls. The
+   iterations per frame (``fps_end_to_end_iterations``) are the fewest of 1-5 whose run
+   on the CRF 23 video meets the one-camera targets (mean fingertip error <= 8 mm,
+   joint-angle RMS <= 5 degrees) against the ground truth: that run's own accuracy
+   decides (``e2e_runs``: the runs tried, and one at the default of 5; ``targets_met``
+   false and 5 iterations if none meets them). numba's kernels use
    every core here, as in ``digiteyes track``; everywhere else one.
 c. **Accuracy** (:func:`digiteyes.evaluate.evaluate_run`) of whole-hand mono (camera 0
    only), whole-hand stereo, mouse (one camera; also the error of the 3D-mouse pole

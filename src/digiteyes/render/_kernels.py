@@ -32,7 +32,7 @@ _NEAR = 1e-6
 _TIE = 1.0 - 1e-6  # a later primitive must be nearer by this factor to win a pixel
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _hit_ball(ox, oy, oz, dx, dy, dz, cx, cy, cz, r):  # pragma: no cover - compiled
     """Smallest root t > near of |o + t d - c| = r, or inf."""
     px, py, pz = ox - cx, oy - cy, oz - cz
@@ -45,7 +45,7 @@ def _hit_ball(ox, oy, oz, dx, dy, dz, cx, cy, cz, r):  # pragma: no cover - comp
     return t if t > _NEAR else np.inf
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _hit_capsule(ox, oy, oz, dx, dy, dz, P):  # pragma: no cover - compiled
     """Nearest hit with a capsule: the lateral cylinder surface between the end planes,
     or the end ball on the side where the ray meets the infinite cylinder. Both balls lie
@@ -76,7 +76,7 @@ def _hit_capsule(ox, oy, oz, dx, dy, dz, P):  # pragma: no cover - compiled
     return min(t, _hit_ball(ox, oy, oz, dx, dy, dz, bx, by, bz, r))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _hit_box(ox, oy, oz, dx, dy, dz, P):  # pragma: no cover - compiled
     """Nearest hit with an oriented box (slab method), or inf."""
     t_near = -np.inf
@@ -98,7 +98,7 @@ def _hit_box(ox, oy, oz, dx, dy, dz, P):  # pragma: no cover - compiled
     return np.inf
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _shade(kind, P, x, y, z, light):  # pragma: no cover - compiled
     """Cosine between the outward unit normal at surface point (x, y, z) and ``light``."""
     if kind == BALL:
@@ -123,7 +123,7 @@ def _shade(kind, P, x, y, z, light):  # pragma: no cover - compiled
     return cosine
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _beyond_end(P, x, y, z):  # pragma: no cover - compiled
     """Whether surface point (x, y, z) of a capsule lies beyond its end plane (far cap)."""
     ex, ey, ez = P[3] - P[0], P[4] - P[1], P[5] - P[2]
@@ -202,7 +202,7 @@ def _block(kind, P, intrinsics, perspective, scale, width, height, block):  # pr
     return block[0] <= block[1] and block[2] <= block[3]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _ray(u, yn, intrinsics, perspective, scale):  # pragma: no cover - compiled
     """Origin (x, y; z = 0) and direction of the ray through column ``u`` of the row whose
     normalised coordinate is ``yn`` (module docstring)."""
@@ -213,7 +213,7 @@ def _ray(u, yn, intrinsics, perspective, scale):  # pragma: no cover - compiled
     return xn / scale, yn / scale, 0.0, 0.0, 1.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _reach(kind, P, u, yn, intrinsics, perspective, scale):  # pragma: no cover - compiled
     """Discriminant of the ray through (u, yn) with a ball, or with the infinite cylinder
     around a capsule's axis: >= 0 exactly when the ray's line meets it."""
