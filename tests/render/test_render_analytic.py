@@ -112,6 +112,23 @@ def test_depth_and_labels_match_sphere_tracing(model, name, slab_z):
     assert mismatch.sum() <= 0.01 * silhouette.sum()
 
 
+@pytest.mark.parametrize("eye", [(420.0, 0.0, 0.0), (420.0, 3.0, 2.0), (300.0, 60.0, 0.0)])
+def test_rod_seen_end_on_matches_sphere_tracing(model, eye):
+    """Looking down the rod's axis (exactly, nearly, and at a slant): the rays of a row then
+    meet its infinite cylinder in any pattern, which the caster's per-row spans must not
+    cut short."""
+    cam = Camera.look_at("end", eye=eye, target=(100.0, 0.0, 0.0), up=(0, 0, 1),
+                         width=WIDTH, height=HEIGHT, focal_px=250.0)
+    view = render_views(model, np.array([0.0]), cam, RenderOptions(background="uniform"))[0]
+    depth, label, silhouette = sphere_trace(cam, 0.0)
+    assert (label == ROD).sum() > 200
+    both = np.isfinite(depth) & (view.labels >= 0)
+    np.testing.assert_allclose(view.depth[both], depth[both], rtol=0, atol=2e-3)
+    assert np.array_equal(view.labels[both], label[both])
+    mismatch = np.isfinite(depth) != (view.labels >= 0)
+    assert not (mismatch & ~silhouette).any(), "hit/miss may differ only on silhouettes"
+
+
 def test_slab_in_front_hides_the_ball(model):
     """Moving the slab towards a camera that sees it in front of the ball changes the
     ball's pixels to slab pixels, with the slab's (smaller) depth."""
