@@ -93,6 +93,8 @@ def test_h264_crf_trades_size_for_fidelity(tmp_path):
     for bad in (-1, 52, 2.5, True):
         with pytest.raises(DatasetError, match="crf"):
             VideoWriter(tmp_path / "bad.mp4", 30, "h264", crf=bad)
+    with pytest.raises(DatasetError, match="preset"):
+        VideoWriter(tmp_path / "bad.mp4", 30, "h264", preset="warp")
 
 
 def _encode_yuv(path, images, encoder, pix_fmt):

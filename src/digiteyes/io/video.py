@@ -26,6 +26,9 @@ from digiteyes.errors import DatasetError
 
 DEFAULT_H264_CRF = 12
 """H.264 constant rate factor of :class:`VideoWriter` (0 lossless .. 51 worst)."""
+H264_PRESETS = ("ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow",
+                "slower", "veryslow")
+"""x264's speed presets, fastest first (slower ones compress better at the same CRF)."""
 
 #: codec name -> (file suffix, PyAV encoder, whether decoding returns the exact pixels)
 VIDEO_CODECS: dict[str, tuple[str, str, bool]] = {
@@ -58,6 +61,7 @@ class VideoWriter:
     fps : frames per second.
     codec : ``"ffv1"`` (lossless) or ``"h264"`` (lossy), see the module docstring.
     crf : H.264 constant rate factor, 0 (lossless) to 51 (worst); ignored for FFV1.
+    preset : x264 speed preset (:data:`H264_PRESETS`); ignored for FFV1.
 
     The first image fixes the size and the colour (grey ``(H, W)`` or RGB ``(H, W, 3)``);
     later images must match. OSError (disk full, unwritable folder) becomes
@@ -65,11 +69,15 @@ class VideoWriter:
     """
 
     def __init__(self, path: str | Path, fps: float, codec: str = "ffv1",
-                 crf: int = DEFAULT_H264_CRF) -> None:
+                 crf: int = DEFAULT_H264_CRF, preset: str = "medium") -> None:
         if codec not in VIDEO_CODECS:
             raise DatasetError(f"unknown video codec {codec!r}; expected one of "
                                f"{', '.join(VIDEO_CODECS)}")
+        if preset not in H264_PRESETS:
+            raise DatasetError(f"unknown x264 preset {preset!r}; expected one of "
+                               f"{', '.join(H264_PRESETS)}")
         self.crf = checked_crf(crf)
+        self.preset = preset
         self.path = Path(path)
         self.codec = codec
         self.rate = _rate(fps)
@@ -94,7 +102,7 @@ class VideoWriter:
             stream.pix_fmt = "gray" if image.ndim == 2 else "bgr0"
         else:
             stream.pix_fmt = "yuv420p"
-            stream.options = {"crf": str(self.crf), "preset": "medium"}
+            stream.options = {"crf": str(self.crf), "preset": self.preset}
         self._stream = stream
         self._shape = image.shape
 

@@ -37,14 +37,17 @@ def _to_rgb(image: np.ndarray) -> np.ndarray:
         scale = 255.0 if np.issubdtype(image.dtype, np.floating) and image.max() <= 1.0 else 1.0
         image = np.clip(image * scale, 0, 255).astype(np.uint8)
     if image.ndim == 2:
-        return np.repeat(image[..., None], 3, axis=2)
+        return cv2.cvtColor(np.ascontiguousarray(image), cv2.COLOR_GRAY2RGB)
     if image.ndim == 3 and image.shape[2] in (3, 4):
         return np.ascontiguousarray(image[..., :3])
     raise CameraError(f"images must be (H, W) grey or (H, W, 3) RGB, got shape {image.shape}")
 
 
 class _Canvas:
-    """An RGB image scaled by an integer factor, drawn on in original pixel coordinates."""
+    """An RGB image scaled by an integer factor, drawn on in original pixel coordinates.
+
+    Points come in arrays ``(..., 2)`` px; entries with a non-finite coordinate are
+    skipped. All segments of one colour go to OpenCV in one call."""
 
     def __init__(self, rgb: np.ndarray, scale: int) -> None:
         if scale > 1:
@@ -52,32 +55,40 @@ class _Canvas:
         self.image = np.ascontiguousarray(rgb)
         self.scale = scale
 
-    def _pt(self, p: np.ndarray) -> tuple[int, int]:
-        q = ((np.asarray(p, dtype=float) + 0.5) * self.scale - 0.5) * _ONE
-        return round(float(q[0])), round(float(q[1]))
+    def _fixed(self, p: np.ndarray) -> np.ndarray:
+        """(N, 2) int32 fixed-point (``SHIFT`` fraction bits) canvas coordinates."""
+        return np.rint(((p + 0.5) * self.scale - 0.5) * _ONE).astype(np.int32)
 
-    def line(self, a, b, color, thickness: int = 1) -> None:
-        if np.isfinite(a).all() and np.isfinite(b).all():
-            cv2.line(self.image, self._pt(a), self._pt(b), color, thickness, cv2.LINE_AA, SHIFT)
+    def lines(self, a, b, color, thickness: int = 1) -> None:
+        """Segments from ``a`` to ``b`` (same shapes, (..., 2))."""
+        a = np.asarray(a, dtype=float).reshape(-1, 2)
+        b = np.asarray(b, dtype=float).reshape(-1, 2)
+        ok = np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
+        if ok.any():
+            ends = np.stack([self._fixed(a[ok]), self._fixed(b[ok])], axis=1)
+            cv2.polylines(self.image, list(ends), False, color, thickness, cv2.LINE_AA, SHIFT)
 
-    def dot(self, p, color, radius_px: float = 1.5) -> None:
-        if np.isfinite(p).all():
-            radius = max(round(radius_px * self.scale * _ONE), _ONE)
-            cv2.circle(self.image, self._pt(p), radius, color, -1, cv2.LINE_AA, SHIFT)
+    def dots(self, p, color, radius_px: float = 1.5) -> None:
+        p = np.asarray(p, dtype=float).reshape(-1, 2)
+        radius = max(round(radius_px * self.scale * _ONE), _ONE)
+        for x, y in self._fixed(p[np.isfinite(p).all(axis=1)]).tolist():
+            cv2.circle(self.image, (x, y), radius, color, -1, cv2.LINE_AA, SHIFT)
 
-    def cross(self, p, color, size_px: float = 3.0) -> None:
+    def crosses(self, p, color, size_px: float = 3.0) -> None:
+        p = np.asarray(p, dtype=float).reshape(-1, 2)
         for d in (np.array([1.0, 1.0]), np.array([1.0, -1.0])):
-            self.line(p - size_px * d, p + size_px * d, color, 1)
+            self.lines(p - size_px * d, p + size_px * d, color, 1)
 
     def text(self, p, label: str, color) -> None:
-        x, y = self._pt(p)
-        cv2.putText(self.image, label, (x >> SHIFT, y >> SHIFT), cv2.FONT_HERSHEY_SIMPLEX,
-                    0.35 * max(self.scale, 1), color, 1, cv2.LINE_AA)
+        x, y = self._fixed(np.asarray(p, dtype=float).reshape(1, 2))[0]
+        cv2.putText(self.image, label, (int(x) >> SHIFT, int(y) >> SHIFT),
+                    cv2.FONT_HERSHEY_SIMPLEX, 0.35 * max(self.scale, 1), color, 1, cv2.LINE_AA)
 
 
 def _foot(line: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """Closest point of the line ``(a, b, rho)`` to ``p``."""
-    return p - (line[:2] @ p - line[2]) * line[:2]
+    """Closest points of the lines ``(a, b, rho)`` (N, 3) to the points ``p`` (N, 2)."""
+    n = line[:, :2]
+    return p - (np.sum(n * p, axis=1) - line[:, 2])[:, None] * n
 
 
 def draw_features(
@@ -107,7 +118,8 @@ def draw_features(
 
     Returns
     -------
-    (H * scale, W * scale, 3) RGB uint8 image.
+    (H * scale, W * scale, 3) RGB uint8 image. Layers, bottom to top: slices, trackers,
+    edge points, measured features, residuals.
     """
     rgb = _to_rgb(image)
     if camera is not None and rgb.shape[:2] != (camera.height, camera.width):
@@ -118,55 +130,49 @@ def draw_features(
     if int(scale) != scale or scale < 1:
         raise ValueError(f"scale must be a positive integer, got {scale!r}")
     canvas = _Canvas(rgb, int(scale))
+    valid = np.asarray(meas.link_valid, dtype=bool)
+    tip_valid = np.asarray(meas.tip_valid, dtype=bool)
 
-    for k in range(len(meas.link_ids)):
-        valid = bool(meas.link_valid[k])
-        if show_slices:
-            for a, b in meas.slice_ends[k]:
-                canvas.line(a, b, SLICE)
-        start, end = meas.predicted_axis[k]
-        colour = TRACKER if valid else INVALID
-        canvas.line(start, end, colour, 2)
-        last = meas.contour_offsets[k, -1:].ravel()  # predicted contour at the last slice
-        half_width = np.abs(last).max() if np.isfinite(last).any() else DEFAULT_HALF_WIDTH
-        bar = meas.slice_normal[k] * (half_width + 2.0)
-        canvas.line(end - bar, end + bar, colour, 2)
-        for side in range(2):
-            for p, kept in zip(meas.edge_points[k, side], meas.edge_inlier[k, side],
-                               strict=True):
-                canvas.dot(p, EDGE_IN if kept else EDGE_OUT)
-        if valid:
-            line = meas.line[k]
-            canvas.line(_foot(line, start), _foot(line, end), MEASURED, 1)
-            if residual_layout is None:
-                for p in (start, end):
-                    canvas.line(p, _foot(line, p), RESIDUAL, 2)
+    if show_slices:
+        for ends in (meas.slice_ends, meas.tip_slice_ends):
+            canvas.lines(ends[..., 0, :], ends[..., 1, :], SLICE)
 
-    for t in range(len(meas.tip_ids)):
-        if show_slices:
-            for a, b in meas.tip_slice_ends[t]:
-                canvas.line(a, b, SLICE)
-        for p in meas.tip_edge_points[t]:
-            canvas.dot(p, EDGE_IN)
-        c = meas.predicted_tip[t]
-        u = meas.tip_direction[t]
-        n = np.array([-u[1], u[0]])
-        colour = TRACKER if meas.tip_valid[t] else INVALID
-        canvas.line(c, c - 4.0 * u + 3.0 * n, colour, 2)
-        canvas.line(c, c - 4.0 * u - 3.0 * n, colour, 2)
-        if meas.tip_valid[t]:
-            canvas.cross(meas.measured_tip[t], MEASURED)
-            if residual_layout is None:
-                canvas.line(c, meas.measured_tip[t], RESIDUAL, 2)
+    # T trackers: the predicted axis with a crossbar at the link end a little wider than
+    # the predicted contour at the last slice; carets at the predicted tips.
+    start, end = meas.predicted_axis[:, 0], meas.predicted_axis[:, 1]
+    last = np.abs(meas.contour_offsets[:, -1:, :]).reshape(len(start), -1)  # none: exact
+    widest = np.where(np.isfinite(last), last, -np.inf).max(axis=1, initial=-np.inf)
+    half_width = np.where(np.isfinite(widest), widest, DEFAULT_HALF_WIDTH)
+    bar = meas.slice_normal * (half_width + 2.0)[:, None]
+    c, u = meas.predicted_tip, meas.tip_direction
+    n = np.stack([-u[:, 1], u[:, 0]], axis=1)
+    for colour, links, tips in ((TRACKER, valid, tip_valid), (INVALID, ~valid, ~tip_valid)):
+        canvas.lines(start[links], end[links], colour, 2)
+        canvas.lines(end[links] - bar[links], end[links] + bar[links], colour, 2)
+        for side in (1.0, -1.0):
+            canvas.lines(c[tips], c[tips] - 4.0 * u[tips] + side * 3.0 * n[tips], colour, 2)
 
-    if residual_layout is not None and residual_layout.camera == meas.camera:
-        for row in range(residual_layout.n_rows):
-            p = residual_layout.points_px[row]
-            f = residual_layout.feature[row]
-            if residual_layout.kind[row] == "link":
-                canvas.line(p, _foot(meas.line[f], p), RESIDUAL, 2)
-            elif residual_layout.kind[row] == "tip" and residual_layout.component[row] == 0:
-                canvas.line(p, meas.measured_tip[f], RESIDUAL, 2)
+    inlier = np.asarray(meas.edge_inlier, dtype=bool)
+    canvas.dots(meas.edge_points[inlier], EDGE_IN)
+    canvas.dots(meas.edge_points[~inlier], EDGE_OUT)
+    canvas.dots(meas.tip_edge_points, EDGE_IN)
+
+    line = meas.line[valid]
+    canvas.lines(_foot(line, start[valid]), _foot(line, end[valid]), MEASURED, 1)
+    canvas.crosses(meas.measured_tip[tip_valid], MEASURED)
+
+    if residual_layout is None:
+        for p in (start[valid], end[valid]):
+            canvas.lines(p, _foot(line, p), RESIDUAL, 2)
+        canvas.lines(c[tip_valid], meas.measured_tip[tip_valid], RESIDUAL, 2)
+    elif residual_layout.camera == meas.camera:
+        kind = residual_layout.kind
+        links = kind == "link"
+        p, f = residual_layout.points_px[links], residual_layout.feature[links]
+        canvas.lines(p, _foot(meas.line[f], p), RESIDUAL, 2)
+        tips = (kind == "tip") & (residual_layout.component == 0)
+        canvas.lines(residual_layout.points_px[tips],
+                     meas.measured_tip[residual_layout.feature[tips]], RESIDUAL, 2)
     if camera is not None:
         canvas.text(np.array([4.0, 12.0]), camera.name, TRACKER)
     return canvas.image
