@@ -1,6 +1,7 @@
-"""The machine a benchmark ran on (CPU, cores, Python and library versions, BLAS threads)
-how a suite times a call (:func:`seconds_per_call`) and how it reports (:func:`emit`:
-the table, then the JSON file).
+"""What every benchmark suite shares: the machine it ran on (CPU, cores, Python and
+library versions, BLAS threads), the threads its kernels may use (:func:`kernel_threads`),
+how it times a call (:func:`seconds_per_call`) and how it reports (:func:`emit`: the table,
+then the JSON file).
 
 Shared by every module of :mod:`digiteyes.benchmarks`, so that all their tables and JSON
 files describe the machine the same way.

@@ -87,7 +87,7 @@ def print_run(run: TrackingRun) -> None:
               help="Start each frame from the previous estimate (thesis) or extrapolate.")
 @click.option("--shading/--no-shading", default=True, show_default=True,
               help="Correct the edges for skin shading, predicted from a light fitted on the "
-                   "first frame (docs/features.md); off is about 6 ms per frame and camera "
+                   "first frame (docs/features.md); off is about 4 ms per frame and camera "
                    "faster.")
 @click.option("--frames", "max_frames", type=click.IntRange(min=1), default=None,
               help="Track at most this many frames.")
