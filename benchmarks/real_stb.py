@@ -51,9 +51,9 @@ from digiteyes.kinematics import (
     integrate,
     point_jacobian,
 )
+from digiteyes.kinematics.keypoints import keypoint_names
 from digiteyes.kinematics.model_file import ShapeSpec
 from digiteyes.kinematics.rotations import quaternion_from_matrix
-from digiteyes.render.keypoints import keypoint_names
 from digiteyes.solvers import GaussNewtonOptions, gauss_newton
 from digiteyes.trackers import FeatureTracker, FeatureTrackerOptions
 from digiteyes.viz.overlay import draw_features
@@ -141,7 +141,7 @@ def scaled_model(model: KinematicModel, scale: float) -> KinematicModel:
 def joint_points(model: KinematicModel, tip_at_end: bool) -> tuple[np.ndarray, np.ndarray]:
     """Shape-frame rows and points (21, 3) mm of the model joints matching the STB joints.
 
-    The points are those of :func:`digiteyes.render.keypoints.keypoints` (link bases, tip
+    The points are those of :func:`digiteyes.kinematics.keypoints.keypoints` (link bases, tip
     sphere centres, palm box centre). With ``tip_at_end`` a fingertip is the end of the
     finger instead (the STB labels mark the end): the tip centre moved along the distal
     axis by the end radius ``max(tip radius, distal radius)``, the capsule's cap.

@@ -10,7 +10,7 @@ import pytest
 from digiteyes.apps.mouse3d import pole_from_state
 from digiteyes.benchmarks import tracker as bench
 from digiteyes.io import StateLog
-from digiteyes.render.scenarios import build_scenario
+from digiteyes.synth.scenarios import build_scenario
 from digiteyes.trackers import FeatureTrackerOptions
 
 RUN_KEYS = ("fingertip_err_mm_mean", "joint_angle_err_deg_rms", "palm_pos_err_mm_mean",

@@ -15,7 +15,7 @@ import pytest
 
 from digiteyes import load_model
 from digiteyes.kinematics import forward_kinematics, integrate
-from digiteyes.render.keypoints import keypoints
+from digiteyes.kinematics.keypoints import keypoints
 
 SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "real_stb.py"
 

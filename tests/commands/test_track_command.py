@@ -37,7 +37,7 @@ def test_track_dataset_writes_log_overlay_views_and_plots(whole_hand, tmp_path, 
     assert list(log.frames) == list(range(6)) and not log.lost.any()
     tips = [i for i, n in enumerate(seq.truth.keypoint_names) if n.endswith(".tip")]
     from digiteyes import forward_kinematics
-    from digiteyes.render import keypoints
+    from digiteyes.kinematics.keypoints import keypoints
 
     estimated = keypoints(seq.model, forward_kinematics(seq.model, log.states))[1]
     error = np.linalg.norm(estimated[:, tips] - seq.truth.keypoints_3d[:, tips], axis=-1)

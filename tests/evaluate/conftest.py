@@ -1,5 +1,5 @@
 """Fixtures for the evaluation tests: a rig, hand trajectories, truth and logs built from
-states the way the renderer builds them (digiteyes.render.keypoints)."""
+states the way the renderer builds them (digiteyes.kinematics.keypoints)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 from digiteyes.camera import Camera, Rig
 from digiteyes.io import GroundTruth, StateLog
 from digiteyes.kinematics import KinematicModel, forward_kinematics, load_model
-from digiteyes.render.keypoints import keypoints
+from digiteyes.kinematics.keypoints import keypoints
 
 
 @pytest.fixture(scope="session")

@@ -12,7 +12,7 @@ from digiteyes.errors import StateError
 from digiteyes.features import FeatureOptions, feature_residuals, measure_features
 from digiteyes.features.appearance import ShadingModel, edge_bias, fit_shading
 from digiteyes.kinematics import forward_kinematics
-from digiteyes.render import RenderOptions, render_views
+from digiteyes.synth import RenderOptions, render_views
 
 LIGHTING = RenderOptions(background="uniform", light_dir=(-0.5, 0.3, 1.0), ambient=0.3,
                          skin_albedo=0.8, background_level=0.1)

@@ -7,7 +7,7 @@ import numpy as np
 
 from digiteyes.features import feature_residuals, measure_features
 from digiteyes.kinematics import forward_kinematics, integrate
-from digiteyes.render import RenderOptions, render_views
+from digiteyes.synth import RenderOptions, render_views
 
 
 def rms(r: np.ndarray) -> float:

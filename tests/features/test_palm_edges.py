@@ -7,7 +7,8 @@ import numpy as np
 from digiteyes import forward_kinematics, load_model
 from digiteyes.camera import Camera
 from digiteyes.features import feature_residuals, measure_features
-from digiteyes.render import keypoint_names, render_views
+from digiteyes.kinematics.keypoints import keypoint_names
+from digiteyes.synth import render_views
 
 EDGES = ("palm.radial_edge", "palm.ulnar_edge", "palm.wrist_edge")
 

@@ -15,7 +15,7 @@ import pytest
 
 from digiteyes.camera import Camera
 from digiteyes.kinematics import KinematicModel, parse_model_text
-from digiteyes.render import RenderOptions, render_views
+from digiteyes.synth import RenderOptions, render_views
 
 MODEL_TEXT = """
 model analytic

@@ -9,7 +9,7 @@ from digiteyes.camera import Camera, Rig
 from digiteyes.errors import CameraError, StateError
 from digiteyes.kinematics import forward_kinematics, load_model
 from digiteyes.kinematics.rotations import quaternion_from_matrix
-from digiteyes.render import RenderOptions, render_views
+from digiteyes.synth import RenderOptions, render_views
 from digiteyes.trackers import (
     TIMING_STAGES,
     FeatureTracker,

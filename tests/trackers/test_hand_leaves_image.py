@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from digiteyes.camera import Rig
-from digiteyes.render import RenderOptions, render_views
-from digiteyes.render.scenarios import build_scenario
+from digiteyes.synth import RenderOptions, render_views
+from digiteyes.synth.scenarios import build_scenario
 from digiteyes.trackers import FeatureTracker
 
 

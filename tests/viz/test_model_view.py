@@ -8,7 +8,7 @@ import pytest
 
 from digiteyes.errors import DigitEyesError
 from digiteyes.kinematics import load_model
-from digiteyes.render import render_views
+from digiteyes.synth import render_views
 from digiteyes.viz.model_view import (
     NAMED_VIEWS,
     ViewError,

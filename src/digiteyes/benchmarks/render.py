@@ -25,7 +25,7 @@ import numpy as np
 from digiteyes.benchmarks._machine import emit, kernel_threads, machine_info, seconds_per_call
 from digiteyes.camera import Camera
 from digiteyes.kinematics import KinematicModel, load_model
-from digiteyes.render import RenderOptions, render_views
+from digiteyes.synth import RenderOptions, render_views
 
 WIDTH, HEIGHT = 640, 480
 

@@ -92,8 +92,8 @@ from digiteyes.io import GroundTruth, SequenceWriter, StateLog, open_sequence, r
 from digiteyes.io.video import VIDEO_CODECS
 from digiteyes.kinematics import KinematicModel, forward_kinematics
 from digiteyes.pipeline import TrackingRun, run_tracker
-from digiteyes.render import RenderOptions, perturb_model, render_views
-from digiteyes.render.scenarios import Scenario, build_scenario
+from digiteyes.synth import RenderOptions, perturb_model, render_views
+from digiteyes.synth.scenarios import Scenario, build_scenario
 from digiteyes.trackers import FeatureTracker, FeatureTrackerOptions, thesis_whole_hand_links
 
 SEED = 0

@@ -18,7 +18,7 @@ from digiteyes.commands.track import print_run, tracker_options
 from digiteyes.evaluate import evaluate_run, headline_rows, write_report
 from digiteyes.io import open_sequence, read_state_log
 from digiteyes.pipeline import run_tracker
-from digiteyes.render.scenarios import build_scenario
+from digiteyes.synth.scenarios import build_scenario
 from digiteyes.trackers import FeatureTracker
 
 

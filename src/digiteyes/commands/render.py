@@ -9,7 +9,7 @@ import click
 import numpy as np
 
 from digiteyes.errors import DigitEyesError
-from digiteyes.render.scenarios import SCENARIOS
+from digiteyes.synth.scenarios import SCENARIOS
 
 HELP = f"""Render SCENARIO into the sequence folder DIR, with ground truth.
 
@@ -21,7 +21,7 @@ same dataset, so an interrupted render (Ctrl-C) continues with --resume.
 
 
 def _options(background: str, color: bool, noise: float, blur: float, seed: int):
-    from digiteyes.render import RenderOptions
+    from digiteyes.synth import RenderOptions
 
     return RenderOptions(color=color, background=background, noise_sigma=noise,
                          blur_sigma=blur, background_seed=seed)
@@ -31,7 +31,7 @@ def _truth_model(model, perturb: float, seed: int) -> tuple[object, dict | None]
     """The model the images are rendered from and its description for the metadata."""
     if perturb == 0.0:
         return model, None
-    from digiteyes.render import perturb_model
+    from digiteyes.synth import perturb_model
 
     truth = perturb_model(model, link_length=perturb, rng=seed)
     links = {link.name: {"length_mm": round(link.length, 6), "radius_mm": round(link.radius, 6)}
@@ -87,7 +87,7 @@ def render(scenario_name: str, output: str, background: str, color: bool, noise:
     if force and resume:
         raise DigitEyesError("--force and --resume exclude each other: --force starts again, "
                              "--resume continues")
-    from digiteyes.render.scenarios import build_scenario
+    from digiteyes.synth.scenarios import build_scenario
 
     scenario = build_scenario(scenario_name, seed=seed, n_frames=frames)
     render_scenario(scenario, Path(output), seed=seed, background=background, color=color,
@@ -104,7 +104,7 @@ def render_scenario(scenario, folder: Path, *, seed: int = 0, background: str = 
     from tqdm import tqdm
 
     from digiteyes.io.dataset import FrameTruth, SequenceWriter
-    from digiteyes.render import render_views
+    from digiteyes.synth import render_views
 
     options = _options(background, color, noise, blur, seed)
     truth_model, truth_info = _truth_model(scenario.model, perturb, seed)

@@ -6,7 +6,7 @@ every entry. Units: millimetres, degrees, pixels, frames.
 
 Keypoints of the estimated states are computed exactly as the renderer computes the true
 ones, through a keypoint function ``keypoint_fn(model, kin) -> (names, (N, K, 3))``
-(default :func:`digiteyes.render.keypoints.keypoints`); fingertips are the keypoints whose
+(default :func:`digiteyes.kinematics.keypoints.keypoints`); fingertips are the keypoints whose
 names end with ``".tip"``.
 """
 
@@ -153,7 +153,7 @@ def _row_mean(x: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
 
 # --------------------------------------------------------------------------- evaluation
 def _default_keypoint_fn() -> KeypointFn:
-    from digiteyes.render.keypoints import keypoints
+    from digiteyes.kinematics.keypoints import keypoints
 
     return keypoints
 
@@ -212,7 +212,7 @@ def evaluate_run(estimated: StateLog, truth: GroundTruth, model: KinematicModel,
     model : the kinematic model of both.
     rig : the cameras (for reprojection errors).
     keypoint_fn : ``(model, kin) -> (names, (N, K, 3))``; default
-        :func:`digiteyes.render.keypoints.keypoints`, the one the renderer uses for the truth.
+        :func:`digiteyes.kinematics.keypoints.keypoints`, the one the renderer uses for the truth.
     loss_threshold_mm : a frame whose mean fingertip error exceeds this counts as track
         loss (thesis §4.1: the state error grows without bound once correspondence is lost).
 

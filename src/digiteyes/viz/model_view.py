@@ -27,9 +27,9 @@ import numpy as np
 from digiteyes.camera import Camera
 from digiteyes.errors import DigitEyesError
 from digiteyes.kinematics import KinematicModel, forward_kinematics
-from digiteyes.render import RenderOptions, render_views
 from digiteyes.render._kernels import BALL, CAPSULE
 from digiteyes.render.scene import Scene, build_scene
+from digiteyes.synth import RenderOptions, render_views
 
 NAMED_VIEWS = {
     "front": (0.0, 0.0),

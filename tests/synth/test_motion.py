@@ -8,7 +8,7 @@ import pytest
 from digiteyes import load_model
 from digiteyes.camera import Camera, Rig
 from digiteyes.kinematics.rotations import matrix_from_quaternion
-from digiteyes.render.motion import (
+from digiteyes.synth.motion import (
     image_speed,
     keyframe_path,
     min_jerk,

@@ -20,7 +20,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from digiteyes.render.options import RenderError, RenderOptions
+from digiteyes.synth.options import RenderError, RenderOptions
 
 _FOLD_AMPLITUDE = 0.025  # cloth fold shading, fraction of full scale
 _CLUTTER_SHAPES = 70

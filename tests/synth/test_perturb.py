@@ -7,7 +7,7 @@ import pytest
 
 from digiteyes.camera import Camera
 from digiteyes.kinematics import forward_kinematics, load_model
-from digiteyes.render import RenderError, anchor_chains, perturb_model, render_views
+from digiteyes.synth import RenderError, anchor_chains, perturb_model, render_views
 
 
 @pytest.fixture(scope="module")

@@ -9,8 +9,9 @@ from scipy.signal import find_peaks
 
 from digiteyes.errors import DigitEyesError
 from digiteyes.kinematics import forward_kinematics, validate_state
-from digiteyes.render import RenderOptions, keypoints, render_views
-from digiteyes.render.scenarios import (
+from digiteyes.kinematics.keypoints import keypoints
+from digiteyes.synth import RenderOptions, render_views
+from digiteyes.synth.scenarios import (
     SCENARIOS,
     basis_configurations,
     basis_joint_angles,

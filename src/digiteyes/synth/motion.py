@@ -14,12 +14,12 @@ import numpy as np
 
 from digiteyes.camera import Rig
 from digiteyes.kinematics import KinematicModel, forward_kinematics
+from digiteyes.kinematics.keypoints import keypoints
 from digiteyes.kinematics.rotations import (
     quaternion_from_matrix,
     quaternion_from_rotvec,
     quaternion_multiply,
 )
-from digiteyes.render.keypoints import keypoints
 
 
 def min_jerk(s: np.ndarray) -> np.ndarray:
@@ -107,7 +107,7 @@ def image_speed(model: KinematicModel, states: np.ndarray, rig: Rig) -> np.ndarr
     """Largest image displacement per frame of any keypoint in any camera, (T,) px/frame.
 
     Entry t is the displacement from frame t-1 to frame t (entry 0 is 0). The keypoints
-    are the renderer's ground-truth keypoints (:func:`digiteyes.render.keypoints.keypoints`:
+    are the renderer's ground-truth keypoints (:func:`digiteyes.kinematics.keypoints.keypoints`:
     joint centres, tip centres, palm centre); this is the number to compare with a
     tracker's search window (thesis Sec. 4.3.2: track loss when the features leave it).
     """

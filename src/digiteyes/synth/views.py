@@ -2,10 +2,10 @@
 
 For each camera the posed primitives (:mod:`digiteyes.render.scene`) are moved into the
 camera frame and ray cast on its pixel grid (:mod:`digiteyes.render.raster`); the skin is
-Lambert shaded, laid over the backdrop (:mod:`digiteyes.render.backgrounds`), warped by
+Lambert shaded, laid over the backdrop (:mod:`digiteyes.synth.backgrounds`), warped by
 the lens distortion if any (:mod:`digiteyes.render.distortion`), then blurred, made
-noisy and quantised (:mod:`digiteyes.render.sensor`). Each view carries the depth image,
-the label image and the keypoints (:mod:`digiteyes.render.keypoints`) with their
+noisy and quantised (:mod:`digiteyes.synth.sensor`). Each view carries the depth image,
+the label image and the keypoints (:mod:`digiteyes.kinematics.keypoints`) with their
 projections and visibility.
 """
 
@@ -20,13 +20,13 @@ import numpy as np
 from digiteyes.camera import Camera, Rig
 from digiteyes.errors import CameraError, StateError
 from digiteyes.kinematics import KinematicModel, forward_kinematics
-from digiteyes.render.backgrounds import background
+from digiteyes.kinematics.keypoints import keypoints
 from digiteyes.render.distortion import camera_canvas
-from digiteyes.render.keypoints import keypoints
-from digiteyes.render.options import RenderOptions
 from digiteyes.render.raster import rasterise
 from digiteyes.render.scene import Scene, build_scene
-from digiteyes.render.sensor import expose
+from digiteyes.synth.backgrounds import background
+from digiteyes.synth.options import RenderOptions
+from digiteyes.synth.sensor import expose
 
 _CONTAIN_TOL_MM = 1e-6
 
@@ -42,7 +42,7 @@ class RenderedView:
         ``np.inf`` on the background.
     labels : int16 (H, W), index into ``model.links`` of that surface, -1 on background.
         A distal link's far hemisphere carries its tip's label.
-    keypoints_3d : (K, 3) world mm, see :func:`~digiteyes.render.keypoints.keypoints`.
+    keypoints_3d : (K, 3) world mm, see :func:`~digiteyes.kinematics.keypoints.keypoints`.
     keypoints_2d : (K, 2) pixels, ``camera.project`` of ``keypoints_3d`` (NaN for points
         behind a perspective camera).
     visible : (K,) bool: the keypoint projects inside the image, in front of the camera,

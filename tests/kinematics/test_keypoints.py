@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from digiteyes.kinematics import forward_kinematics, load_model
-from digiteyes.render import keypoint_names, keypoints
+from digiteyes.kinematics.keypoints import keypoint_names, keypoints
 
 
 def test_hand_keypoints_names_and_neutral_positions():

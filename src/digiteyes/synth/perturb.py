@@ -28,8 +28,8 @@ import numpy as np
 
 from digiteyes.kinematics import KinematicModel, dh_transform
 from digiteyes.kinematics.model_file import FrameSpec, ShapeSpec
-from digiteyes.render.options import RenderError
 from digiteyes.render.scene import tip_of_link
+from digiteyes.synth.options import RenderError
 
 
 def perturb_model(
@@ -53,7 +53,7 @@ def perturb_model(
     Returns
     -------
     A new :class:`~digiteyes.kinematics.KinematicModel` with the same frames, states and
-    limits. Raises :class:`~digiteyes.render.options.RenderError` for bad fractions.
+    limits. Raises :class:`~digiteyes.synth.options.RenderError` for bad fractions.
     """
     for name, value in (("link_length", link_length), ("radius", radius)):
         if not 0.0 <= value < 1.0:

@@ -28,7 +28,7 @@ from digiteyes.errors import DigitEyesError
 from digiteyes.kinematics import KinematicModel, load_model
 from digiteyes.kinematics.forward import forward_kinematics
 from digiteyes.kinematics.rotations import matrix_from_quaternion
-from digiteyes.render.motion import (
+from digiteyes.synth.motion import (
     image_speed,
     keyframe_path,
     palm_quaternions,

@@ -11,7 +11,8 @@ import pytest
 from digiteyes.camera import Camera, Rig
 from digiteyes.errors import CameraError, StateError
 from digiteyes.kinematics import forward_kinematics, load_model
-from digiteyes.render import RenderError, RenderOptions, keypoint_names, render_views
+from digiteyes.kinematics.keypoints import keypoint_names
+from digiteyes.synth import RenderError, RenderOptions, render_views
 
 W, H = 320, 240
 
