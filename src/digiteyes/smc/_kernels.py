@@ -1,0 +1,131 @@
+"""Compiled inner loop of the edge likelihood (Huang Sec. 5.2): one pass per particle over
+the sample points of every finger patch, with the occlusion test and the normal search."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from digiteyes.camera.camera import project_point
+
+
+@njit(cache=True, inline="always")
+def _inside_triangle(px, py, ax, ay, bx, by, cx, cy):  # pragma: no cover - compiled
+    """Barycentric weights of (px, py) in triangle abc (any with a negative: outside)."""
+    det = (by - cy) * (ax - cx) + (cx - bx) * (ay - cy)
+    if det == 0.0:
+        return -1.0, -1.0, -1.0
+    wa = ((by - cy) * (px - cx) + (cx - bx) * (py - cy)) / det
+    wb = ((cy - ay) * (px - cx) + (ax - cx) * (py - cy)) / det
+    return wa, wb, 1.0 - wa - wb
+
+
+@njit(cache=True, inline="always")
+def _palm_depth(px, py, pu, pv, pz):  # pragma: no cover - compiled
+    """Depth (mm) of the palm quad at pixel (px, py), ``inf`` outside it (affine in each
+    of the two triangles 0-1-2 and 0-2-3)."""
+    for tri in range(2):
+        b, c = (1, 2) if tri == 0 else (2, 3)
+        wa, wb, wc = _inside_triangle(px, py, pu[0], pv[0], pu[b], pv[b], pu[c], pv[c])
+        if wa >= 0.0 and wb >= 0.0 and wc >= 0.0:
+            return wa * pz[0] + wb * pz[b] + wc * pz[c]
+    return np.inf
+
+
+@njit(cache=True)
+def edge_likelihood_kernel(starts, ends, radii, ts, skip, palm, params, edges, half_window,
+                           sigma, inv_c, margin, log_l, stats):  # pragma: no cover - compiled
+    """Huang Sec. 5.2 for N particles.
+
+    ``starts``/``ends`` (N, L, 3) link axes (world mm), ``radii`` (L,) patch half-widths
+    (mm), ``ts`` (K,) positions along each axis, ``skip`` (L, L) pairs never tested for
+    occlusion (a link and its neighbours in the chain), ``palm`` (N, 4, 3) palm outline,
+    ``params`` the camera (:attr:`Camera.projection_params`), ``edges`` (H, W) uint8 edge
+    map. Writes ``log_l`` (N,) and ``stats`` (N, 3): visible points, points with an edge,
+    sum of squared offset of the nearest edge (px^2).
+    """
+    n_particles, n_links = starts.shape[0], starts.shape[1]
+    n_t = ts.shape[0]
+    height, width = edges.shape
+    fx = params[12]
+    scale = 1.0 if params[22] != 2.0 else 1.0 / params[23]
+    au = np.empty(n_links)
+    av = np.empty(n_links)
+    az = np.empty(n_links)
+    bu = np.empty(n_links)
+    bv = np.empty(n_links)
+    bz = np.empty(n_links)
+    pu = np.empty(4)
+    pv = np.empty(4)
+    pz = np.empty(4)
+    two_s2 = 2.0 * sigma * sigma
+    for n in range(n_particles):
+        for l in range(n_links):
+            u, v, x, y, z = project_point(params, starts[n, l, 0], starts[n, l, 1],
+                                          starts[n, l, 2])
+            au[l], av[l], az[l] = u, v, z
+            u, v, x, y, z = project_point(params, ends[n, l, 0], ends[n, l, 1], ends[n, l, 2])
+            bu[l], bv[l], bz[l] = u, v, z
+        for c in range(4):
+            u, v, x, y, z = project_point(params, palm[n, c, 0], palm[n, c, 1], palm[n, c, 2])
+            pu[c], pv[c], pz[c] = u, v, z
+        total = 0.0
+        n_vis = 0.0
+        n_hit = 0.0
+        sq = 0.0
+        for l in range(n_links):
+            dx, dy = bu[l] - au[l], bv[l] - av[l]
+            length = np.sqrt(dx * dx + dy * dy)
+            if length < 1e-6:
+                continue
+            nx, ny = -dy / length, dx / length
+            for k in range(n_t):
+                t = ts[k]
+                cu, cv, cz = au[l] + t * dx, av[l] + t * dy, az[l] + t * (bz[l] - az[l])
+                if cz <= 0.0:
+                    continue
+                r_px = radii[l] * fx * (scale if params[22] != 0.0 else 1.0 / cz)
+                for side in range(2):
+                    sgn = 1.0 if side == 0 else -1.0
+                    px, py = cu + sgn * r_px * nx, cv + sgn * r_px * ny
+                    if not (0.0 <= px <= width - 1 and 0.0 <= py <= height - 1):
+                        continue
+                    hidden = _palm_depth(px, py, pu, pv, pz) < cz - margin
+                    m = 0
+                    while not hidden and m < n_links:
+                        if not skip[l, m]:
+                            ex, ey = bu[m] - au[m], bv[m] - av[m]
+                            ee = ex * ex + ey * ey
+                            tau = 0.0
+                            if ee > 0.0:
+                                tau = min(1.0, max(0.0, ((px - au[m]) * ex + (py - av[m]) * ey)
+                                                   / ee))
+                            qx, qy = au[m] + tau * ex - px, av[m] + tau * ey - py
+                            mz = az[m] + tau * (bz[m] - az[m])
+                            if mz > 0.0 and mz < cz - margin:
+                                rm = radii[m] * fx * (scale if params[22] != 0.0 else 1.0 / mz)
+                                if qx * qx + qy * qy < rm * rm:
+                                    hidden = True
+                        m += 1
+                    if hidden:
+                        continue
+                    n_vis += 1.0
+                    acc = 0.0
+                    best = 1e30
+                    for o in range(-half_window, half_window + 1):
+                        ix = int(px + o * nx + 0.5)
+                        iy = int(py + o * ny + 0.5)
+                        if ix < 0 or iy < 0 or ix >= width or iy >= height:
+                            continue
+                        if edges[iy, ix] != 0:
+                            acc += np.exp(-(o * o) / two_s2)
+                            if o * o < best:
+                                best = o * o
+                    if best < 1e30:
+                        n_hit += 1.0
+                        sq += best
+                    total += np.log(1.0 + acc * inv_c)
+        log_l[n] = total
+        stats[n, 0] = n_vis
+        stats[n, 1] = n_hit
+        stats[n, 2] = sq

@@ -1,0 +1,115 @@
+"""Basis configurations and the linear manifolds between them (Huang Sec. 2, eq. 1).
+
+A manifold ``L_ij`` is the segment from basis state ``b_i`` to ``b_j`` in PCA coordinates,
+parameterised as in Huang eq. 4: ``X = s b_i + (1 - s) b_j`` with ``s`` in [0, 1] (``s = 1``
+at ``b_i``). The paper's formula for ``s`` (Sec. 5.1) divides the dot product by
+``||b_j - b_i||``; the projection needs the squared norm, which we use.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from itertools import product
+
+import numpy as np
+
+from digiteyes.kinematics import KinematicModel
+from digiteyes.synth.scenarios import (
+    CURLED_FINGER,
+    CURLED_THUMB,
+    DIGITS,
+    EXTENDED,
+    EXTENDED_THUMB,
+    SPREAD,
+)
+
+DEG = np.pi / 180.0
+
+
+def basis_names() -> tuple[str, ...]:
+    """The 28 basis configurations: each digit (thumb, index, middle, ring, little) ``E``
+    (fully extended) or ``C`` (fully curled). The four of the 32 combinations left out hold
+    the ring finger extended while both its neighbours (middle and little) are curled: the
+    shared extensor tendons and the connections between them stop a hand from holding that
+    pose (same rule as the ``natural`` scenario, :func:`digiteyes.synth.scenarios.
+    basis_configurations`)."""
+    return tuple("".join(c) for c in product("EC", repeat=5)
+                 if not (c[3] == "E" and c[2] == "C" and c[4] == "C"))
+
+
+def digit_joint_angles(digit: str, extended: bool) -> dict[str, float]:
+    """Joint angles (rad) of one digit fully extended or fully curled, by state name."""
+    if digit == "thumb":
+        table = EXTENDED_THUMB if extended else CURLED_THUMB
+        return {name: value * DEG for name, value in table.items()}
+    values = dict(EXTENDED if extended else CURLED_FINGER)
+    if values["abd"] is None:
+        values["abd"] = SPREAD[digit]
+    return {f"{digit}.{joint}": value * DEG for joint, value in values.items()}
+
+
+def basis_joint_angles(joint_names: tuple[str, ...]) -> np.ndarray:
+    """The basis configurations as joint-angle vectors (28, J), rad, for ``joint_names``
+    (names a model lacks are skipped; joints no digit table sets stay 0)."""
+    out = np.zeros((len(basis_names()), len(joint_names)))
+    column = {name: j for j, name in enumerate(joint_names)}
+    for b, name in enumerate(basis_names()):
+        for digit, letter in zip(DIGITS, name, strict=True):
+            for joint, value in digit_joint_angles(digit, letter == "E").items():
+                if joint in column:
+                    out[b, column[joint]] = value
+    return out
+
+
+def model_joint_names(model: KinematicModel) -> tuple[str, ...]:
+    """Names of the model's finger joint states (every ``angle`` state), model order."""
+    return tuple(n for n, k in zip(model.state_names, model.state_kinds, strict=True)
+                 if k == "angle")
+
+
+def manifold_pairs(n_basis: int) -> np.ndarray:
+    """Index pairs (P, 2) ``(i, j)``, ``i < j``, of every manifold ``L_ij`` (eq. 1)."""
+    i, j = np.triu_indices(n_basis, k=1)
+    return np.stack([i, j], axis=1)
+
+
+@dataclass(frozen=True)
+class ManifoldProjection:
+    """Projection of states onto their nearest manifold (Huang Sec. 5.1).
+
+    Attributes
+    ----------
+    pair : (N,) index into the pairs of the nearest manifold.
+    s : (N,) position on it, ``X~ = s b_i + (1 - s) b_j``, in [0, 1].
+    projected : (N, D) the projected states ``X~``.
+    distance : (N,) distance from each state to its manifold (PCA units).
+    """
+
+    pair: np.ndarray
+    s: np.ndarray
+    projected: np.ndarray
+    distance: np.ndarray
+
+
+def project_onto_manifolds(X: np.ndarray, basis: np.ndarray, pairs: np.ndarray
+                           ) -> ManifoldProjection:
+    """Project states ``X`` (N, D) onto the nearest segment ``b_i b_j`` of ``pairs``.
+
+    Evaluated for all (state, manifold) pairs at once by dot products, O(N P D).
+    """
+    X = np.atleast_2d(np.asarray(X, dtype=float))
+    bi, bj = basis[pairs[:, 0]], basis[pairs[:, 1]]
+    d = bj - bi
+    dd = np.einsum("pd,pd->p", d, d)
+    x_bi = X @ bi.T                                   # (N, P)
+    x_d = X @ d.T
+    bi_d = np.einsum("pd,pd->p", bi, d)
+    t = np.clip((x_d - bi_d) / dd, 0.0, 1.0)          # fraction from b_i towards b_j
+    sq = (np.einsum("nd,nd->n", X, X)[:, None] - 2 * x_bi + np.einsum("pd,pd->p", bi, bi)
+          - 2 * t * (x_d - bi_d) + t ** 2 * dd)
+    best = np.argmin(sq, axis=1)
+    rows = np.arange(len(X))
+    tb = t[rows, best]
+    projected = bi[best] + tb[:, None] * d[best]
+    return ManifoldProjection(best, 1.0 - tb, projected,
+                              np.sqrt(np.maximum(sq[rows, best], 0.0)))

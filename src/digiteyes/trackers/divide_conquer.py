@@ -1,0 +1,323 @@
+"""Divide and conquer (Huang, Wu & Lin): palm by ICP and factorisation, fingers by
+sequential Monte Carlo in the PCA configuration space, alternated per frame (Sec. 3).
+
+Each frame: draw finger hypotheses from the particle set (the sampler: Huang's manifold
+proposal, eq. 3-5, or a baseline of Sec. 6), then alternate EM-fashion
+
+1. palm pose by ICP of the palm outline against the frame's edges with the fingers held at
+   the best hypothesis (Sec. 4; outline points hidden by fingers are left out);
+2. finger weights (eq. 6, likelihood of Sec. 5.2) with the palm held at that pose;
+
+until the palm moves less than ``em_tolerance_mm`` (and ``em_tolerance_deg``) or after
+``em_iterations`` rounds. The best-weighted hypothesis is the estimate; the set is then
+resampled (systematic, from the tracker's Generator) for the next frame.
+
+Three samplers share everything else (same likelihood, same palm step):
+:class:`DivideConquerTracker` (``"manifold"``, 300 particles by default),
+:class:`CondensationTracker` (``"condensation"``: random-walk dynamics, weights = the
+likelihood, 3000 particles) and :class:`RandomSearchTracker` (``"random-search"``: 5000
+samples around the last estimate, the best one kept, no particle set).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from digiteyes.camera import Camera, Rig
+from digiteyes.errors import DigitEyesError
+from digiteyes.kinematics import KinematicModel
+from digiteyes.smc.configuration import ConfigurationSpace
+from digiteyes.smc.likelihood import (
+    FingerGeometry,
+    LikelihoodOptions,
+    finger_log_likelihood,
+    observe_edges,
+)
+from digiteyes.smc.manifolds import manifold_pairs
+from digiteyes.smc.palm import (
+    IcpOptions,
+    PalmPoseError,
+    calibrate_palm_scale,
+    icp_palm,
+    nearest_edge_field,
+    outline_visibility,
+    palm_outline_points,
+    palm_pose_from_state,
+    with_palm_pose,
+)
+from digiteyes.smc.prior import default_configuration_space
+from digiteyes.smc.proposal import (
+    ProposalOptions,
+    importance_log_weights,
+    propose_on_manifolds,
+    random_walk_log_prior,
+)
+from digiteyes.smc.resample import effective_sample_size, normalised_weights, systematic_resample
+from digiteyes.solvers import SolverSummary
+from digiteyes.trackers.base import TrackResult
+
+SAMPLERS = ("manifold", "condensation", "random-search")
+
+
+@dataclass(frozen=True)
+class DivideConquerOptions:
+    """Settings of the divide-and-conquer tracker and its baselines.
+
+    sampler : ``"manifold"`` (Huang Sec. 5.1), ``"condensation"`` or ``"random-search"``.
+    n_particles : hypotheses per frame.
+    em_iterations, em_tolerance_mm, em_tolerance_deg : the EM stop rule (Sec. 3).
+    track_palm : run the palm step (off: the palm stays at the reset pose).
+    importance_correction : multiply by ``f / g`` (eq. 6); off, weights = likelihood.
+    condensation_sigma : random-walk std of the CONDENSATION dynamics, PCA units.
+    search_sigma : std of the random search around the last estimate, PCA units.
+    min_edge_fraction : the track is reported lost when fewer visible sample points than
+        this fraction find an edge.
+    proposal, likelihood, icp : options of the parts.
+    seed : seed of the tracker's Generator (every draw comes from it).
+    """
+
+    sampler: str = "manifold"
+    n_particles: int = 300
+    em_iterations: int = 3
+    em_tolerance_mm: float = 0.5
+    em_tolerance_deg: float = 0.5
+    track_palm: bool = True
+    importance_correction: bool = True
+    condensation_sigma: float = 0.08
+    search_sigma: float = 0.15
+    min_edge_fraction: float = 0.3
+    proposal: ProposalOptions = field(default_factory=ProposalOptions)
+    likelihood: LikelihoodOptions = field(default_factory=LikelihoodOptions)
+    icp: IcpOptions = field(default_factory=IcpOptions)
+    seed: int = 0
+
+
+@dataclass
+class DivideConquerDetails:
+    """Tracker-specific outputs of one frame.
+
+    particles : (N, D) hypotheses in PCA coordinates (before resampling).
+    weights : (N,) their normalised weights.
+    best_coordinates : (D,) the chosen hypothesis; best_index : its row in ``particles``.
+    log_likelihood : (N,) ``log p(Z | X)`` of every hypothesis.
+    effective_sample_size : ``1 / sum w^2``.
+    palm_model_points : (P, 3) palm outline points used (palm frame, mm).
+    palm_pixels : (P, 2) their matched edge pixels; palm_rms_px : reprojection RMS.
+    em_rounds : palm/finger alternations done; em_stop : why they stopped.
+    """
+
+    particles: np.ndarray
+    weights: np.ndarray
+    best_coordinates: np.ndarray
+    best_index: int
+    log_likelihood: np.ndarray
+    effective_sample_size: float
+    palm_model_points: np.ndarray
+    palm_pixels: np.ndarray
+    palm_rms_px: float
+    em_rounds: int
+    em_stop: str
+
+
+@dataclass
+class DivideConquerResult(TrackResult):
+    """:class:`TrackResult` plus the tracker's :class:`DivideConquerDetails`."""
+
+    details: DivideConquerDetails | None = None
+
+
+def _cameras(rig: Rig | Camera | Sequence[Camera]) -> tuple[Camera, ...]:
+    if isinstance(rig, Camera):
+        return (rig,)
+    cams = tuple(rig.cameras if isinstance(rig, Rig) else rig)
+    if not cams:
+        raise DigitEyesError("the tracker needs at least one camera")
+    return cams
+
+
+def _rotation_deg(Ra: np.ndarray, Rb: np.ndarray) -> float:
+    return float(np.degrees(np.arccos(np.clip((np.trace(Ra.T @ Rb) - 1) / 2, -1.0, 1.0))))
+
+
+class DivideConquerTracker:
+    """Huang, Wu & Lin's tracker (Sec. 3-5) behind the :class:`Tracker` protocol.
+
+    Parameters
+    ----------
+    model : ``cardboard-hand`` or ``hand`` (any model with a root pose, a palm box and
+        finger links).
+    rig : cameras; the palm step uses the first, the likelihood all of them.
+    space : the configuration space (default: :func:`default_configuration_space`).
+    options : :class:`DivideConquerOptions`.
+    """
+
+    default_sampler = "manifold"
+    default_particles = 300
+
+    def __init__(self, model: KinematicModel, rig: Rig | Camera | Sequence[Camera],
+                 space: ConfigurationSpace | None = None,
+                 options: DivideConquerOptions | None = None) -> None:
+        if options is None:
+            options = DivideConquerOptions(sampler=self.default_sampler,
+                                           n_particles=self.default_particles)
+        if options.sampler not in SAMPLERS:
+            raise DigitEyesError(f"sampler must be one of {', '.join(SAMPLERS)}, got "
+                                 f"{options.sampler!r}")
+        if model.base_state is None:
+            raise DigitEyesError(f"model {model.name!r} has no palm pose (pose:q row)")
+        self.model, self.cameras, self.options = model, _cameras(rig), options
+        self.space = space or default_configuration_space(model)
+        self.joint_index = self.space.joint_indices(model)
+        self.geometry = FingerGeometry.of(model)
+        self.pairs = manifold_pairs(len(self.space.basis))
+        self.palm_scale = 1.0
+        self.rng = np.random.default_rng(options.seed)
+        self.state: np.ndarray | None = None
+        self.particles = np.zeros((0, self.space.n_dims))
+        self.frame_index = -1
+
+    # ------------------------------------------------------------------ protocol
+    def reset(self, initial_state: np.ndarray) -> None:
+        """Start a track at ``initial_state`` (n_q,): palm pose and finger joints."""
+        q = np.asarray(initial_state, dtype=float)
+        if q.shape != (self.model.n_q,):
+            raise DigitEyesError(f"initial state must have shape ({self.model.n_q},), got "
+                                 f"{q.shape}")
+        self.state = q.copy()
+        X0 = self.space.to_coordinates(q[self.joint_index])
+        self.particles = np.repeat(X0[None], self.options.n_particles, axis=0)
+        self.rng = np.random.default_rng(self.options.seed)
+        self.frame_index = -1
+
+    def calibrate(self, frame: np.ndarray, state: np.ndarray) -> float:
+        """Palm size from a frame of the open palm at a known ``state`` (Huang Sec. 4.2);
+        stores and returns the outline scale."""
+        edges = observe_edges(frame, self.options.likelihood)
+        self.palm_scale = calibrate_palm_scale(self.model, self.geometry, state,
+                                               self.cameras[0], nearest_edge_field(edges),
+                                               options=self.options.icp)
+        return self.palm_scale
+
+    def step(self, frames: Sequence[np.ndarray]) -> DivideConquerResult:
+        """Track one set of frames (one image per camera)."""
+        if self.state is None:
+            raise DigitEyesError("call reset(initial_state) before step()")
+        if len(frames) != len(self.cameras):
+            raise DigitEyesError(f"step needs {len(self.cameras)} frame(s), got {len(frames)}")
+        t_start = time.perf_counter()
+        timings = dict.fromkeys(("edges", "proposal", "palm_icp", "likelihood", "resampling",
+                                 "total"), 0.0)
+        opt = self.options
+        self.frame_index += 1
+        t = time.perf_counter()
+        edge_maps = [observe_edges(f, opt.likelihood) for f in frames]
+        nearest = nearest_edge_field(edge_maps[0]) if opt.track_palm else None
+        timings["edges"] = time.perf_counter() - t
+
+        t = time.perf_counter()
+        X, log_fg = self._draw()
+        timings["proposal"] = time.perf_counter() - t
+        predicted = self.state.copy()
+        q = predicted.copy()
+        best = int(np.argmin(np.linalg.norm(X - X.mean(axis=0), axis=1)))
+        palm_points, palm_pixels, palm_rms = np.zeros((0, 3)), np.zeros((0, 2)), np.nan
+        stop, rounds = "max_iterations", 0
+        for rounds in range(1, opt.em_iterations + 1):
+            moved_mm = moved_deg = 0.0
+            if opt.track_palm:
+                t = time.perf_counter()
+                q_fingers = self.space.states(self.model, q, X[best])[0]
+                T_before = palm_pose_from_state(self.model, q)
+                try:
+                    pts = palm_outline_points(self.geometry, opt.icp, self.palm_scale)
+                    visible = outline_visibility(self.model, self.geometry, q_fingers,
+                                                 self.cameras[0], pts)
+                    fit = icp_palm(self.model, self.geometry, q_fingers, self.cameras[0],
+                                   nearest, opt.icp, self.palm_scale, visible)
+                    q = with_palm_pose(self.model, q, fit.T_world_palm)
+                    palm_points, palm_pixels, palm_rms = fit.model_points, fit.pixels, fit.rms_px
+                    moved_mm = float(np.linalg.norm(fit.T_world_palm[:3, 3] - T_before[:3, 3]))
+                    moved_deg = _rotation_deg(fit.T_world_palm[:3, :3], T_before[:3, :3])
+                except PalmPoseError:
+                    stop = "palm: too few correspondences"
+                timings["palm_icp"] += time.perf_counter() - t
+            t = time.perf_counter()
+            lik = finger_log_likelihood(self.model, self.geometry,
+                                        self.space.states(self.model, q, X), self.cameras,
+                                        edge_maps, opt.likelihood)
+            log_w = lik.log_likelihood + (log_fg if opt.importance_correction else 0.0)
+            weights = normalised_weights(log_w)
+            best = int(np.argmax(weights))
+            timings["likelihood"] += time.perf_counter() - t
+            if not opt.track_palm:
+                stop = "palm fixed"
+                break
+            if moved_mm < opt.em_tolerance_mm and moved_deg < opt.em_tolerance_deg:
+                stop = "converged"
+                break
+
+        t = time.perf_counter()
+        if opt.sampler == "random-search":
+            self.particles = X[best][None]
+        else:
+            self.particles = X[systematic_resample(weights, self.rng, opt.n_particles)]
+        timings["resampling"] = time.perf_counter() - t
+
+        q = self.space.states(self.model, q, X[best])[0]
+        self.state = q
+        visible, hits = lik.visible[best], lik.with_edge[best]
+        lost = bool(visible == 0 or hits < opt.min_edge_fraction * visible)
+        timings["total"] = time.perf_counter() - t_start
+        cost = float(-lik.log_likelihood[best])
+        details = DivideConquerDetails(X, weights, X[best].copy(), best, lik.log_likelihood,
+                                       effective_sample_size(weights), palm_points,
+                                       palm_pixels, palm_rms, rounds, stop)
+        return DivideConquerResult(
+            state=q.copy(), residual_rms_px=float(lik.rms_px[best]), cost=cost, lost=lost,
+            loss_reason=(f"only {int(hits)} of {int(visible)} finger sample points found an "
+                         "edge") if lost else "",
+            iterations=rounds,
+            summary=SolverSummary(iterations=rounds, cost_final=cost, termination=stop),
+            predicted_state=predicted, frame_index=self.frame_index, timings=timings,
+            details=details)
+
+    # ------------------------------------------------------------------ samplers
+    def _draw(self) -> tuple[np.ndarray, np.ndarray]:
+        """Hypotheses (N, D) and ``log f - log g`` (N,) for the configured sampler."""
+        opt, prev = self.options, self.particles
+        if opt.sampler == "manifold":
+            prop = propose_on_manifolds(prev, self.space.basis, self.rng, opt.proposal,
+                                        self.pairs)
+            log_f = random_walk_log_prior(prop.X, prev, opt.proposal.prior_sigma)
+            return prop.X, importance_log_weights(0.0, log_f, prop.log_g)
+        if opt.sampler == "condensation":
+            X = prev + opt.condensation_sigma * self.rng.standard_normal(prev.shape)
+            return X, np.zeros(len(X))
+        centre = prev.mean(axis=0)
+        X = centre + opt.search_sigma * self.rng.standard_normal((opt.n_particles, len(centre)))
+        X[0] = centre
+        return X, np.zeros(len(X))
+
+
+class CondensationTracker(DivideConquerTracker):
+    """Baseline of Huang Sec. 6: CONDENSATION in the PCA space, 3000 samples."""
+
+    default_sampler = "condensation"
+    default_particles = 3000
+
+
+class RandomSearchTracker(DivideConquerTracker):
+    """Baseline of Huang Sec. 6: random search in the PCA space, 5000 samples per frame."""
+
+    default_sampler = "random-search"
+    default_particles = 5000
+
+
+def with_sampler(options: DivideConquerOptions, sampler: str, n_particles: int
+                 ) -> DivideConquerOptions:
+    """Copy of ``options`` with another sampler and particle count."""
+    return replace(options, sampler=sampler, n_particles=n_particles)
