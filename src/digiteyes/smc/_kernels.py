@@ -58,42 +58,43 @@ def edge_likelihood_kernel(starts, ends, radii, ts, skip, palm, params, edges, h
     pu = np.empty(4)
     pv = np.empty(4)
     pz = np.empty(4)
-    two_s2 = 2.0 * sigma * sigma
+    gauss = np.exp(-np.arange(half_window + 1) ** 2 / (2.0 * sigma * sigma))
     for n in range(n_particles):
-        for l in range(n_links):
-            u, v, x, y, z = project_point(params, starts[n, l, 0], starts[n, l, 1],
-                                          starts[n, l, 2])
-            au[l], av[l], az[l] = u, v, z
-            u, v, x, y, z = project_point(params, ends[n, l, 0], ends[n, l, 1], ends[n, l, 2])
-            bu[l], bv[l], bz[l] = u, v, z
+        for li in range(n_links):
+            u, v, _x, _y, z = project_point(params, starts[n, li, 0], starts[n, li, 1],
+                                          starts[n, li, 2])
+            au[li], av[li], az[li] = u, v, z
+            u, v, _x, _y, z = project_point(params, ends[n, li, 0], ends[n, li, 1], ends[n, li, 2])
+            bu[li], bv[li], bz[li] = u, v, z
         for c in range(4):
-            u, v, x, y, z = project_point(params, palm[n, c, 0], palm[n, c, 1], palm[n, c, 2])
+            u, v, _x, _y, z = project_point(params, palm[n, c, 0], palm[n, c, 1], palm[n, c, 2])
             pu[c], pv[c], pz[c] = u, v, z
+        pzmin = min(min(pz[0], pz[1]), min(pz[2], pz[3]))
         total = 0.0
         n_vis = 0.0
         n_hit = 0.0
         sq = 0.0
-        for l in range(n_links):
-            dx, dy = bu[l] - au[l], bv[l] - av[l]
+        for li in range(n_links):
+            dx, dy = bu[li] - au[li], bv[li] - av[li]
             length = np.sqrt(dx * dx + dy * dy)
             if length < 1e-6:
                 continue
             nx, ny = -dy / length, dx / length
             for k in range(n_t):
                 t = ts[k]
-                cu, cv, cz = au[l] + t * dx, av[l] + t * dy, az[l] + t * (bz[l] - az[l])
+                cu, cv, cz = au[li] + t * dx, av[li] + t * dy, az[li] + t * (bz[li] - az[li])
                 if cz <= 0.0:
                     continue
-                r_px = radii[l] * fx * (scale if params[22] != 0.0 else 1.0 / cz)
+                r_px = radii[li] * fx * (scale if params[22] != 0.0 else 1.0 / cz)
                 for side in range(2):
                     sgn = 1.0 if side == 0 else -1.0
                     px, py = cu + sgn * r_px * nx, cv + sgn * r_px * ny
                     if not (0.0 <= px <= width - 1 and 0.0 <= py <= height - 1):
                         continue
-                    hidden = _palm_depth(px, py, pu, pv, pz) < cz - margin
+                    hidden = pzmin < cz - margin and _palm_depth(px, py, pu, pv, pz) < cz - margin
                     m = 0
                     while not hidden and m < n_links:
-                        if not skip[l, m]:
+                        if not skip[li, m]:
                             ex, ey = bu[m] - au[m], bv[m] - av[m]
                             ee = ex * ex + ey * ey
                             tau = 0.0
@@ -118,7 +119,7 @@ def edge_likelihood_kernel(starts, ends, radii, ts, skip, palm, params, edges, h
                         if ix < 0 or iy < 0 or ix >= width or iy >= height:
                             continue
                         if edges[iy, ix] != 0:
-                            acc += np.exp(-(o * o) / two_s2)
+                            acc += gauss[abs(o)]
                             if o * o < best:
                                 best = o * o
                     if best < 1e30:

@@ -64,7 +64,7 @@ class LikelihoodOptions:
                       * self.clutter_density)
 
 
-def observe_edges(frame: np.ndarray, options: LikelihoodOptions = LikelihoodOptions()  # noqa: B008
+def observe_edges(frame: np.ndarray, options: LikelihoodOptions = LikelihoodOptions()
                   ) -> np.ndarray:
     """Canny edge map (H, W) uint8 (255 on edges) of a grey or RGB frame."""
     grey = prepare_image(frame)
@@ -138,7 +138,7 @@ class LikelihoodResult:
 def finger_log_likelihood(model: KinematicModel, geometry: FingerGeometry, q: np.ndarray,
                           cameras: list[Camera] | tuple[Camera, ...],
                           edge_maps: list[np.ndarray] | tuple[np.ndarray, ...],
-                          options: LikelihoodOptions = LikelihoodOptions()  # noqa: B008
+                          options: LikelihoodOptions = LikelihoodOptions()
                           ) -> LikelihoodResult:
     """``log p(Z | X)`` (Huang Sec. 5.2) of states ``q`` (N, n_q), summed over cameras.
 

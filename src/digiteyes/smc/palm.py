@@ -140,7 +140,7 @@ class IcpOptions:
     iterations: int = 4
 
 
-def palm_outline_points(geometry: FingerGeometry, options: IcpOptions = IcpOptions(),  # noqa: B008
+def palm_outline_points(geometry: FingerGeometry, options: IcpOptions = IcpOptions(),
                         scale: float = 1.0) -> np.ndarray:
     """Model points (P, 3) on the palm outline in the palm shape frame, mm, the outline
     scaled by ``scale`` about its centre (palm-size calibration)."""
@@ -192,7 +192,7 @@ def with_palm_pose(model: KinematicModel, q: np.ndarray, T_world_palm: np.ndarra
 
 
 def icp_palm(model: KinematicModel, geometry: FingerGeometry, q: np.ndarray, camera: Camera,
-             nearest: tuple[np.ndarray, np.ndarray], options: IcpOptions = IcpOptions(),  # noqa: B008
+             nearest: tuple[np.ndarray, np.ndarray], options: IcpOptions = IcpOptions(),
              scale: float = 1.0, visible: np.ndarray | None = None) -> PalmFit:
     """ICP of the palm outline against the edge map (Huang Sec. 4.1-4.2), from state ``q``.
 
@@ -265,7 +265,7 @@ def outline_visibility(model: KinematicModel, geometry: FingerGeometry, q: np.nd
 def calibrate_palm_scale(model: KinematicModel, geometry: FingerGeometry, q: np.ndarray,
                          camera: Camera, nearest: tuple[np.ndarray, np.ndarray],
                          scales: np.ndarray = np.linspace(0.8, 1.25, 19),  # noqa: B008
-                         options: IcpOptions = IcpOptions()) -> float:  # noqa: B008
+                         options: IcpOptions = IcpOptions()) -> float:
     """Palm size from a frame of the open palm at a known pose ``q`` (Huang Sec. 4.2, last
     paragraph): the outline scale whose projection lies closest to the edges (mean
     distance-transform value, truncated at ``max_distance_px``)."""

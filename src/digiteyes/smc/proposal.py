@@ -55,7 +55,7 @@ def _reflect01(s: np.ndarray) -> np.ndarray:
 
 
 def propose_on_manifolds(X_prev: np.ndarray, basis: np.ndarray, rng: np.random.Generator,
-                         options: ProposalOptions = ProposalOptions(),  # noqa: B008
+                         options: ProposalOptions = ProposalOptions(),
                          pairs: np.ndarray | None = None) -> Proposal:
     """Draw one hypothesis per particle ``X_prev`` (N, D) by Huang eq. 3-5."""
     X_prev = np.atleast_2d(np.asarray(X_prev, dtype=float))

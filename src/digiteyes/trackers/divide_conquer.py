@@ -5,7 +5,9 @@ Each frame: draw finger hypotheses from the particle set (the sampler: Huang's m
 proposal, eq. 3-5, or a baseline of Sec. 6), then alternate EM-fashion
 
 1. palm pose by ICP of the palm outline against the frame's edges with the fingers held at
-   the best hypothesis (Sec. 4; outline points hidden by fingers are left out);
+   the best hypothesis (Sec. 4; outline points hidden by fingers are left out); the new
+   pose is kept only if the best hypothesis's likelihood does not drop (an M-step must not
+   lower the objective), otherwise the alternation stops;
 2. finger weights (eq. 6, likelihood of Sec. 5.2) with the palm held at that pose;
 
 until the palm moves less than ``em_tolerance_mm`` (and ``em_tolerance_deg``) or after
@@ -226,7 +228,8 @@ class DivideConquerTracker:
         best = int(np.argmin(np.linalg.norm(X - X.mean(axis=0), axis=1)))
         palm_points, palm_pixels, palm_rms = np.zeros((0, 3)), np.zeros((0, 2)), np.nan
         stop, rounds = "max_iterations", 0
-        for rounds in range(1, opt.em_iterations + 1):
+        while rounds < opt.em_iterations:
+            rounds += 1
             moved_mm = moved_deg = 0.0
             if opt.track_palm:
                 t = time.perf_counter()
@@ -238,10 +241,22 @@ class DivideConquerTracker:
                                                  self.cameras[0], pts)
                     fit = icp_palm(self.model, self.geometry, q_fingers, self.cameras[0],
                                    nearest, opt.icp, self.palm_scale, visible)
-                    q = with_palm_pose(self.model, q, fit.T_world_palm)
-                    palm_points, palm_pixels, palm_rms = fit.model_points, fit.pixels, fit.rms_px
-                    moved_mm = float(np.linalg.norm(fit.T_world_palm[:3, 3] - T_before[:3, 3]))
-                    moved_deg = _rotation_deg(fit.T_world_palm[:3, :3], T_before[:3, :3])
+                    q_new = with_palm_pose(self.model, q, fit.T_world_palm)
+                    # The M-step must not lower the objective: keep the new palm only if
+                    # the best finger hypothesis explains the edges at least as well.
+                    both = self.space.states(self.model, q, X[[best, best]])
+                    both[1] = self.space.states(self.model, q_new, X[best])[0]
+                    check = finger_log_likelihood(self.model, self.geometry, both,
+                                                  self.cameras, edge_maps, opt.likelihood)
+                    if check.log_likelihood[1] >= check.log_likelihood[0]:
+                        q = q_new
+                        palm_points, palm_pixels = fit.model_points, fit.pixels
+                        palm_rms = fit.rms_px
+                        moved_mm = float(np.linalg.norm(fit.T_world_palm[:3, 3]
+                                                        - T_before[:3, 3]))
+                        moved_deg = _rotation_deg(fit.T_world_palm[:3, :3], T_before[:3, :3])
+                    else:
+                        stop = "palm step rejected"
                 except PalmPoseError:
                     stop = "palm: too few correspondences"
                 timings["palm_icp"] += time.perf_counter() - t
@@ -255,6 +270,8 @@ class DivideConquerTracker:
             timings["likelihood"] += time.perf_counter() - t
             if not opt.track_palm:
                 stop = "palm fixed"
+                break
+            if stop == "palm step rejected":
                 break
             if moved_mm < opt.em_tolerance_mm and moved_deg < opt.em_tolerance_deg:
                 stop = "converged"

@@ -1,0 +1,86 @@
+"""The divide-and-conquer tracker and its baselines on the ``natural`` scenario."""
+
+import numpy as np
+import pytest
+
+from digiteyes.synth import render_views
+from digiteyes.trackers import Tracker
+from digiteyes.trackers.divide_conquer import (
+    CondensationTracker,
+    DivideConquerDetails,
+    DivideConquerOptions,
+    DivideConquerTracker,
+    RandomSearchTracker,
+)
+
+
+def _joint_rms_deg(tracker, q, truth):
+    idx = tracker.joint_index
+    return np.degrees(np.sqrt(np.mean((q[idx] - truth[idx]) ** 2)))
+
+
+def _palm_error(model, q, truth):
+    from digiteyes.smc.palm import palm_pose_from_state
+    Ta, Tb = palm_pose_from_state(model, q), palm_pose_from_state(model, truth)
+    angle = np.degrees(np.arccos(np.clip((np.trace(Ta[:3, :3].T @ Tb[:3, :3]) - 1) / 2, -1, 1)))
+    return angle, np.linalg.norm(Ta[:3, 3] - Tb[:3, 3])
+
+
+def test_tracks_twenty_frames_with_palm_and_fingers(natural_cardboard):
+    model, cam, states = natural_cardboard
+    tracker = DivideConquerTracker(model, [cam], options=DivideConquerOptions(
+        n_particles=300, em_iterations=2))
+    assert isinstance(tracker, Tracker)
+    tracker.reset(states[20])
+    errors = []
+    for f in range(20, 40):
+        result = tracker.step([render_views(model, states[f], [cam], rng=f)[0].image])
+        assert isinstance(result.details, DivideConquerDetails)
+        assert result.details.particles.shape == (300, 7)
+        assert result.frame_index == f - 20 and not result.lost
+        errors.append(_joint_rms_deg(tracker, result.state, states[f]))
+        angle, shift = _palm_error(model, result.state, states[f])
+        assert angle < 6.0 and shift < 8.0
+    assert max(errors) < 8.0 and np.mean(errors) < 4.0, np.round(errors, 1)
+
+
+def test_recovers_from_thirty_degrees_off_within_ten_frames(natural_cardboard):
+    model, cam, states = natural_cardboard
+    tracker = DivideConquerTracker(
+        model, [cam], options=DivideConquerOptions(n_particles=150, track_palm=False, seed=3))
+    start = states[0].copy()
+    for finger in ("index", "middle", "ring", "little"):
+        for joint in ("mcp", "pip", "dip"):
+            start[model.state_index(f"{finger}.{joint}")] += np.radians(30.0)
+    start = np.clip(start, model.lower, model.upper)
+    tracker.reset(start)
+    assert _joint_rms_deg(tracker, start, states[0]) > 20.0
+    errors = [_joint_rms_deg(tracker, tracker.step(
+        [render_views(model, states[f], [cam], rng=f)[0].image]).state, states[f])
+        for f in range(10)]
+    assert min(errors[:10]) < 5.0 and errors[-1] < 5.0
+
+
+@pytest.mark.parametrize("cls, n", [(CondensationTracker, 3000), (RandomSearchTracker, 5000)])
+def test_baselines_share_the_interface(natural_cardboard, cls, n):
+    model, cam, states = natural_cardboard
+    tracker = cls(model, [cam])
+    assert tracker.options.n_particles == n
+    tracker = cls(model, [cam], options=DivideConquerOptions(sampler=tracker.options.sampler,
+                                                             n_particles=200))
+    tracker.reset(states[0])
+    result = tracker.step([render_views(model, states[1], [cam], rng=1)[0].image])
+    assert _joint_rms_deg(tracker, result.state, states[1]) < 8.0
+
+
+def test_full_hand_model_runs(natural_cardboard):
+    from digiteyes.synth.scenarios import build_scenario
+    scenario = build_scenario("natural", n_frames=3)
+    cam = scenario.rig.cameras[0]
+    tracker = DivideConquerTracker(scenario.model, [cam],
+                                   options=DivideConquerOptions(n_particles=100))
+    tracker.reset(scenario.states[0])
+    for f in range(1, 3):
+        result = tracker.step([render_views(scenario.model, scenario.states[f], [cam],
+                                            rng=f)[0].image])
+        assert _joint_rms_deg(tracker, result.state, scenario.states[f]) < 6.0
