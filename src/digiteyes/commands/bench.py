@@ -10,6 +10,7 @@ SUITES = {
     "kinematics": "digiteyes.benchmarks.kinematics",
     "render": "digiteyes.benchmarks.render",
     "tracker": "digiteyes.benchmarks.tracker",
+    "smc": "digiteyes.benchmarks.smc",
 }
 
 

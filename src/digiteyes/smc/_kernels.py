@@ -32,7 +32,7 @@ def _palm_depth(px, py, pu, pv, pz):  # pragma: no cover - compiled
     return np.inf
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=True)
 def edge_likelihood_kernel(starts, ends, radii, ts, skip, palm, params, edges, half_window,
                            sigma, inv_c, margin, log_l, stats):  # pragma: no cover - compiled
     """Huang Sec. 5.2 for N particles.
@@ -55,6 +55,10 @@ def edge_likelihood_kernel(starts, ends, radii, ts, skip, palm, params, edges, h
     bu = np.empty(n_links)
     bv = np.empty(n_links)
     bz = np.empty(n_links)
+    lo_u = np.empty(n_links)
+    hi_u = np.empty(n_links)
+    lo_v = np.empty(n_links)
+    hi_v = np.empty(n_links)
     pu = np.empty(4)
     pv = np.empty(4)
     pz = np.empty(4)
@@ -70,6 +74,13 @@ def edge_likelihood_kernel(starts, ends, radii, ts, skip, palm, params, edges, h
             u, v, _x, _y, z = project_point(params, palm[n, c, 0], palm[n, c, 1], palm[n, c, 2])
             pu[c], pv[c], pz[c] = u, v, z
         pzmin = min(min(pz[0], pz[1]), min(pz[2], pz[3]))
+        for li in range(n_links):  # image boxes of the patches, for a quick occlusion reject
+            zmin = min(az[li], bz[li])
+            reach = radii[li] * fx * (scale if params[22] != 0.0 else 1.0 / max(zmin, 1e-6))
+            lo_u[li] = min(au[li], bu[li]) - reach
+            hi_u[li] = max(au[li], bu[li]) + reach
+            lo_v[li] = min(av[li], bv[li]) - reach
+            hi_v[li] = max(av[li], bv[li]) + reach
         total = 0.0
         n_vis = 0.0
         n_hit = 0.0
@@ -94,7 +105,8 @@ def edge_likelihood_kernel(starts, ends, radii, ts, skip, palm, params, edges, h
                     hidden = pzmin < cz - margin and _palm_depth(px, py, pu, pv, pz) < cz - margin
                     m = 0
                     while not hidden and m < n_links:
-                        if not skip[li, m]:
+                        if not skip[li, m] and lo_u[m] <= px <= hi_u[m] and \
+                                lo_v[m] <= py <= hi_v[m] and min(az[m], bz[m]) < cz - margin:
                             ex, ey = bu[m] - au[m], bv[m] - av[m]
                             ee = ex * ex + ey * ey
                             tau = 0.0

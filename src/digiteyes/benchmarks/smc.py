@@ -1,0 +1,117 @@
+"""Divide-and-conquer benchmark (Huang, Wu & Lin; provisional figures).
+
+Measured, one core (OpenCV and numba kernels held to one thread), 640x480, one camera of
+the ``natural`` scenario:
+
+* ``likelihoods_per_s``: full finger-set likelihoods (Huang Sec. 5.2, every finger patch,
+  occlusion map) per second for a batch of 3000 hypotheses, for ``cardboard-hand`` and
+  ``hand``, with the share of the time spent in batched forward kinematics;
+* ``trackers``: per-frame time and accuracy (finger joint-angle RMS, palm orientation and
+  position error, against the scenario's truth) of :class:`DivideConquerTracker` (300
+  particles), :class:`CondensationTracker` (3000) and :class:`RandomSearchTracker` (5000)
+  on the first frames of ``natural`` rendered with the cardboard hand.
+
+Run with ``digiteyes bench smc [--json FILE] [--quick]``.
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+
+import numpy as np
+
+from digiteyes.benchmarks._machine import emit, kernel_threads, machine_info, seconds_per_call
+from digiteyes.kinematics import forward_kinematics, load_model
+from digiteyes.smc.likelihood import FingerGeometry, finger_log_likelihood, observe_edges
+from digiteyes.smc.palm import palm_pose_from_state
+from digiteyes.smc.prior import default_configuration_space
+from digiteyes.synth import render_views
+from digiteyes.synth.scenarios import build_scenario
+from digiteyes.trackers.divide_conquer import (
+    CondensationTracker,
+    DivideConquerTracker,
+    RandomSearchTracker,
+)
+
+BATCH = 3000
+
+
+def _scenario_states(model, scenario) -> np.ndarray:
+    if model.n_q == scenario.model.n_q:
+        return scenario.states
+    return np.delete(scenario.states, scenario.model.state_index("thumb.mp_abd"), axis=1)
+
+
+def _likelihood_rates(repeat: int, min_time: float) -> dict:
+    scenario = build_scenario("natural", n_frames=40)
+    cam = scenario.rig.cameras[0]
+    out = {}
+    for name in ("cardboard-hand", "hand"):
+        model = load_model(name)
+        states = _scenario_states(model, scenario)
+        q = states[30]
+        edges = observe_edges(render_views(model, q, [cam], rng=0)[0].image)
+        geometry = FingerGeometry.of(model)
+        idx = default_configuration_space(model).joint_indices(model)
+        Q = np.repeat(q[None], BATCH, axis=0)
+        Q[:, idx] += np.random.default_rng(0).normal(0, 0.2, (BATCH, len(idx)))
+        full = min(seconds_per_call(
+            lambda m=model, g=geometry, Q=Q, e=edges: finger_log_likelihood(m, g, Q, [cam], [e]),
+            repeat, min_time))
+        fk = min(seconds_per_call(lambda m=model, Q=Q: forward_kinematics(m, Q).T_world_shape,
+                                  repeat, min_time))
+        out[name] = {"likelihoods_per_s": BATCH / full, "us_per_likelihood": 1e6 * full / BATCH,
+                     "forward_kinematics_share": fk / full}
+    return out
+
+
+def _track(cls, n_frames: int) -> dict:
+    scenario = build_scenario("natural", n_frames=max(n_frames, 20))
+    cam = scenario.rig.cameras[0]
+    model = load_model("cardboard-hand")
+    states = _scenario_states(model, scenario)
+    images = [render_views(model, states[f], [cam], rng=f)[0].image for f in range(n_frames)]
+    tracker = cls(model, [cam])
+    tracker.reset(states[0])
+    times, joint, palm_deg, palm_mm = [], [], [], []
+    for f, image in enumerate(images):
+        t = time.perf_counter()
+        r = tracker.step([image])
+        times.append(time.perf_counter() - t)
+        idx = tracker.joint_index
+        joint.append(np.degrees(np.sqrt(np.mean((r.state[idx] - states[f][idx]) ** 2))))
+        Ta, Tb = palm_pose_from_state(model, r.state), palm_pose_from_state(model, states[f])
+        palm_deg.append(np.degrees(np.arccos(np.clip((np.trace(Ta[:3, :3].T @ Tb[:3, :3]) - 1)
+                                                     / 2, -1, 1))))
+        palm_mm.append(float(np.linalg.norm(Ta[:3, 3] - Tb[:3, 3])))
+    return {"particles": tracker.options.n_particles, "frames": n_frames,
+            "ms_per_frame_median": 1e3 * statistics.median(times[1:] or times),
+            "frames_per_s": 1.0 / statistics.median(times[1:] or times),
+            "finger_rms_deg_mean": float(np.mean(joint)),
+            "finger_rms_deg_max": float(np.max(joint)),
+            "palm_deg_mean": float(np.mean(palm_deg)), "palm_mm_mean": float(np.mean(palm_mm))}
+
+
+def run(json_path: str | None = None, quick: bool = False) -> dict:
+    """Measure likelihood throughput and tracker frames; print a table, optionally JSON."""
+    repeat, min_time = (2, 0.05) if quick else (5, 0.3)
+    n_frames = 6 if quick else 40
+    with kernel_threads(1, 1):
+        rates = _likelihood_rates(repeat, min_time)
+        trackers = {cls.__name__: _track(cls, n_frames)
+                    for cls in (DivideConquerTracker, CondensationTracker, RandomSearchTracker)}
+    lines = ["Divide and conquer (Huang et al.), one core, 640x480 (provisional)",
+             f"{'model':<16}{'likelihoods/s':>15}{'us each':>10}{'FK share':>10}"]
+    for name, r in rates.items():
+        lines.append(f"{name:<16}{r['likelihoods_per_s']:>15,.0f}{r['us_per_likelihood']:>10.1f}"
+                     f"{r['forward_kinematics_share']:>10.0%}")
+    lines.append(f"\n{'tracker':<24}{'N':>6}{'ms/frame':>10}{'finger rms':>12}{'max':>7}"
+                 f"{'palm deg':>10}{'palm mm':>9}")
+    for name, r in trackers.items():
+        lines.append(f"{name:<24}{r['particles']:>6}{r['ms_per_frame_median']:>10.0f}"
+                     f"{r['finger_rms_deg_mean']:>12.1f}{r['finger_rms_deg_max']:>7.1f}"
+                     f"{r['palm_deg_mean']:>10.1f}{r['palm_mm_mean']:>9.1f}")
+    result = {"likelihood": rates, "trackers": trackers, "batch": BATCH,
+              "frames": n_frames, "quick": quick, "machine": machine_info()}
+    return emit(result, "\n".join(lines), json_path)
