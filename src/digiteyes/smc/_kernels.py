@@ -142,3 +142,28 @@ def edge_likelihood_kernel(starts, ends, radii, ts, skip, palm, params, edges, h
         stats[n, 0] = n_vis
         stats[n, 1] = n_hit
         stats[n, 2] = sq
+
+
+@njit(cache=True, fastmath=True)
+def nearest_segment_kernel(X, bi, d, pair, t_out, dist_out):  # pragma: no cover - compiled
+    """For each row of ``X`` (N, D): the nearest segment ``bi + t d`` (P segments), its
+    index into ``pair``, ``t`` in [0, 1] into ``t_out`` and the distance into ``dist_out``."""
+    n_points, n_dims = X.shape
+    for n in range(n_points):
+        best, best_p, best_t = np.inf, 0, 0.0
+        for p in range(bi.shape[0]):
+            num = 0.0
+            dd = 0.0
+            for k in range(n_dims):
+                num += (X[n, k] - bi[p, k]) * d[p, k]
+                dd += d[p, k] * d[p, k]
+            t = min(1.0, max(0.0, num / dd)) if dd > 0.0 else 0.0
+            sq = 0.0
+            for k in range(n_dims):
+                r = X[n, k] - bi[p, k] - t * d[p, k]
+                sq += r * r
+            if sq < best:
+                best, best_p, best_t = sq, p, t
+        pair[n] = best_p
+        t_out[n] = best_t
+        dist_out[n] = np.sqrt(best)

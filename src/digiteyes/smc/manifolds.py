@@ -14,6 +14,7 @@ from itertools import product
 import numpy as np
 
 from digiteyes.kinematics import KinematicModel
+from digiteyes.smc._kernels import nearest_segment_kernel
 from digiteyes.synth.scenarios import (
     CURLED_FINGER,
     CURLED_THUMB,
@@ -93,23 +94,14 @@ class ManifoldProjection:
 
 def project_onto_manifolds(X: np.ndarray, basis: np.ndarray, pairs: np.ndarray
                            ) -> ManifoldProjection:
-    """Project states ``X`` (N, D) onto the nearest segment ``b_i b_j`` of ``pairs``.
-
-    Evaluated for all (state, manifold) pairs at once by dot products, O(N P D).
-    """
-    X = np.atleast_2d(np.asarray(X, dtype=float))
-    bi, bj = basis[pairs[:, 0]], basis[pairs[:, 1]]
-    d = bj - bi
-    dd = np.einsum("pd,pd->p", d, d)
-    x_bi = X @ bi.T                                   # (N, P)
-    x_d = X @ d.T
-    bi_d = np.einsum("pd,pd->p", bi, d)
-    t = np.clip((x_d - bi_d) / dd, 0.0, 1.0)          # fraction from b_i towards b_j
-    sq = (np.einsum("nd,nd->n", X, X)[:, None] - 2 * x_bi + np.einsum("pd,pd->p", bi, bi)
-          - 2 * t * (x_d - bi_d) + t ** 2 * dd)
-    best = np.argmin(sq, axis=1)
-    rows = np.arange(len(X))
-    tb = t[rows, best]
-    projected = bi[best] + tb[:, None] * d[best]
-    return ManifoldProjection(best, 1.0 - tb, projected,
-                              np.sqrt(np.maximum(sq[rows, best], 0.0)))
+    """Project states ``X`` (N, D) onto the nearest segment ``b_i b_j`` of ``pairs``
+    (compiled loop over all (state, manifold) pairs, O(N P D))."""
+    X = np.ascontiguousarray(np.atleast_2d(np.asarray(X, dtype=float)))
+    bi = np.ascontiguousarray(basis[pairs[:, 0]], dtype=float)
+    d = np.ascontiguousarray(basis[pairs[:, 1]] - bi)
+    best = np.empty(len(X), dtype=np.int64)
+    t = np.empty(len(X))
+    distance = np.empty(len(X))
+    nearest_segment_kernel(X, bi, d, best, t, distance)
+    projected = bi[best] + t[:, None] * d[best]
+    return ManifoldProjection(best, 1.0 - t, projected, distance)

@@ -68,11 +68,12 @@ def propose_on_manifolds(X_prev: np.ndarray, basis: np.ndarray, rng: np.random.G
     k = np.argmin(d_basis, axis=1)
     at_basis = np.flatnonzero(d_basis[np.arange(len(X_prev)), k] < options.basis_radius)
     if at_basis.size:
-        through = [np.flatnonzero((pairs == kk).any(axis=1)) for kk in range(len(basis))]
-        for n in at_basis:
-            choice = through[k[n]][rng.integers(len(through[k[n]]))]
-            pair[n] = choice
-            s_from[n] = 1.0 if pairs[choice, 0] == k[n] else 0.0
+        # Every basis state lies on M - 1 manifolds (all pairs are listed).
+        through = np.array([np.flatnonzero((pairs == kk).any(axis=1))
+                            for kk in range(len(basis))])
+        choice = through[k[at_basis], rng.integers(through.shape[1], size=at_basis.size)]
+        pair[at_basis] = choice
+        s_from[at_basis] = (pairs[choice, 0] == k[at_basis]).astype(float)
 
     s_to = _reflect01(s_from + options.sigma_s * rng.standard_normal(len(X_prev)))  # eq. 3
     bi, bj = basis[pairs[pair, 0]], basis[pairs[pair, 1]]

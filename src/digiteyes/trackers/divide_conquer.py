@@ -225,57 +225,57 @@ class DivideConquerTracker:
         timings["proposal"] = time.perf_counter() - t
         predicted = self.state.copy()
         q = predicted.copy()
-        best = int(np.argmin(np.linalg.norm(X - X.mean(axis=0), axis=1)))
+
+        def weigh(q_palm: np.ndarray):
+            """E-step: ``log p(Z | X)`` and log weights (eq. 6) with the palm at ``q_palm``."""
+            t0 = time.perf_counter()
+            result = finger_log_likelihood(self.model, self.geometry,
+                                           self.space.states(self.model, q_palm, X),
+                                           self.cameras, edge_maps, opt.likelihood)
+            log_weights = result.log_likelihood + (log_fg if opt.importance_correction
+                                                   else 0.0)
+            timings["likelihood"] += time.perf_counter() - t0
+            return result, log_weights
+
+        lik, log_w = weigh(q)
+        best = int(np.argmax(log_w))
         palm_points, palm_pixels, palm_rms = np.zeros((0, 3)), np.zeros((0, 2)), np.nan
         stop, rounds = "max_iterations", 0
         while rounds < opt.em_iterations:
             rounds += 1
-            moved_mm = moved_deg = 0.0
-            if opt.track_palm:
-                t = time.perf_counter()
-                q_fingers = self.space.states(self.model, q, X[best])[0]
-                T_before = palm_pose_from_state(self.model, q)
-                try:
-                    pts = palm_outline_points(self.geometry, opt.icp, self.palm_scale)
-                    visible = outline_visibility(self.model, self.geometry, q_fingers,
-                                                 self.cameras[0], pts)
-                    fit = icp_palm(self.model, self.geometry, q_fingers, self.cameras[0],
-                                   nearest, opt.icp, self.palm_scale, visible)
-                    q_new = with_palm_pose(self.model, q, fit.T_world_palm)
-                    # The M-step must not lower the objective: keep the new palm only if
-                    # the best finger hypothesis explains the edges at least as well.
-                    both = self.space.states(self.model, q, X[[best, best]])
-                    both[1] = self.space.states(self.model, q_new, X[best])[0]
-                    check = finger_log_likelihood(self.model, self.geometry, both,
-                                                  self.cameras, edge_maps, opt.likelihood)
-                    if check.log_likelihood[1] >= check.log_likelihood[0]:
-                        q = q_new
-                        palm_points, palm_pixels = fit.model_points, fit.pixels
-                        palm_rms = fit.rms_px
-                        moved_mm = float(np.linalg.norm(fit.T_world_palm[:3, 3]
-                                                        - T_before[:3, 3]))
-                        moved_deg = _rotation_deg(fit.T_world_palm[:3, :3], T_before[:3, :3])
-                    else:
-                        stop = "palm step rejected"
-                except PalmPoseError:
-                    stop = "palm: too few correspondences"
-                timings["palm_icp"] += time.perf_counter() - t
-            t = time.perf_counter()
-            lik = finger_log_likelihood(self.model, self.geometry,
-                                        self.space.states(self.model, q, X), self.cameras,
-                                        edge_maps, opt.likelihood)
-            log_w = lik.log_likelihood + (log_fg if opt.importance_correction else 0.0)
-            weights = normalised_weights(log_w)
-            best = int(np.argmax(weights))
-            timings["likelihood"] += time.perf_counter() - t
             if not opt.track_palm:
                 stop = "palm fixed"
                 break
-            if stop == "palm step rejected":
+            t = time.perf_counter()
+            q_fingers = self.space.states(self.model, q, X[best])[0]
+            T_before = palm_pose_from_state(self.model, q)
+            try:
+                pts = palm_outline_points(self.geometry, opt.icp, self.palm_scale)
+                visible = outline_visibility(self.model, self.geometry, q_fingers,
+                                             self.cameras[0], pts)
+                fit = icp_palm(self.model, self.geometry, q_fingers, self.cameras[0],
+                               nearest, opt.icp, self.palm_scale, visible)
+            except PalmPoseError:
+                stop = "palm: too few correspondences"
+                timings["palm_icp"] += time.perf_counter() - t
                 break
-            if moved_mm < opt.em_tolerance_mm and moved_deg < opt.em_tolerance_deg:
+            timings["palm_icp"] += time.perf_counter() - t
+            q_new = with_palm_pose(self.model, q, fit.T_world_palm)
+            lik_new, log_w_new = weigh(q_new)
+            # An M-step must not lower the objective: keep the new palm only if the best
+            # hypothesis under it is weighted at least as well as before.
+            if log_w_new.max() < log_w.max():
+                stop = "palm step rejected"
+                break
+            q, lik, log_w = q_new, lik_new, log_w_new
+            best = int(np.argmax(log_w))
+            palm_points, palm_pixels, palm_rms = fit.model_points, fit.pixels, fit.rms_px
+            if (np.linalg.norm(fit.T_world_palm[:3, 3] - T_before[:3, 3]) < opt.em_tolerance_mm
+                    and _rotation_deg(fit.T_world_palm[:3, :3], T_before[:3, :3])
+                    < opt.em_tolerance_deg):
                 stop = "converged"
                 break
+        weights = normalised_weights(log_w)
 
         t = time.perf_counter()
         if opt.sampler == "random-search":
