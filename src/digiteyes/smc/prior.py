@@ -4,10 +4,10 @@ The default (:func:`default_configuration_space`) contains no recorded data. It 
 of joint-angle vectors generated deterministically (fixed seed) from the hand model alone:
 
 * points on the manifolds between the 28 basis configurations (uniform ``s``), half the set;
-* single digits curled independently by a curl ``c`` in [0, 1] with the anatomical
-  couplings of Lin, Wu & Huang (2000): PIP = 1.2 c MCP_curled-ish ramps, DIP = 2/3 PIP,
-  abduction shrinking as the finger curls (a curled finger lies beside its neighbours);
-  thumb joints moved together between extended and curled;
+* hands whose digits each curl independently by a random amount ``c`` in [0, 1]: every
+  joint of the digit moves from its extended to its curled angle by ``c`` (so abduction
+  shrinks as a finger curls: a curled finger lies beside its neighbours), except the DIP,
+  held at 2/3 of the PIP (the coupling of Lin, Wu & Huang 2000), the other half of the set;
 * 1 degree of Gaussian jitter on every joint, then clipping to the model's joint limits.
 
 :func:`glove_joint_angles` maps CyberGlove recordings (23 DOF, West & Hogan's order) to a

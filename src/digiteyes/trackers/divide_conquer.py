@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -333,8 +333,3 @@ class RandomSearchTracker(DivideConquerTracker):
     default_sampler = "random-search"
     default_particles = 5000
 
-
-def with_sampler(options: DivideConquerOptions, sampler: str, n_particles: int
-                 ) -> DivideConquerOptions:
-    """Copy of ``options`` with another sampler and particle count."""
-    return replace(options, sampler=sampler, n_particles=n_particles)
