@@ -74,6 +74,8 @@ class DivideConquerOptions:
     em_iterations, em_tolerance_mm, em_tolerance_deg : the EM stop rule (Sec. 3).
     track_palm : run the palm step (off: the palm stays at the reset pose).
     importance_correction : multiply by ``f / g`` (eq. 6); off, weights = likelihood.
+    temperature : the log-likelihood is divided by it in the weights (1: Huang's weights;
+        above 1 flattens them and keeps the particle set diverse).
     condensation_sigma : random-walk std of the CONDENSATION dynamics, PCA units.
     search_sigma : std of the random search around the last estimate, PCA units.
     min_edge_fraction : the track is reported lost when fewer visible sample points than
@@ -89,6 +91,7 @@ class DivideConquerOptions:
     em_tolerance_deg: float = 0.5
     track_palm: bool = True
     importance_correction: bool = True
+    temperature: float = 1.0
     condensation_sigma: float = 0.08
     search_sigma: float = 0.15
     min_edge_fraction: float = 0.3
@@ -232,8 +235,8 @@ class DivideConquerTracker:
             result = finger_log_likelihood(self.model, self.geometry,
                                            self.space.states(self.model, q_palm, X),
                                            self.cameras, edge_maps, opt.likelihood)
-            log_weights = result.log_likelihood + (log_fg if opt.importance_correction
-                                                   else 0.0)
+            log_weights = result.log_likelihood / opt.temperature + (
+                log_fg if opt.importance_correction else 0.0)
             timings["likelihood"] += time.perf_counter() - t0
             return result, log_weights
 
