@@ -9,7 +9,7 @@ Steps (each a function below):
    ``TIP_DISTANCE`` palm radii out); the wrist or forearm where the blob crosses a circle
    of ``RING`` palm radii in a crossing wider than ``WIDE`` radii (else opposite to the
    tips), and a peak towards the wrist is the forearm's end, not a tip;
-4. a model-based labelling: the model's palm keypoints at the neutral pose (a right hand,
+4. a model-based labelling: the model's keypoints of an open hand (a right hand,
    seen from its palmar or its dorsal side) are placed on the image by the similarity that
    puts the model's palm centre on the blob's, its wrist towards the image wrist and its
    palm radius on the blob's; the side whose digit directions match the found tips best
@@ -35,7 +35,7 @@ from digiteyes.detect.hand21 import DIGITS
 from digiteyes.detect.model_fit import palm_points
 from digiteyes.detect.segmentation import BackgroundModel, hand_mask, largest_blob
 from digiteyes.errors import DigitEyesError
-from digiteyes.kinematics import KinematicModel
+from digiteyes.kinematics import KinematicModel, clip_to_limits
 
 RING = 1.75
 """Radius of the crossing circle, in palm radii (through the proximal phalanges)."""
@@ -43,11 +43,16 @@ WIDE = 1.1
 """A crossing wider than this many palm radii is the wrist or forearm, not a digit."""
 TIP_DISTANCE = 1.5
 """A digit tip lies at least this many palm radii from the palm centre."""
-SEPARATION = 0.5
-"""Two digit tips lie at least this many palm radii apart."""
-PALM_RADIUS_MM = 38.0
-"""Radius of the largest circle inscribed in a real palm silhouette with the digit bases,
-mm, for the nominal hand (about half the palm's width of 80 mm)."""
+VALLEY = 0.5
+"""Between two digit tips the contour comes at least this many palm radii closer to the
+palm centre than the nearer tip (the web between the digits)."""
+PALM_RADIUS_MM = 30.0
+"""Radius of the largest circle inscribed in the palm silhouette, mm, for the nominal hand
+(about half its palm width of 56 mm); only the first placement uses it."""
+OPEN_HAND_DEG = {"index.abd": -20.0, "middle.abd": -5.0, "ring.abd": 8.0, "little.abd": 22.0,
+                 "thumb.cmc_abd": 20.0, "thumb.cmc_flex": 35.0}
+"""Joint angles (degrees) of the open hand of the template: fingers spread, the thumb
+swung away from the index in the palm plane (other joints at zero)."""
 
 
 @dataclass(frozen=True)
@@ -102,7 +107,7 @@ def analyse_blob(mask: np.ndarray) -> BlobAnalysis | None:
     step = angles[1] - angles[0]
     wide = [(ring * length * step, angles[0] + (start + 0.5 * (length - 1)) * step)
             for start, length in runs if ring * length * step > WIDE * radius]
-    tips = _contour_peaks(c_dist, TIP_DISTANCE * radius, SEPARATION * radius, contour)
+    tips = _contour_peaks(c_dist, TIP_DISTANCE * radius, VALLEY * radius, 0.5 * radius)
     if wide:
         wrist = max(wide)[1]
         tips = [i for i in tips if abs(_wrap(c_angle[i] - wrist)) > np.radians(50.0)]
@@ -119,19 +124,28 @@ def analyse_blob(mask: np.ndarray) -> BlobAnalysis | None:
                         np.array(tip_angles), float(wrist_angle), wrist_found)
 
 
-def _contour_peaks(distance: np.ndarray, min_distance: float, separation: float,
-                   contour: np.ndarray) -> list[int]:
-    """Contour indices of the digit tips: local maxima of the distance from the palm
-    centre (over a window of a tenth of the contour), farther than ``min_distance``, at
-    least ``separation`` apart (the farther one kept)."""
-    n = len(distance)
-    window = max(3, n // 20)
+def _contour_peaks(distance: np.ndarray, min_distance: float, valley: float,
+                   window: int) -> list[int]:
+    """Contour indices of at most five digit tips: local maxima of the distance from the
+    palm centre (within ``window`` contour points either side) farther than
+    ``min_distance``; a peak counts only if the contour dips by at least ``valley`` (px)
+    below it on the way to every farther peak (the web between two digits), otherwise it
+    is a bump on the same digit."""
+    window = max(3, int(window))
     padded = np.concatenate([distance[-window:], distance, distance[:window]])
     local_max = np.lib.stride_tricks.sliding_window_view(padded, 2 * window + 1).max(axis=1)
     candidates = np.flatnonzero((distance >= local_max) & (distance > min_distance))
     kept: list[int] = []
     for i in candidates[np.argsort(-distance[candidates])]:
-        if all(np.linalg.norm(contour[i] - contour[j]) >= separation for j in kept):
+        separate = True
+        for j in kept:
+            lo, hi = sorted((int(i), j))
+            inner = distance[lo:hi + 1].min()
+            outer = min(distance[hi:].min(initial=np.inf), distance[:lo + 1].min())
+            if max(inner, outer) > distance[i] - valley:
+                separate = False
+                break
+        if separate:
             kept.append(int(i))
     return kept[:5]
 
@@ -154,7 +168,8 @@ def _circular_runs(on: np.ndarray) -> list[tuple[int, int]]:
 
 
 class HandTemplate:
-    """The model's 21 keypoints at the neutral pose projected on the palm plane (mm).
+    """The model's 21 keypoints of an open hand (:data:`OPEN_HAND_DEG`) projected on the
+    palm plane (mm).
 
     Attributes
     ----------
@@ -165,7 +180,10 @@ class HandTemplate:
     """
 
     def __init__(self, model: KinematicModel) -> None:
-        points = palm_points(model)
+        q = model.neutral()
+        for name, value in OPEN_HAND_DEG.items():
+            q[model.state_index(name)] = np.radians(value)
+        points = palm_points(model, clip_to_limits(model, q))
         palm = next(link for link in model.links if link.kind == "palm")
         self.centre = np.asarray(palm.centre[:2], dtype=float)
         self.xy = points[:, :2]
@@ -217,6 +235,14 @@ def _match(blob: BlobAnalysis, placed: np.ndarray) -> tuple[dict[int, int], floa
     return dict(zip(digit.tolist(), found.tolist(), strict=True)), float(cost[found, digit].mean())
 
 
+def _plausible(a: complex, a0: complex) -> bool:
+    """A similarity ``a`` within a factor 1.6 in scale and 50 degrees in rotation of the
+    placement ``a0`` from the palm radius and the wrist (a wrong assignment can turn the
+    template over)."""
+    ratio = a / a0
+    return 1 / 1.6 < abs(ratio) < 1.6 and abs(np.angle(ratio)) < np.radians(50.0)
+
+
 def label_keypoints(blob: BlobAnalysis, template: HandTemplate,
                     palm_radius_mm: float = PALM_RADIUS_MM, rounds: int = 3
                     ) -> tuple[np.ndarray, np.ndarray, bool, float]:
@@ -232,6 +258,8 @@ def label_keypoints(blob: BlobAnalysis, template: HandTemplate,
         placed = template.place(blob.centre, blob.wrist_angle, blob.radius / palm_radius_mm,
                                 dorsal)
         local = template.place(np.zeros(2), np.pi / 2, 1.0, dorsal)  # template, mm
+        turn = blob.wrist_angle - np.pi / 2
+        a0 = blob.radius / palm_radius_mm * complex(np.cos(turn), np.sin(turn))
         match, total = _match(blob, placed)
         for _ in range(rounds):
             if len(match) < 2:
@@ -242,6 +270,8 @@ def label_keypoints(blob: BlobAnalysis, template: HandTemplate,
             target = np.vstack([blob.centre, blob.tips[[match[d] for d in digits]]])
             weights = np.r_[len(digits), np.ones(len(digits))]
             a, b = similarity_2d(source, target, weights)
+            if not _plausible(a, a0):
+                break
             placed = _apply(a, b, local)
             match, total = _match(blob, placed)
         if best is None or total < best[0]:

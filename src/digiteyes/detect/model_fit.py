@@ -210,10 +210,14 @@ class KeypointFitProblem:
         return np.append(clip_to_limits(self.model, x[:-1]), min(max(x[-1], 0.5), 2.0))
 
 
-def palm_points(model: KinematicModel) -> np.ndarray:
-    """The 21 keypoints (21, 3) mm in the palm frame at the neutral joint angles."""
+def palm_points(model: KinematicModel, q: np.ndarray | None = None) -> np.ndarray:
+    """The 21 keypoints (21, 3) mm in the palm frame at the joint angles of ``q`` (its base
+    pose ignored; default: the neutral joint angles)."""
+    q = model.neutral() if q is None else np.array(q, dtype=float)
+    k = model.base_state
+    q[k:k + 7] = model.neutral()[k:k + 7]
     rows, points = model_anchors(model)
-    return forward_kinematics(model, model.neutral()).points(rows, points)
+    return forward_kinematics(model, q).points(rows, points)
 
 
 def _state_from_pose(model: KinematicModel, R: np.ndarray, t: np.ndarray, scale: float,
@@ -253,7 +257,7 @@ def starts_from_image(model: KinematicModel, obs: KeypointObservation,
         T = np.eye(4)
         T[:3, :3] = cv2.Rodrigues(rvec)[0]
         T[:3, 3] = np.ravel(tvec)
-        if T[2, 3] <= 0:
+        if not np.isfinite(T).all() or T[2, 3] <= 0:
             continue
         T_world_palm = T_world_cam @ T
         starts.append(_state_from_pose(model, T_world_palm[:3, :3], T_world_palm[:3, 3],
