@@ -268,7 +268,7 @@ def label_keypoints(blob: BlobAnalysis, template: HandTemplate,
             source = np.vstack([np.zeros((1, 2)),
                                 local[[4 * d + 4 for d in digits]]])
             target = np.vstack([blob.centre, blob.tips[[match[d] for d in digits]]])
-            weights = np.r_[len(digits), np.ones(len(digits))]
+            weights = np.r_[1.0, np.ones(len(digits))]
             a, b = similarity_2d(source, target, weights)
             if not _plausible(a, a0):
                 break
