@@ -11,6 +11,8 @@ side for an unmirrored camera image (its "Left" label is a right hand).
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from digiteyes.camera import Camera
@@ -69,7 +71,9 @@ class MediaPipeDetector:
             raise DigitEyesError(f"MediaPipe detector: expected a uint8 RGB or grey image, got "
                                  f"{image.dtype} {image.shape}")
         height, width = image.shape[:2]
-        result = self._hands.process(np.ascontiguousarray(image))
+        with warnings.catch_warnings():  # protobuf's deprecation notice inside MediaPipe
+            warnings.simplefilter("ignore", UserWarning)
+            result = self._hands.process(np.ascontiguousarray(image))
         if not result.multi_hand_landmarks:
             return []
         worlds = result.multi_hand_world_landmarks or [None] * len(result.multi_hand_landmarks)
