@@ -12,6 +12,8 @@ import click
 
 from digiteyes import __version__
 from digiteyes.commands.bench import bench
+from digiteyes.commands.calibrate_camera import calibrate_camera
+from digiteyes.commands.calibrate_hand import calibrate_hand
 from digiteyes.commands.demo import demo
 from digiteyes.commands.evaluate import evaluate
 from digiteyes.commands.model import model
@@ -27,7 +29,8 @@ def cli() -> None:
     """Model-based 3D tracking of articulated objects (the hand first) from video."""
 
 
-for command in (demo, model, render, track, evaluate, bench, pose):
+for command in (demo, model, render, track, evaluate, bench, pose, calibrate_camera,
+                calibrate_hand):
     cli.add_command(command)
 
 
