@@ -56,7 +56,7 @@ def test_classic_finds_and_labels_rendered_hands(hand, camera, background, color
 
 def test_classic_keypoints_start_the_model_fit(hand, camera):
     """Detection + fit on a rendered frame (hand size known): the palm keypoints within
-    15 mm across the line of sight and 10 % in depth (the template's proportions set the
+    25 mm across the line of sight and 10 % in depth (the template's proportions set the
     depth from one camera)."""
     q = open_hand(hand, 3)
     view = render_views(hand, q, [camera], RenderOptions(color=True, background="uniform",
@@ -68,7 +68,7 @@ def test_classic_keypoints_start_the_model_fit(hand, camera):
     truth = forward_kinematics(hand, q).points(rows, points)
     palm = [0, 5, 9, 13, 17]
     fitted, true = camera.to_camera(fit.keypoints_world[palm]), camera.to_camera(truth[palm])
-    assert np.linalg.norm(fitted[:, :2] - true[:, :2], axis=1).max() < 15.0
+    assert np.linalg.norm(fitted[:, :2] - true[:, :2], axis=1).max() < 25.0
     assert np.abs(fitted[:, 2] / true[:, 2] - 1).max() < 0.10
 
 

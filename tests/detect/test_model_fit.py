@@ -118,3 +118,13 @@ def test_fit_from_a_perturbed_start_and_joint_limits(hand, camera, posed):
 def test_fit_needs_data(hand, posed):
     with pytest.raises(DigitEyesError, match="at least one camera"):
         fit_keypoints(hand)
+
+
+def test_3d_fit_ignores_missing_points(hand, posed):
+    q = posed(hand, 8)
+    truth = true_points(hand, q, 1.05)
+    given = truth.copy()
+    given[0] = np.nan  # e.g. STB labels the palm centre, not the wrist
+    fit = fit_keypoints(hand, target_3d=given)
+    assert fit.scale == pytest.approx(1.05, abs=0.01)
+    assert np.linalg.norm(fit.keypoints_world - truth, axis=1).max() < 3.0

@@ -107,10 +107,16 @@ def analyse_blob(mask: np.ndarray) -> BlobAnalysis | None:
     step = angles[1] - angles[0]
     wide = [(ring * length * step, angles[0] + (start + 0.5 * (length - 1)) * step)
             for start, length in runs if ring * length * step > WIDE * radius]
-    tips = _contour_peaks(c_dist, TIP_DISTANCE * radius, VALLEY * radius, 0.5 * radius)
+    # contour points on the image border are where the frame cuts the forearm: no tips
+    height, width = blob.shape
+    cut = ((contour[:, 0] <= 1) | (contour[:, 0] >= width - 2) | (contour[:, 1] <= 1)
+           | (contour[:, 1] >= height - 2))
+    tips = _contour_peaks(np.where(cut, 0.0, c_dist), TIP_DISTANCE * radius, VALLEY * radius,
+                          0.5 * radius, keep=7)
     if wide:
         wrist = max(wide)[1]
         tips = [i for i in tips if abs(_wrap(c_angle[i] - wrist)) > np.radians(50.0)]
+    tips = tips[:5]
     tip_angles = [c_angle[i] for i in tips]
     tips = [contour[i] for i in tips]
     if wide:
@@ -125,9 +131,9 @@ def analyse_blob(mask: np.ndarray) -> BlobAnalysis | None:
 
 
 def _contour_peaks(distance: np.ndarray, min_distance: float, valley: float,
-                   window: int) -> list[int]:
-    """Contour indices of at most five digit tips: local maxima of the distance from the
-    palm centre (within ``window`` contour points either side) farther than
+                   window: int, keep: int = 5) -> list[int]:
+    """Contour indices of at most ``keep`` digit tips, farthest first: local maxima of the
+    distance from the palm centre (within ``window`` contour points either side) farther than
     ``min_distance``; a peak counts only if the contour dips by at least ``valley`` (px)
     below it on the way to every farther peak (the web between two digits), otherwise it
     is a bump on the same digit."""
@@ -147,7 +153,7 @@ def _contour_peaks(distance: np.ndarray, min_distance: float, valley: float,
                 break
         if separate:
             kept.append(int(i))
-    return kept[:5]
+    return kept[:keep]
 
 
 def _circular_runs(on: np.ndarray) -> list[tuple[int, int]]:

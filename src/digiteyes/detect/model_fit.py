@@ -140,10 +140,17 @@ class KeypointFitProblem:
 
     def __init__(self, model: KinematicModel, observations: Sequence[KeypointObservation],
                  target_3d: np.ndarray | None, options: FitOptions, fit_scale: bool,
-                 prior_mean: np.ndarray | None = None) -> None:
+                 prior_mean: np.ndarray | None = None,
+                 target_weights: np.ndarray | None = None) -> None:
         self.model = model
         self.observations = list(observations)
         self.target_3d = None if target_3d is None else np.asarray(target_3d, dtype=float)
+        self._weights_3d = np.ones(21) if target_weights is None else np.sqrt(
+            np.clip(np.asarray(target_weights, dtype=float), 0.0, 1.0))
+        if self.target_3d is not None:  # a missing 3D point (NaN) carries no weight
+            missing = ~np.isfinite(self.target_3d).all(axis=1)
+            self._weights_3d = np.where(missing, 0.0, self._weights_3d)
+            self.target_3d = np.where(missing[:, None], 0.0, self.target_3d)
         self.options = options
         self.fit_scale = fit_scale
         self.rows, self.points = model_anchors(model)
@@ -170,9 +177,10 @@ class KeypointFitProblem:
                 jac.append((block * w[:, None, None]).reshape(42, n + 1))
         if self.target_3d is not None:
             sigma = self.options.sigma_mm
-            parts.append(((s * p - self.target_3d) / sigma).ravel())
+            w3 = self._weights_3d[:, None] / sigma
+            parts.append(((s * p - self.target_3d) * w3).ravel())
             if jacobian:
-                block = np.concatenate([s * Jp, p[..., None]], axis=2) / sigma
+                block = np.concatenate([s * Jp, p[..., None]], axis=2) * w3[..., None]
                 jac.append(block.reshape(63, n + 1))
         sigma_joint = np.radians(self.options.sigma_joint_deg)
         parts.append((q[self.angle_states] - self.prior_mean) / sigma_joint)
@@ -231,8 +239,12 @@ def _state_from_pose(model: KinematicModel, R: np.ndarray, t: np.ndarray, scale:
 
 def starts_from_3d(model: KinematicModel, target: np.ndarray, scale: float) -> list[np.ndarray]:
     """One start: the palm-fixed keypoints of the model (scaled) aligned to ``target``."""
-    palm = scale * palm_points(model)[list(PALM_FIXED)]
-    R, t, _ = kabsch(palm, np.asarray(target)[list(PALM_FIXED)])
+    keys = [k for k in PALM_FIXED if np.isfinite(target[k]).all()]
+    if len(keys) < 3:
+        raise DigitEyesError("model fit: at least three of the wrist, thumb CMC and MCP 3D "
+                             "points are needed to place the palm")
+    palm = scale * palm_points(model)[keys]
+    R, t, _ = kabsch(palm, np.asarray(target)[keys])
     return [_state_from_pose(model, R, t, scale, model.neutral())]
 
 
@@ -319,7 +331,7 @@ def fit_keypoints(model: KinematicModel, observations: Sequence[KeypointObservat
     ----------
     model : the hand model (the 21 keypoints of :mod:`~digiteyes.detect.hand21`).
     observations : detected keypoints per camera (world frame of the cameras).
-    target_3d : (21, 3) world mm, or None.
+    target_3d : (21, 3) world mm, or None; rows of NaN are missing points.
     options : :class:`FitOptions`.
     q0 : a start state of ``model`` (translation in model units); None starts from the
         palm pose.

@@ -105,22 +105,26 @@ class BackgroundModel:
 
 
 def hand_mask(image: np.ndarray, background: BackgroundModel | None = None) -> np.ndarray:
-    """Bool (H, W) foreground: skin and not background for colour images (RGB uint8), not
-    background for grey ones; the background is ``background`` when given, else the border
-    colour. Cleaned by a morphological opening and closing."""
+    """Bool (H, W) foreground, cleaned by a morphological opening and closing.
+
+    * colour (RGB uint8): skin, and not background when a static ``background`` model is
+      given. The border colours are not used: a hand's highlights and shadows reach the
+      greys of a wall within a histogram bin, which cut fingers off on real footage, while
+      the skin box alone already rejects a grey or white wall;
+    * grey: not background (``background`` when given, else the border colours).
+    """
     image = np.asarray(image)
     if image.dtype != np.uint8 or image.ndim not in (2, 3):
         raise DigitEyesError(f"hand segmentation: expected a uint8 grey or RGB image, got "
                              f"{image.dtype} {image.shape}")
-    if background is not None:
+    if image.ndim == 3:
+        fg = skin_mask(image)
+        if background is not None:
+            fg &= background.foreground(image)
+    elif background is not None:
         fg = background.foreground(image)
     else:
-        fg = None
-    skin = skin_mask(image) if image.ndim == 3 else None
-    if fg is None:
-        fg = ~border_background(image, exclude=skin)
-    if skin is not None:
-        fg &= skin
+        fg = ~border_background(image)
     mask = cv2.morphologyEx(fg.astype(np.uint8), cv2.MORPH_OPEN,
                             cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3)))
     mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE,
