@@ -22,14 +22,15 @@ With 3D keypoints or two or more cameras ``s`` is fitted.
 The start comes from the palm: the wrist and the four MCP joints are coplanar and fixed
 in the palm frame, so a planar pose (OpenCV's IPPE, both of its solutions) places the
 palm in a camera; 3D targets use :func:`~digiteyes.kinematics.procrustes.kabsch`. The
-fit runs from each start and keeps the lowest cost.
+fit scouts from each start (a few iterations with the fingers extended and curled, the
+better joints kept digit by digit) and refines the start of lowest cost.
 """
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -46,7 +47,7 @@ from digiteyes.kinematics import (
 )
 from digiteyes.kinematics.procrustes import kabsch
 from digiteyes.kinematics.rotations import quaternion_from_matrix
-from digiteyes.solvers import GaussNewtonOptions, gauss_newton
+from digiteyes.solvers import GaussNewtonOptions, gauss_newton, robust_cost
 
 PLANAR_PALM = (0, 5, 9, 13, 17)
 """Wrist and the four MCPs: coplanar in the palm frame (z = 0)."""
@@ -69,7 +70,7 @@ class FitOptions:
     sigma_scale : width of the prior on the scale when it is fitted.
     fit_scale : ``None`` fits the scale exactly when it is observable (3D targets or two
         or more cameras); True or False forces it.
-    iterations : Levenberg-Marquardt iterations at most per start.
+    iterations : Levenberg-Marquardt iterations at most in the refinement.
     """
 
     sigma_px: float = 4.0
@@ -78,7 +79,7 @@ class FitOptions:
     scale: float = 1.0
     sigma_scale: float = 0.15
     fit_scale: bool | None = None
-    iterations: int = 30
+    iterations: int = 15
 
 
 @dataclass
@@ -292,24 +293,25 @@ def _curled(model: KinematicModel, q: np.ndarray) -> np.ndarray:
     return clip_to_limits(model, q)
 
 
+@lru_cache(maxsize=16)
 def _digit_states(model: KinematicModel) -> dict[str, list[int]]:
     return {d: [s.index for s in model.spec.states if s.name.startswith(f"{d}.")]
             for d in DIGITS}
 
 
-def _fit_from(problem: KeypointFitProblem, x0: np.ndarray, options: FitOptions,
-              per_digit: bool) -> tuple[np.ndarray, object]:
-    """Levenberg-Marquardt from ``x0``. With ``per_digit`` it first runs a few iterations
-    from the extended and from the curled fingers and keeps, digit by digit, the joints
-    whose keypoints fit better (a finger seen from the front can bend towards or away from
-    the camera; the digits are independent given the palm), then refines."""
-    gn = GaussNewtonOptions(max_iterations=options.iterations, damping="levenberg-marquardt",
-                            robust_loss="huber", scale_px=1.0, step_tolerance=1e-6,
-                            cost_tolerance=1e-7)
-    if not per_digit:
-        return gauss_newton(problem, x0, gn)
+def _solver_options(iterations: int) -> GaussNewtonOptions:
+    return GaussNewtonOptions(max_iterations=iterations, damping="levenberg-marquardt",
+                              robust_loss="huber", scale_px=1.0, step_tolerance=1e-6,
+                              cost_tolerance=1e-7)
+
+
+def _scout(problem: KeypointFitProblem, x0: np.ndarray) -> tuple[np.ndarray, float]:
+    """A few iterations from the extended and from the curled fingers, then digit by
+    digit the joints whose keypoints fit better (a finger seen from the front can bend
+    towards or away from the camera; the digits are independent given the palm). Returns
+    the combined parameters and their cost."""
     model = problem.model
-    short = dataclasses.replace(gn, max_iterations=SCOUT_ITERATIONS)
+    short = _solver_options(SCOUT_ITERATIONS)
     scouts = [gauss_newton(problem, x0, short)[0],
               gauss_newton(problem, np.append(_curled(model, x0[:-1]), x0[-1]), short)[0]]
     errors = [problem.keypoint_errors(x) for x in scouts]
@@ -318,7 +320,8 @@ def _fit_from(problem: KeypointFitProblem, x0: np.ndarray, options: FitOptions,
         keys = DIGIT_KEYPOINTS[digit]
         if errors[1][keys].sum() < errors[0][keys].sum():
             x[states] = scouts[1][states]
-    return gauss_newton(problem, x, gn)
+    r, _ = problem.residuals(x, False)
+    return x, float(robust_cost(r, "huber", 1.0).sum())
 
 
 def fit_keypoints(model: KinematicModel, observations: Sequence[KeypointObservation] = (),
@@ -352,12 +355,13 @@ def fit_keypoints(model: KinematicModel, observations: Sequence[KeypointObservat
     else:
         best = max(observations, key=lambda o: float(np.sum(o.confidence)))
         starts = starts_from_image(model, best, options.scale)
-    best_x, best_summary = None, None
-    for q_start in starts:
-        x, summary = _fit_from(problem, np.append(q_start, options.scale), options,
-                               per_digit=q0 is None)
-        if best_summary is None or summary.cost_final < best_summary.cost_final:
-            best_x, best_summary = x, summary
+    full = _solver_options(options.iterations)
+    if q0 is not None:
+        best_x, best_summary = gauss_newton(problem, np.append(starts[0], options.scale), full)
+    else:  # scout every palm start, refine the best
+        scouted = [_scout(problem, np.append(q, options.scale)) for q in starts]
+        x_start = min(scouted, key=lambda pair: pair[1])[0]
+        best_x, best_summary = gauss_newton(problem, x_start, full)
     q, s = best_x[:-1], float(best_x[-1])
     rows, points = problem.rows, problem.points
     world = s * forward_kinematics(model, q).points(rows, points)
