@@ -138,6 +138,7 @@ def video_stage(data: Path, hand, step: int) -> dict | None:
     counts = dict.fromkeys(dets, 0)
     gaps = {n: [] for n in dets}
     classic_ms = []
+    px_gap, tip_gap = [], []  # classic keypoints against MediaPipe's of the same frame
     frames = 0
     cam = None
     with VideoReader(folder / "human_hand_video.mp4") as reader:
@@ -147,11 +148,13 @@ def video_stage(data: Path, hand, step: int) -> dict | None:
             frames += 1
             if cam is None:
                 cam = default_camera(rgb.shape[1], rgb.shape[0])
+            found = {}
             for name, det in dets.items():
                 start = time.perf_counter()
                 cand = det.detect(rgb, cam)
                 if not cand:
                     continue
+                found[name] = cand[0].keypoints
                 counts[name] += 1
                 c = cand[0]
                 fit = fit_keypoints(hand, [KeypointObservation(cam, c.keypoints,
@@ -160,13 +163,22 @@ def video_stage(data: Path, hand, step: int) -> dict | None:
                     classic_ms.append(1000 * (time.perf_counter() - start))
                 if index < len(stored) and np.abs(stored[index]).sum() > 0:
                     gaps[name].append(shape_gap_mm(fit.keypoints_world, stored[index]))
+            if len(found) == 2:
+                d = np.linalg.norm(found["classic"] - found["mediapipe"], axis=1)
+                px_gap.append(float(np.median(d)))
+                tip_gap.append(float(np.median(d[[4, 8, 12, 16, 20]])))
     return {"frames": frames, "step": step, "camera": "default, 60 deg horizontal field",
             **{name: {"detection_rate": counts[name] / frames,
                       "shape_gap_to_stored_mediapipe_mm_median":
                           float(np.median(gaps[name])) if gaps[name] else None}
                for name in dets},
             "classic_detect_and_fit_ms_median": float(np.median(classic_ms))
-            if classic_ms else None}
+            if classic_ms else None,
+            "classic_vs_mediapipe_px_median": float(np.median(px_gap)) if px_gap else None,
+            "classic_vs_mediapipe_tips_px_median": float(np.median(tip_gap)) if tip_gap
+            else None,
+            "classic_tips_within_30px_of_mediapipe": float(np.mean(np.array(tip_gap) < 30))
+            if tip_gap else None}
 
 
 def format_table(result: dict) -> str:
@@ -208,6 +220,12 @@ def format_table(result: dict) -> str:
                 lines.append(f"  {name:<10} detection rate {rate:.0f}"
                              f" %, shape gap to stored MediaPipe "
                              f"{'-' if gap is None else f'{gap:.1f} mm'} (median)")
+        if video["classic_vs_mediapipe_px_median"] is not None:
+            lines.append(f"  classic vs MediaPipe (same frames): keypoints "
+                         f"{video['classic_vs_mediapipe_px_median']:.0f} px, tips "
+                         f"{video['classic_vs_mediapipe_tips_px_median']:.0f} px (medians); "
+                         f"tips within 30 px in "
+                         f"{100 * video['classic_tips_within_30px_of_mediapipe']:.0f} % of frames")
         if video["classic_detect_and_fit_ms_median"] is not None:
             lines.append(f"  classic detection + fit: "
                          f"{video['classic_detect_and_fit_ms_median']:.0f} ms per 1280x720 frame"

@@ -255,18 +255,23 @@ def label_keypoints(blob: BlobAnalysis, template: HandTemplate,
     """21 keypoints (px), their confidences, whether the dorsal side faces the camera and
     the assignment cost (mean angle error, rad) from a blob analysis (module step 4).
 
-    For each side: place the template by the palm radius and wrist direction, assign the
-    tips, then alternate a weighted similarity fit (palm centre and matched tips onto the
-    template's palm centre and tips) with a new assignment, ``rounds`` times.
+    For each side: place the template by the palm radius and the wrist direction turned by
+    up to 60 degrees (the turn whose assignment fits best), assign the tips, then
+    alternate a weighted similarity fit (palm centre and matched tips onto the template's
+    palm centre and tips) with a new assignment, ``rounds`` times.
     """
     best = None
     for dorsal in (False, True):
-        placed = template.place(blob.centre, blob.wrist_angle, blob.radius / palm_radius_mm,
-                                dorsal)
+        # the digits need not point away from the forearm (a bent wrist): try turns
+        scale = blob.radius / palm_radius_mm
+        tries = []
+        for offset in np.radians(np.arange(-60.0, 61.0, 5.0)):
+            placed = template.place(blob.centre, blob.wrist_angle + offset, scale, dorsal)
+            tries.append((*_match(blob, placed)[::-1], offset, placed))
+        total, match, offset, placed = min(tries, key=lambda t: t[0])
         local = template.place(np.zeros(2), np.pi / 2, 1.0, dorsal)  # template, mm
-        turn = blob.wrist_angle - np.pi / 2
-        a0 = blob.radius / palm_radius_mm * complex(np.cos(turn), np.sin(turn))
-        match, total = _match(blob, placed)
+        turn = blob.wrist_angle + offset - np.pi / 2
+        a0 = scale * complex(np.cos(turn), np.sin(turn))
         for _ in range(rounds):
             if len(match) < 2:
                 break
