@@ -346,7 +346,9 @@ class ClassicDetector:
         return analyse_blob(blob), 1.0 / factor
 
     def detect(self, image: np.ndarray, camera: Camera | None = None) -> list[HandCandidate]:
-        """At most one hand: the largest skin (or foreground) blob, labelled by the model."""
+        """At most one hand: the largest skin (or foreground) blob, labelled by the model
+        (as a right hand; handedness None: a silhouette cannot tell a right palm from a
+        left back)."""
         blob, back = self.analyse(image)
         if blob is None:
             return []
@@ -358,5 +360,5 @@ class ClassicDetector:
                           interpolation=cv2.INTER_NEAREST) > 0 if back != 1.0 else blob.mask
         vs, us = np.nonzero(blob.mask)
         box = bbox_of((np.column_stack([us, vs]) + 0.5) * back - 0.5)
-        return [HandCandidate(keypoints, confidence, score, box, "right", self.name,
+        return [HandCandidate(keypoints, confidence, score, box, None, self.name,
                               mask=full)]
