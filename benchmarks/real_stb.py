@@ -28,7 +28,6 @@ package. Without the folder the script prints why and exits with status 0.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import os
 import platform
@@ -52,8 +51,9 @@ from digiteyes.kinematics import (
     point_jacobian,
 )
 from digiteyes.kinematics.keypoints import keypoint_names
-from digiteyes.kinematics.model_file import ShapeSpec
+from digiteyes.kinematics.procrustes import kabsch
 from digiteyes.kinematics.rotations import quaternion_from_matrix
+from digiteyes.kinematics.scaling import scaled_model
 from digiteyes.solvers import GaussNewtonOptions, gauss_newton
 from digiteyes.trackers import FeatureTracker, FeatureTrackerOptions
 from digiteyes.viz.overlay import draw_features
@@ -122,22 +122,6 @@ def mirror(points: np.ndarray) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------- model
-def scaled_model(model: KinematicModel, scale: float) -> KinematicModel:
-    """A copy of ``model`` with every length multiplied by ``scale``: DH ``a`` and constant
-    ``d``, cylinder and tip radii, palm box sizes and centre. Posed with the translation
-    multiplied by ``scale``, it gives ``scale`` times the original's points."""
-    frames = []
-    for row in model.spec.frames:
-        shape = row.shape
-        if shape is not None:
-            shape = ShapeSpec(shape.kind, tuple(scale * p for p in shape.params))
-        d = row.d if row.d_state is not None else scale * row.d
-        frames.append(dataclasses.replace(row, a=scale * row.a, d=d, shape=shape))
-    spec = dataclasses.replace(model.spec, frames=tuple(frames),
-                               description=f"{model.description} (scaled x{scale:.4f})")
-    return KinematicModel(spec)
-
-
 def joint_points(model: KinematicModel, tip_at_end: bool) -> tuple[np.ndarray, np.ndarray]:
     """Shape-frame rows and points (21, 3) mm of the model joints matching the STB joints.
 
@@ -202,18 +186,6 @@ class JointFitProblem:
 
     def project(self, x: np.ndarray) -> np.ndarray:
         return np.append(clip_to_limits(self.model, x[:-1]), max(x[-1], 0.1))
-
-
-def kabsch(source: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """Rotation R, translation t and scale c minimising ``sum |c R x_i + t - y_i|^2``
-    (Procrustes with the SVD of the cross-covariance; the sign fix keeps ``det R = +1``)."""
-    mu_x, mu_y = source.mean(0), target.mean(0)
-    X, Y = source - mu_x, target - mu_y
-    U, sigma, Vt = np.linalg.svd(Y.T @ X)
-    flip = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
-    R = U @ flip @ Vt
-    c = float(np.trace(np.diag(sigma) @ flip) / (X ** 2).sum())
-    return R, mu_y - c * R @ mu_x, c
 
 
 def initial_state(model: KinematicModel, target: np.ndarray, scale: float) -> np.ndarray:

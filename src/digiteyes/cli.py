@@ -12,9 +12,12 @@ import click
 
 from digiteyes import __version__
 from digiteyes.commands.bench import bench
+from digiteyes.commands.calibrate_camera import calibrate_camera
+from digiteyes.commands.calibrate_hand import calibrate_hand
 from digiteyes.commands.demo import demo
 from digiteyes.commands.evaluate import evaluate
 from digiteyes.commands.model import model
+from digiteyes.commands.pose import pose
 from digiteyes.commands.prior import prior
 from digiteyes.commands.render import render
 from digiteyes.commands.track import track
@@ -27,7 +30,8 @@ def cli() -> None:
     """Model-based 3D tracking of articulated objects (the hand first) from video."""
 
 
-for command in (demo, model, render, track, evaluate, bench, prior):
+for command in (demo, model, render, track, evaluate, bench, prior, pose, calibrate_camera,
+                calibrate_hand):
     cli.add_command(command)
 
 

@@ -1,0 +1,309 @@
+"""Real-data benchmark of initialisation: detectors and the model fit on real images.
+
+Usage::
+
+    python benchmarks/real_initialisation.py [--data ../shared/data] [--json FILE]
+                                             [--video-step N] [--picture PNG]
+
+1. **STB** (left image of the B1Counting BB pair, 3D labels, known camera): classic and
+   MediaPipe detections each fitted by the model (one camera, nominal hand size and the
+   size fitted to the labels); root-relative 3D joint error (mm, root = middle MCP, the 20
+   finger and thumb joints STB shares with the 21 keypoints), metric error of the root
+   position (mm) and 2D keypoint error (px). STB shows a left hand: the image is flipped
+   and the world mirrored (as in ``real_stb.py``) so the right-hand model applies.
+2. **FreiHAND** (8 annotated 224x224 images, 2D labels): 2D keypoint error (px) and
+   detection rate of both detectors.
+3. **The real video** (621 frames, 1280x720, grey wall): detection rate per frame of both
+   detectors, time per frame (classic detection + fit), and agreement of the fitted 3D
+   hand shape with the stored MediaPipe estimate (``mediapipe_joints_right.pkl``, not
+   truth): mean joint distance after a similarity alignment (Procrustes), mm.
+
+Without the data the script says so and exits with status 0.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pickle
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from real_stb import load_stb, machine, mirror, stb_rig
+
+from digiteyes import load_model
+from digiteyes.camera.default import default_camera
+from digiteyes.detect.classic import ClassicDetector
+from digiteyes.detect.hand21 import BONES
+from digiteyes.detect.mediapipe_detector import MediaPipeDetector, mediapipe_available
+from digiteyes.detect.model_fit import FitOptions, KeypointObservation, fit_keypoints
+from digiteyes.io.video import VideoReader
+from digiteyes.kinematics.procrustes import kabsch
+
+DEFAULT_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+RESULTS = Path(__file__).resolve().parent / "results"
+# STB index of each of the 21 keypoints (STB has the palm centre, not the wrist: -1)
+STB_OF_HAND21 = [-1, 17, 18, 19, 20, 13, 14, 15, 16, 9, 10, 11, 12, 5, 6, 7, 8, 1, 2, 3, 4]
+ROOT = 9  # middle MCP
+
+
+def detectors() -> dict:
+    found = {"classic": ClassicDetector()}
+    if mediapipe_available():
+        found["mediapipe"] = MediaPipeDetector(max_hands=1)
+    return found
+
+
+def stb_stage(data: Path, hand) -> dict | None:
+    stb = load_stb(data)
+    if stb is None:
+        return None
+    height, width = stb["images"][0].shape[:2]
+    cam = stb_rig(stb["camera"], width, height, mirrored=True)[0]
+    image = np.ascontiguousarray(stb["images"][0][:, ::-1])
+    truth = mirror(stb["joints"][0])
+    common = [k for k in range(21) if STB_OF_HAND21[k] >= 0]
+    truth21 = np.full((21, 3), np.nan)
+    truth21[common] = truth[[STB_OF_HAND21[k] for k in common]]
+    truth_px = cam.project(truth21[common])
+    # the hand size fitted to the labels (3D fit): what "the hand's size known" means
+    size = fit_keypoints(hand, target_3d=truth21, options=FitOptions(
+        fit_scale=True)).scale
+    out = {"image": "B1Counting BB_left_0 (flipped)", "labelled_scale": size}
+    for name, det in detectors().items():
+        start = time.perf_counter()
+        cand = det.detect(image, cam)
+        seconds = time.perf_counter() - start
+        if not cand:
+            out[name] = {"detected": False}
+            continue
+        c = cand[0]
+        row = {"detected": True, "detect_ms": 1000 * seconds,
+               "px_error_mean": float(np.linalg.norm(c.keypoints[common] - truth_px,
+                                                     axis=1).mean())}
+        for label, scale in (("default size", 1.0), ("known size", size)):
+            fit = fit_keypoints(hand, [KeypointObservation(cam, c.keypoints,
+                                                           c.keypoint_confidence)],
+                                options=FitOptions(scale=scale))
+            p = fit.keypoints_world
+            rel = (p[common] - p[ROOT]) - (truth21[common] - truth21[ROOT])
+            row[label] = {"root_relative_mm": float(np.linalg.norm(rel, axis=1).mean()),
+                          "root_position_mm": float(np.linalg.norm(p[ROOT] - truth21[ROOT]))}
+        out[name] = row
+    return out
+
+
+def freihand_stage(data: Path) -> dict | None:
+    root = data / "annotated_images" / "tests" / "data" / "freihand"
+    if not (root / "test_freihand.json").is_file():
+        return None
+    meta = json.loads((root / "test_freihand.json").read_text())
+    files = {im["id"]: im["file_name"] for im in meta["images"]}
+    out = {}
+    for name, det in detectors().items():
+        errors, found = [], 0
+        for ann in meta["annotations"]:
+            rgb = cv2.cvtColor(cv2.imread(str(root / files[ann["image_id"]])), cv2.COLOR_BGR2RGB)
+            truth = np.array(ann["keypoints"], dtype=float).reshape(21, 3)[:, :2]
+            cand = det.detect(rgb)
+            if cand:
+                found += 1
+                errors.append(float(np.linalg.norm(cand[0].keypoints - truth, axis=1).mean()))
+        out[name] = {"images": len(meta["annotations"]), "detected": found,
+                     "px_error_mean": float(np.mean(errors)) if errors else None}
+    return out
+
+
+def shape_gap_mm(ours: np.ndarray, reference: np.ndarray) -> float:
+    """Mean joint distance (mm, in our scale) after aligning ``reference`` to ``ours`` by
+    rotation, translation and scale."""
+    R, t, c = kabsch(reference, ours)
+    return float(np.linalg.norm(c * reference @ R.T + t - ours, axis=1).mean())
+
+
+def video_stage(data: Path, hand, step: int) -> dict | None:
+    folder = data / "real_video"
+    if not (folder / "human_hand_video.mp4").is_file():
+        return None
+    stored = np.asarray(pickle.loads((folder / "mediapipe_joints_right.pkl").read_bytes()))
+    dets = detectors()
+    if "mediapipe" in dets:
+        dets["mediapipe"] = MediaPipeDetector(max_hands=1, static_image_mode=False)
+    counts = dict.fromkeys(dets, 0)
+    gaps = {n: [] for n in dets}
+    classic_ms = []
+    px_gap, tip_gap = [], []  # classic keypoints against MediaPipe's of the same frame
+    frames = 0
+    cam = None
+    with VideoReader(folder / "human_hand_video.mp4") as reader:
+        for index, rgb in enumerate(reader):
+            if index % step:
+                continue
+            frames += 1
+            if cam is None:
+                cam = default_camera(rgb.shape[1], rgb.shape[0])
+            found = {}
+            for name, det in dets.items():
+                start = time.perf_counter()
+                cand = det.detect(rgb, cam)
+                if not cand:
+                    continue
+                found[name] = cand[0].keypoints
+                counts[name] += 1
+                c = cand[0]
+                fit = fit_keypoints(hand, [KeypointObservation(cam, c.keypoints,
+                                                               c.keypoint_confidence)])
+                if name == "classic":
+                    classic_ms.append(1000 * (time.perf_counter() - start))
+                if index < len(stored) and np.abs(stored[index]).sum() > 0:
+                    gaps[name].append(shape_gap_mm(fit.keypoints_world, stored[index]))
+            if len(found) == 2:
+                d = np.linalg.norm(found["classic"] - found["mediapipe"], axis=1)
+                px_gap.append(float(np.median(d)))
+                tip_gap.append(float(np.median(d[[4, 8, 12, 16, 20]])))
+    return {"frames": frames, "step": step, "camera": "default, 60 deg horizontal field",
+            **{name: {"detection_rate": counts[name] / frames,
+                      "shape_gap_to_stored_mediapipe_mm_median":
+                          float(np.median(gaps[name])) if gaps[name] else None}
+               for name in dets},
+            "classic_detect_and_fit_ms_median": float(np.median(classic_ms))
+            if classic_ms else None,
+            "classic_vs_mediapipe_px_median": float(np.median(px_gap)) if px_gap else None,
+            "classic_vs_mediapipe_tips_px_median": float(np.median(tip_gap)) if tip_gap
+            else None,
+            "classic_tips_within_30px_of_mediapipe": float(np.mean(np.array(tip_gap) < 30))
+            if tip_gap else None}
+
+
+def format_table(result: dict) -> str:
+    m = result["machine"]
+    lines = [f"Initialisation on real data ({result['data']})",
+             f"machine: {m['cpu']}, {m['cores']} cores, python {m['python']}, numpy "
+             f"{m['numpy']} (timings provisional: busy machine)"]
+    stb = result.get("stb")
+    if stb:
+        lines += ["", f"STB {stb['image']}: labelled hand scale {stb['labelled_scale']:.3f}",
+                  f"  {'detector':<10} {'2D px':>6} {'rel mm (def)':>13} {'root mm (def)':>14}"
+                  f" {'rel mm (known)':>15} {'root mm (known)':>16}"]
+        for name in ("classic", "mediapipe"):
+            r = stb.get(name)
+            if not r:
+                continue
+            if not r["detected"]:
+                lines.append(f"  {name:<10} not detected")
+                continue
+            d, k = r["default size"], r["known size"]
+            lines.append(f"  {name:<10} {r['px_error_mean']:6.1f} {d['root_relative_mm']:13.1f}"
+                         f" {d['root_position_mm']:14.1f} {k['root_relative_mm']:15.1f}"
+                         f" {k['root_position_mm']:16.1f}")
+    fh = result.get("freihand")
+    if fh:
+        lines += ["", "FreiHAND (2D labels)"]
+        for name, r in fh.items():
+            err = "-" if r["px_error_mean"] is None else f"{r['px_error_mean']:.1f} px"
+            lines.append(f"  {name:<10} detected {r['detected']}/{r['images']}, mean 2D error "
+                         f"{err}")
+    video = result.get("video")
+    if video:
+        lines += ["", f"real video: {video['frames']} frames (every {video['step']}), "
+                  f"{video['camera']}"]
+        for name in ("classic", "mediapipe"):
+            if name in video:
+                gap = video[name]["shape_gap_to_stored_mediapipe_mm_median"]
+                rate = 100 * video[name]["detection_rate"]
+                lines.append(f"  {name:<10} detection rate {rate:.0f}"
+                             f" %, shape gap to stored MediaPipe "
+                             f"{'-' if gap is None else f'{gap:.1f} mm'} (median)")
+        if video["classic_vs_mediapipe_px_median"] is not None:
+            lines.append(f"  classic vs MediaPipe (same frames): keypoints "
+                         f"{video['classic_vs_mediapipe_px_median']:.0f} px, tips "
+                         f"{video['classic_vs_mediapipe_tips_px_median']:.0f} px (medians); "
+                         f"tips within 30 px in "
+                         f"{100 * video['classic_tips_within_30px_of_mediapipe']:.0f} % of frames")
+        if video["classic_detect_and_fit_ms_median"] is not None:
+            lines.append(f"  classic detection + fit: "
+                         f"{video['classic_detect_and_fit_ms_median']:.0f} ms per 1280x720 frame"
+                         " (median)")
+    return "\n".join(lines)
+
+
+def draw_hand(image: np.ndarray, points: np.ndarray, colour: tuple[int, int, int],
+              radius: int = 4) -> None:
+    """Draw 21 keypoints (px) and their bones on an RGB image, in place."""
+    for a, b in BONES:
+        cv2.line(image, tuple(np.round(points[a]).astype(int)),
+                 tuple(np.round(points[b]).astype(int)), colour, 2, cv2.LINE_AA)
+    for p in points:
+        cv2.circle(image, tuple(np.round(p).astype(int)), radius, colour, -1, cv2.LINE_AA)
+
+
+def write_picture(data: Path, path: Path, frame_index: int = 0) -> None:
+    """Detections and fits on one frame of the real video: classic detector (mask in
+    blue, keypoints in yellow, the fitted model's keypoints in magenta) and MediaPipe."""
+    hand = load_model("hand")
+    with VideoReader(data / "real_video" / "human_hand_video.mp4") as reader:
+        rgb = reader.read()
+        for _ in range(frame_index):
+            rgb = reader.read()
+    cam = default_camera(rgb.shape[1], rgb.shape[0])
+    panels = []
+    for name, det in detectors().items():
+        canvas = rgb.copy()
+        cand = det.detect(rgb, cam)[0]
+        if cand.mask is not None:
+            canvas[cand.mask] = (0.6 * canvas[cand.mask] + (0, 0, 100)).astype(np.uint8)
+        fit = fit_keypoints(hand, [KeypointObservation(cam, cand.keypoints,
+                                                       cand.keypoint_confidence)])
+        draw_hand(canvas, cand.keypoints, (255, 220, 0))
+        draw_hand(canvas, cam.project(fit.keypoints_world), (255, 0, 255), 3)
+        x0, y0, x1, y1 = (int(v) for v in cand.bbox)
+        crop = canvas[max(y0 - 60, 0):y1 + 120, max(x0 - 60, 0):x1 + 60]
+        crop = cv2.resize(crop, (360, round(360 * crop.shape[0] / crop.shape[1])))
+        depth = cam.to_camera(fit.keypoints_world)[ROOT, 2]
+        cv2.putText(crop, f"{name}: fit at {depth:.0f} mm", (8, 22), cv2.FONT_HERSHEY_SIMPLEX,
+                    0.6, (255, 255, 255), 2, cv2.LINE_AA)
+        panels.append(crop)
+    height = min(p.shape[0] for p in panels)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    from PIL import Image
+
+    Image.fromarray(np.hstack([p[:height] for p in panels])).quantize(128).save(path,
+                                                                             optimize=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--data", type=Path, default=DEFAULT_DATA)
+    parser.add_argument("--json", type=Path, default=RESULTS / "real_initialisation.json")
+    parser.add_argument("--video-step", type=int, default=3, help="use every N-th video frame")
+    parser.add_argument("--picture", type=Path,
+                        help="only write the picture of a detection and fit on video frame 0")
+    args = parser.parse_args(argv)
+    if not args.data.is_dir():
+        print(f"no real data under {args.data}: nothing to measure")
+        return 0
+    if args.picture is not None:
+        write_picture(args.data, args.picture)
+        print(f"wrote {args.picture}")
+        return 0
+    hand = load_model("hand")
+    result = {"data": str(args.data), "machine": machine(),
+              "mediapipe": mediapipe_available(), "stb": stb_stage(args.data, hand),
+              "freihand": freihand_stage(args.data),
+              "video": video_stage(args.data, hand, args.video_step)}
+    table = format_table(result)
+    print(table)
+    args.json.parent.mkdir(parents=True, exist_ok=True)
+    args.json.write_text(json.dumps(result, indent=1) + "\n")
+    args.json.with_suffix(".txt").write_text(table + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,76 @@
+"""``digiteyes pose IMAGE... -o OUT``: the hand in single images, in millimetres."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+
+@click.command()
+@click.argument("images", nargs=-1, required=True,
+                type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.option("-o", "--output", required=True, type=click.Path(file_okay=False, path_type=Path),
+              help="Folder for <image>.json and <image>.csv (created).")
+@click.option("--rig", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="Rig file (JSON or OpenCV YAML). With N cameras the images are taken N at "
+                   "a time, in rig order. Default: one camera with a 60 deg field of view.")
+@click.option("--detector", type=click.Choice(["auto", "mediapipe", "classic"]),
+              default="auto", show_default=True,
+              help="auto = MediaPipe when installed, else the classic detector.")
+@click.option("--model", "model_name", default="hand", show_default=True,
+              help="Model name or model file (e.g. a personal model from calibrate-hand).")
+@click.option("--hand-scale", type=click.FloatRange(0.5, 2.0), default=1.0, show_default=True,
+              help="Assumed hand size relative to the model (sets depth with one camera).")
+@click.option("--hfov", type=click.FloatRange(10, 170), default=60.0, show_default=True,
+              help="Horizontal field of view (deg) of the default camera (no --rig).")
+def pose(images: tuple[Path, ...], output: Path, rig: Path | None, detector: str,
+         model_name: str, hand_scale: float, hfov: float) -> None:
+    """Detect the hand in each image and fit the model: 3D keypoints in the camera frame
+    (mm), joint angles (deg) and the state, as JSON and CSV per image."""
+    import cv2
+
+    from digiteyes.camera import Rig, load_rig
+    from digiteyes.camera.default import default_camera
+    from digiteyes.detect.model_fit import FitOptions
+    from digiteyes.detect.pose import (
+        estimate_pose,
+        make_detector,
+        pose_to_json,
+        write_pose_csv,
+        write_pose_json,
+    )
+    from digiteyes.errors import DigitEyesError
+    from digiteyes.models import load_model
+
+    model = load_model(model_name)
+    the_rig = load_rig(rig) if rig is not None else None
+    per_set = 1 if the_rig is None else len(the_rig)
+    if len(images) % per_set:
+        raise DigitEyesError(f"{len(images)} image(s) for a rig of {per_set} cameras: give "
+                             f"them {per_set} at a time")
+    det = make_detector(detector, model)
+    output.mkdir(parents=True, exist_ok=True)
+    options = FitOptions(scale=hand_scale)
+    found = 0
+    for start in range(0, len(images), per_set):
+        paths = images[start:start + per_set]
+        frames = []
+        for path in paths:
+            bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
+            if bgr is None:
+                raise DigitEyesError(f"{path}: not an image OpenCV can read")
+            frames.append(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
+        cams = the_rig or Rig((default_camera(frames[0].shape[1], frames[0].shape[0], hfov),))
+        result = estimate_pose(frames, cams, det, model, options)
+        stem = paths[0].stem
+        write_pose_json(pose_to_json(result, cams, [str(p) for p in paths]),
+                        output / f"{stem}.json")
+        write_pose_csv(result, cams, output / f"{stem}.csv")
+        found += result.fit is not None
+        ms = 1000 * sum(result.seconds.values())
+        state = "no hand" if result.fit is None else (
+            f"hand at {result.fit.keypoints_camera(cams[0])[9].round(0).tolist()} mm "
+            f"(middle MCP, camera {cams[0].name})")
+        click.echo(f"{paths[0].name}: {state}, {ms:.0f} ms")
+    click.echo(f"{found}/{len(images) // per_set} image set(s) with a hand; wrote {output}")

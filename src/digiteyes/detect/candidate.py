@@ -1,0 +1,75 @@
+"""What a hand detector returns, and the protocol every detector follows."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from digiteyes.camera import Camera
+from digiteyes.detect.hand21 import HAND21_NAMES
+
+
+@dataclass(frozen=True)
+class HandCandidate:
+    """One hand found in one image.
+
+    Attributes
+    ----------
+    keypoints : (21, 2) pixel positions in :data:`~digiteyes.detect.hand21.HAND21_NAMES`
+        order (pixel (0, 0) is the centre of the top-left pixel).
+    keypoint_confidence : (21,) in [0, 1]; 0 for a keypoint the detector only guessed.
+    confidence : overall confidence in [0, 1] that this is a hand.
+    bbox : ``(x0, y0, x1, y1)`` pixels, the box holding the hand.
+    handedness : ``"right"``, ``"left"`` or ``None`` when the detector cannot tell.
+    detector : name of the detector that produced it.
+    keypoints_3d : optional (21, 3) metric points the detector estimates (MediaPipe's world
+        landmarks: metres converted to mm, origin near the hand's centre, not the camera).
+    mask : optional bool (H, W) segmentation of the hand.
+    """
+
+    keypoints: np.ndarray
+    keypoint_confidence: np.ndarray
+    confidence: float
+    bbox: tuple[float, float, float, float]
+    handedness: str | None
+    detector: str
+    keypoints_3d: np.ndarray | None = None
+    mask: np.ndarray | None = None
+
+    names: tuple[str, ...] = HAND21_NAMES
+
+    def to_json(self) -> dict:
+        """A JSON-ready dict (no mask)."""
+        out = {"detector": self.detector, "confidence": float(self.confidence),
+               "handedness": self.handedness, "bbox_px": [float(v) for v in self.bbox],
+               "keypoints_px": {n: [float(u), float(v)] for n, (u, v)
+                                in zip(self.names, self.keypoints, strict=True)},
+               "keypoint_confidence": {n: float(c) for n, c
+                                       in zip(self.names, self.keypoint_confidence,
+                                              strict=True)}}
+        return out
+
+
+def bbox_of(points: np.ndarray, margin: float = 0.0) -> tuple[float, float, float, float]:
+    """The box ``(x0, y0, x1, y1)`` round pixel points (P, 2), grown by ``margin`` px."""
+    points = np.asarray(points, dtype=float)
+    x0, y0 = points.min(0) - margin
+    x1, y1 = points.max(0) + margin
+    return float(x0), float(y0), float(x1), float(y1)
+
+
+@runtime_checkable
+class HandDetector(Protocol):
+    """Anything that finds hands in an image.
+
+    ``detect(image, camera)`` takes an RGB uint8 (H, W, 3) or grey (H, W) image and the
+    camera that took it (detectors may ignore it) and returns the candidates, best first.
+    """
+
+    name: str
+
+    def detect(self, image: np.ndarray, camera: Camera | None = None) -> list[HandCandidate]:
+        """Hand candidates in ``image``, best first (an empty list when there is none)."""
+        ...

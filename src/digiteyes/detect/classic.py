@@ -1,0 +1,364 @@
+"""A hand detector with no learned parts, for plain backgrounds.
+
+Steps (each a function below):
+
+1. segmentation (:mod:`~digiteyes.detect.segmentation`): skin and not background;
+2. the largest blob; its palm centre and radius from the distance transform (the centre of
+   the largest inscribed circle);
+3. digit tips as the peaks of the contour's distance from the palm centre (at least
+   ``TIP_DISTANCE`` palm radii out); the wrist or forearm where the blob crosses a circle
+   of ``RING`` palm radii in a crossing wider than ``WIDE`` radii (else opposite to the
+   tips), and a peak towards the wrist is the forearm's end, not a tip;
+4. a model-based labelling: the model's keypoints of an open hand (a right hand,
+   seen from its palmar or its dorsal side) are placed on the image by the similarity that
+   puts the model's palm centre on the blob's, its wrist towards the image wrist and its
+   palm radius on the blob's; the side whose digit directions match the found tips best
+   (optimal assignment) names the digits; each digit's joints lie on the line from its
+   base to its tip at the model's link-length fractions. Digits not found (curled) get a
+   guess near their base with low confidence.
+
+The 21 keypoints then go to :func:`~digiteyes.detect.model_fit.fit_keypoints`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from digiteyes import load_model
+from digiteyes.camera import Camera
+from digiteyes.detect.candidate import HandCandidate, bbox_of
+from digiteyes.detect.hand21 import DIGITS
+from digiteyes.detect.model_fit import palm_points
+from digiteyes.detect.segmentation import BackgroundModel, hand_mask, largest_blob
+from digiteyes.errors import DigitEyesError
+from digiteyes.kinematics import KinematicModel, clip_to_limits
+
+RING = 1.75
+"""Radius of the crossing circle, in palm radii (through the proximal phalanges)."""
+WIDE = 1.1
+"""A crossing wider than this many palm radii is the wrist or forearm, not a digit."""
+TIP_DISTANCE = 1.5
+"""A digit tip lies at least this many palm radii from the palm centre."""
+VALLEY = 0.5
+"""Between two digit tips the contour comes at least this many palm radii closer to the
+palm centre than the nearer tip (the web between the digits)."""
+PALM_RADIUS_MM = 30.0
+"""Radius of the largest circle inscribed in the palm silhouette, mm, for the nominal hand
+(about half its palm width of 56 mm); only the first placement uses it."""
+OPEN_HAND_DEG = {"index.abd": -20.0, "middle.abd": -5.0, "ring.abd": 8.0, "little.abd": 22.0,
+                 "thumb.cmc_abd": 20.0, "thumb.cmc_flex": 35.0}
+"""Joint angles (degrees) of the open hand of the template: fingers spread, the thumb
+swung away from the index in the palm plane (other joints at zero)."""
+
+
+@dataclass(frozen=True)
+class BlobAnalysis:
+    """What the blob gives before labelling (pixels of the analysed image).
+
+    Attributes
+    ----------
+    mask : bool (H, W) the hand blob.
+    centre : (2,) palm centre; radius : palm radius, px.
+    tips : (T, 2) digit tips found; tip_angles : (T,) their directions from the centre, rad.
+    wrist_angle : direction of the wrist from the centre, rad (image axes, v down).
+    wrist_found : whether a wide crossing gave the wrist (else: opposite to the digits).
+    """
+
+    mask: np.ndarray
+    centre: np.ndarray
+    radius: float
+    tips: np.ndarray
+    tip_angles: np.ndarray
+    wrist_angle: float
+    wrist_found: bool
+
+
+def _wrap(a: np.ndarray | float) -> np.ndarray | float:
+    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
+
+
+def analyse_blob(mask: np.ndarray) -> BlobAnalysis | None:
+    """Palm, digit tips and wrist direction of a hand blob (bool (H, W)); None when the
+    blob is too small to be a hand (palm radius under 4 px)."""
+    blob = mask.astype(np.uint8)
+    dist = cv2.distanceTransform(blob, cv2.DIST_L2, 5)
+    radius = float(dist.max())
+    if radius < 4.0:
+        return None
+    v, u = np.unravel_index(int(np.argmax(dist)), dist.shape)
+    centre = np.array([u, v], dtype=float)
+    ring = RING * radius
+    angles = np.linspace(-np.pi, np.pi, 720, endpoint=False)
+    pu = np.round(centre[0] + ring * np.cos(angles)).astype(int)
+    pv = np.round(centre[1] + ring * np.sin(angles)).astype(int)
+    inside = (pu >= 0) & (pu < blob.shape[1]) & (pv >= 0) & (pv < blob.shape[0])
+    on = np.zeros(len(angles), dtype=bool)
+    on[inside] = blob[pv[inside], pu[inside]] > 0
+    runs = _circular_runs(on)
+    contours, _ = cv2.findContours(blob, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    contour = max(contours, key=len).reshape(-1, 2).astype(float)
+    offsets = contour - centre
+    c_dist = np.hypot(offsets[:, 0], offsets[:, 1])
+    c_angle = np.arctan2(offsets[:, 1], offsets[:, 0])
+    step = angles[1] - angles[0]
+    wide = [(ring * length * step, angles[0] + (start + 0.5 * (length - 1)) * step)
+            for start, length in runs if ring * length * step > WIDE * radius]
+    # contour points on the image border are where the frame cuts the forearm: no tips
+    height, width = blob.shape
+    cut = ((contour[:, 0] <= 1) | (contour[:, 0] >= width - 2) | (contour[:, 1] <= 1)
+           | (contour[:, 1] >= height - 2))
+    tips = _contour_peaks(np.where(cut, 0.0, c_dist), TIP_DISTANCE * radius, VALLEY * radius,
+                          0.5 * radius, keep=7)
+    if wide:
+        wrist = max(wide)[1]
+        tips = [i for i in tips if abs(_wrap(c_angle[i] - wrist)) > np.radians(50.0)]
+    tips = tips[:5]
+    tip_angles = [c_angle[i] for i in tips]
+    tips = [contour[i] for i in tips]
+    if wide:
+        wrist_angle, wrist_found = max(wide)[1], True
+    elif tips:
+        mean = np.mean([[np.cos(a), np.sin(a)] for a in tip_angles], axis=0)
+        wrist_angle, wrist_found = float(np.arctan2(-mean[1], -mean[0])), False
+    else:
+        wrist_angle, wrist_found = np.pi / 2, False
+    return BlobAnalysis(mask, centre, radius, np.array(tips).reshape(-1, 2),
+                        np.array(tip_angles), float(wrist_angle), wrist_found)
+
+
+def _contour_peaks(distance: np.ndarray, min_distance: float, valley: float,
+                   window: int, keep: int = 5) -> list[int]:
+    """Contour indices of at most ``keep`` digit tips, farthest first: local maxima of the
+    distance from the palm centre (within ``window`` contour points either side) farther than
+    ``min_distance``; a peak counts only if the contour dips by at least ``valley`` (px)
+    below it on the way to every farther peak (the web between two digits), otherwise it
+    is a bump on the same digit."""
+    window = max(3, int(window))
+    padded = np.concatenate([distance[-window:], distance, distance[:window]])
+    local_max = np.lib.stride_tricks.sliding_window_view(padded, 2 * window + 1).max(axis=1)
+    candidates = np.flatnonzero((distance >= local_max) & (distance > min_distance))
+    kept: list[int] = []
+    for i in candidates[np.argsort(-distance[candidates])]:
+        separate = True
+        for j in kept:
+            lo, hi = sorted((int(i), j))
+            inner = distance[lo:hi + 1].min()
+            outer = min(distance[hi:].min(initial=np.inf), distance[:lo + 1].min())
+            if max(inner, outer) > distance[i] - valley:
+                separate = False
+                break
+        if separate:
+            kept.append(int(i))
+    return kept[:keep]
+
+
+def _circular_runs(on: np.ndarray) -> list[tuple[int, int]]:
+    """(start, length) of the runs of True in a circular bool array."""
+    n = len(on)
+    if on.all():
+        return [(0, n)]
+    shift = int(np.argmin(on))  # start the scan at a False sample
+    rolled = np.roll(on, -shift)
+    runs, start = [], None
+    for i, value in enumerate(np.append(rolled, False)):
+        if value and start is None:
+            start = i
+        elif not value and start is not None:
+            runs.append(((start + shift) % n, i - start))
+            start = None
+    return runs
+
+
+class HandTemplate:
+    """The model's 21 keypoints of an open hand (:data:`OPEN_HAND_DEG`) projected on the
+    palm plane (mm).
+
+    Attributes
+    ----------
+    xy : (21, 2) palm-frame x, y (fingers along +y, thumb and index on +x), mm.
+    centre : (2,) the palm slab's centre, mm.
+    fractions : per digit, (3,) where its second, third and fourth keypoint lie along the
+        line from its first to its tip (cumulative link lengths).
+    """
+
+    def __init__(self, model: KinematicModel) -> None:
+        q = model.neutral()
+        for name, value in OPEN_HAND_DEG.items():
+            q[model.state_index(name)] = np.radians(value)
+        points = palm_points(model, clip_to_limits(model, q))
+        palm = next(link for link in model.links if link.kind == "palm")
+        self.centre = np.asarray(palm.centre[:2], dtype=float)
+        self.xy = points[:, :2]
+        self.fractions = {}
+        for i, digit in enumerate(DIGITS):
+            keys = [1 + 4 * i + j for j in range(4)]
+            segment = np.linalg.norm(np.diff(points[keys], axis=0), axis=1)
+            self.fractions[digit] = np.cumsum(segment) / segment.sum()
+
+    def place(self, centre: np.ndarray, wrist_angle: float, scale: float,
+              dorsal: bool) -> np.ndarray:
+        """The 21 template points in the image (21, 2) px: palm centre on ``centre``, the
+        wrist towards ``wrist_angle``, ``scale`` px per mm; ``dorsal`` mirrors x (the back
+        of a right hand)."""
+        local = self.xy - self.centre
+        local = np.column_stack([-local[:, 0] if dorsal else local[:, 0], -local[:, 1]])
+        # template image axes: the wrist lies along +v (fingers up); turn +v onto the wrist
+        turn = wrist_angle - np.pi / 2
+        c, s = np.cos(turn), np.sin(turn)
+        return centre + scale * local @ np.array([[c, s], [-s, c]])
+
+
+def similarity_2d(source: np.ndarray, target: np.ndarray,
+                  weights: np.ndarray) -> tuple[complex, complex]:
+    """Weighted least-squares 2D similarity ``y = a x + b`` (complex ``a``: scale and
+    rotation, no reflection) between point sets (P, 2)."""
+    x = source[:, 0] + 1j * source[:, 1]
+    y = target[:, 0] + 1j * target[:, 1]
+    w = weights / weights.sum()
+    mx, my = (w * x).sum(), (w * y).sum()
+    a = (w * np.conj(x - mx) * (y - my)).sum() / (w * np.abs(x - mx) ** 2).sum()
+    return complex(a), complex(my - a * mx)
+
+
+def _apply(a: complex, b: complex, points: np.ndarray) -> np.ndarray:
+    z = a * (points[:, 0] + 1j * points[:, 1]) + b
+    return np.column_stack([z.real, z.imag])
+
+
+def _match(blob: BlobAnalysis, placed: np.ndarray) -> tuple[dict[int, int], float]:
+    """Optimal assignment of the found tips to the digits of a placed template by their
+    directions from the palm centre; returns {digit: tip} and the mean angle error (rad)."""
+    tips = placed[[4, 8, 12, 16, 20]]
+    digit_angles = np.arctan2(tips[:, 1] - blob.centre[1], tips[:, 0] - blob.centre[0])
+    if not len(blob.tips):
+        return {}, float(np.pi)
+    cost = np.abs(_wrap(blob.tip_angles[:, None] - digit_angles[None, :]))
+    found, digit = linear_sum_assignment(cost)
+    return dict(zip(digit.tolist(), found.tolist(), strict=True)), float(cost[found, digit].mean())
+
+
+def _plausible(a: complex, a0: complex) -> bool:
+    """A similarity ``a`` within a factor 1.6 in scale and 50 degrees in rotation of the
+    placement ``a0`` from the palm radius and the wrist (a wrong assignment can turn the
+    template over)."""
+    ratio = a / a0
+    return 1 / 1.6 < abs(ratio) < 1.6 and abs(np.angle(ratio)) < np.radians(50.0)
+
+
+def label_keypoints(blob: BlobAnalysis, template: HandTemplate,
+                    palm_radius_mm: float = PALM_RADIUS_MM, rounds: int = 3
+                    ) -> tuple[np.ndarray, np.ndarray, bool, float]:
+    """21 keypoints (px), their confidences, whether the dorsal side faces the camera and
+    the assignment cost (mean angle error, rad) from a blob analysis (module step 4).
+
+    For each side: place the template by the palm radius and the wrist direction turned by
+    up to 60 degrees (the turn whose assignment fits best), assign the tips, then
+    alternate a weighted similarity fit (palm centre and matched tips onto the template's
+    palm centre and tips) with a new assignment, ``rounds`` times.
+    """
+    best = None
+    for dorsal in (False, True):
+        # the digits need not point away from the forearm (a bent wrist): try turns
+        scale = blob.radius / palm_radius_mm
+        tries = []
+        for offset in np.radians(np.arange(-60.0, 61.0, 5.0)):
+            placed = template.place(blob.centre, blob.wrist_angle + offset, scale, dorsal)
+            tries.append((*_match(blob, placed)[::-1], offset, placed))
+        total, match, offset, placed = min(tries, key=lambda t: t[0])
+        local = template.place(np.zeros(2), np.pi / 2, 1.0, dorsal)  # template, mm
+        turn = blob.wrist_angle + offset - np.pi / 2
+        a0 = scale * complex(np.cos(turn), np.sin(turn))
+        for _ in range(rounds):
+            if len(match) < 2:
+                break
+            digits = sorted(match)
+            source = np.vstack([np.zeros((1, 2)),
+                                local[[4 * d + 4 for d in digits]]])
+            target = np.vstack([blob.centre, blob.tips[[match[d] for d in digits]]])
+            weights = np.r_[1.0, np.ones(len(digits))]
+            a, b = similarity_2d(source, target, weights)
+            if not _plausible(a, a0):
+                break
+            placed = _apply(a, b, local)
+            match, total = _match(blob, placed)
+        if best is None or total < best[0]:
+            best = (total, dorsal, placed, match)
+    total, dorsal, placed, match = best
+    keypoints = placed.copy()
+    confidence = np.full(21, 0.6)
+    for i, digit in enumerate(DIGITS):
+        keys = [1 + 4 * i + j for j in range(4)]
+        base = placed[keys[0]]
+        if i in match:
+            tip = blob.tips[match[i]]
+            confidence[keys[1:]] = (0.5, 0.5, 0.9)
+        else:  # curled: the tip folds back towards the palm centre
+            tip = base + 0.35 * (blob.centre - base)
+            confidence[keys[1:]] = 0.1
+        keypoints[keys[1:]] = base + template.fractions[digit][:, None] * (tip - base)
+    return keypoints, confidence, dorsal, total
+
+
+class ClassicDetector:
+    """Skin/background segmentation, blob geometry and a model template (no learning).
+
+    Parameters
+    ----------
+    model : the hand model whose neutral keypoints label the digits (default ``hand``).
+    background : a :class:`BackgroundModel` of a static camera, or None for the border
+        colour (a plain wall).
+    max_side : images are analysed at most this many pixels on their longer side.
+    min_area_fraction : blobs smaller than this fraction of the image are not hands.
+    """
+
+    name = "classic"
+
+    def __init__(self, model: KinematicModel | None = None,
+                 background: BackgroundModel | None = None, max_side: int = 400,
+                 min_area_fraction: float = 0.002) -> None:
+        self.template = HandTemplate(load_model("hand") if model is None else model)
+        self.background = background
+        self.max_side = int(max_side)
+        self.min_area_fraction = float(min_area_fraction)
+
+    def analyse(self, image: np.ndarray) -> tuple[BlobAnalysis | None, float]:
+        """The blob analysis at the working size and the factor back to image pixels."""
+        image = np.asarray(image)
+        if image.dtype != np.uint8 or image.ndim not in (2, 3):
+            raise DigitEyesError(f"classic detector: expected a uint8 grey or RGB image, got "
+                                 f"{image.dtype} {image.shape}")
+        height, width = image.shape[:2]
+        factor = min(1.0, self.max_side / max(height, width))
+        small = image if factor == 1.0 else cv2.resize(
+            image, (round(width * factor), round(height * factor)),
+            interpolation=cv2.INTER_AREA)
+        background = self.background
+        if background is not None and factor != 1.0:
+            raise DigitEyesError("classic detector: a background model needs images of at most "
+                                 f"{self.max_side} px (build it at the working size)")
+        blob = largest_blob(hand_mask(small, background))
+        if blob is None or blob.sum() < self.min_area_fraction * blob.size:
+            return None, 1.0 / factor
+        return analyse_blob(blob), 1.0 / factor
+
+    def detect(self, image: np.ndarray, camera: Camera | None = None) -> list[HandCandidate]:
+        """At most one hand: the largest skin (or foreground) blob, labelled by the model
+        (as a right hand; handedness None: a silhouette cannot tell a right palm from a
+        left back)."""
+        blob, back = self.analyse(image)
+        if blob is None:
+            return []
+        keypoints, confidence, _, angle_cost = label_keypoints(blob, self.template)
+        keypoints = (keypoints + 0.5) * back - 0.5
+        n_tips = len(blob.tips)
+        score = float(np.clip(n_tips / 5.0, 0.0, 1.0) * np.exp(-angle_cost / 0.5))
+        full = cv2.resize(blob.mask.astype(np.uint8), (np.shape(image)[1], np.shape(image)[0]),
+                          interpolation=cv2.INTER_NEAREST) > 0 if back != 1.0 else blob.mask
+        vs, us = np.nonzero(blob.mask)
+        box = bbox_of((np.column_stack([us, vs]) + 0.5) * back - 0.5)
+        return [HandCandidate(keypoints, confidence, score, box, None, self.name,
+                              mask=full)]

@@ -1,0 +1,94 @@
+"""MediaPipe Hands (Zhang et al. 2020) as a digiteyes detector: an optional extra.
+
+``pip install "digiteyes[mediapipe]"`` installs ``mediapipe==0.10.14``, whose wheel carries
+the palm-detection and landmark models, so nothing is downloaded at run time. Without it,
+creating the detector raises :class:`~digiteyes.errors.DigitEyesError` saying how to
+install it.
+
+MediaPipe labels handedness as seen in a mirrored selfie image; we report the anatomical
+side for an unmirrored camera image (its "Left" label is a right hand).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from digiteyes.camera import Camera
+from digiteyes.detect.candidate import HandCandidate, bbox_of
+from digiteyes.errors import DigitEyesError
+
+INSTALL_HINT = ('the MediaPipe detector needs the optional extra: pip install '
+                '"digiteyes[mediapipe]" (mediapipe==0.10.14, models included); or use '
+                '--detector classic')
+
+
+def mediapipe_available() -> bool:
+    """True when ``mediapipe`` imports."""
+    try:
+        import mediapipe  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+class MediaPipeDetector:
+    """Hands by MediaPipe's palm detector and landmark network (CPU, TFLite).
+
+    Parameters
+    ----------
+    max_hands : hands to return at most.
+    static_image_mode : True treats every image alone (``pose``); False lets MediaPipe
+        track landmarks between consecutive video frames (faster, smoother).
+    min_confidence : detection confidence below which MediaPipe drops a hand.
+    model_complexity : 0 (lite) or 1 (full) landmark network.
+    """
+
+    name = "mediapipe"
+
+    def __init__(self, max_hands: int = 2, static_image_mode: bool = True,
+                 min_confidence: float = 0.5, model_complexity: int = 1) -> None:
+        try:
+            import mediapipe as mp
+        except ImportError as exc:
+            raise DigitEyesError(f"{INSTALL_HINT} ({exc})") from None
+        self._hands = mp.solutions.hands.Hands(
+            static_image_mode=static_image_mode, max_num_hands=max_hands,
+            model_complexity=model_complexity, min_detection_confidence=min_confidence,
+            min_tracking_confidence=min_confidence)
+
+    def close(self) -> None:
+        """Release MediaPipe's graph."""
+        self._hands.close()
+
+    def detect(self, image: np.ndarray, camera: Camera | None = None) -> list[HandCandidate]:
+        """Hands in an RGB (H, W, 3) or grey (H, W) uint8 image, most confident first."""
+        image = np.asarray(image)
+        if image.ndim == 2:
+            image = np.repeat(image[..., None], 3, axis=2)
+        if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
+            raise DigitEyesError(f"MediaPipe detector: expected a uint8 RGB or grey image, got "
+                                 f"{image.dtype} {image.shape}")
+        height, width = image.shape[:2]
+        with warnings.catch_warnings():  # protobuf's deprecation notice inside MediaPipe
+            warnings.simplefilter("ignore", UserWarning)
+            result = self._hands.process(np.ascontiguousarray(image))
+        if not result.multi_hand_landmarks:
+            return []
+        worlds = result.multi_hand_world_landmarks or [None] * len(result.multi_hand_landmarks)
+        found = []
+        for marks, world, side in zip(result.multi_hand_landmarks, worlds,
+                                      result.multi_handedness, strict=True):
+            # normalised [0, 1] coordinates measure from the image's outer edge
+            uv = np.array([[m.x * width - 0.5, m.y * height - 0.5] for m in marks.landmark])
+            label = side.classification[0]
+            xyz = None if world is None else 1000.0 * np.array(
+                [[m.x, m.y, m.z] for m in world.landmark])
+            found.append(HandCandidate(
+                keypoints=uv, keypoint_confidence=np.full(21, float(label.score)),
+                confidence=float(label.score), bbox=bbox_of(uv, 10.0),
+                handedness="right" if label.label == "Left" else "left",
+                detector=self.name, keypoints_3d=xyz))
+        found.sort(key=lambda c: -c.confidence)
+        return found

@@ -1,0 +1,375 @@
+"""The kinematic hand model fitted to detected keypoints: a full state in millimetres.
+
+The fit minimises, over the state ``q`` of the nominal model and a global hand scale
+``s`` (the posed points are ``s * p_k(q)``, :func:`~digiteyes.kinematics.scaling.scaled_model`),
+
+``E(q, s) = sum_c sum_k rho(c_k |pi_c(s p_k(q)) - u_ck|^2 / sigma_px^2)``   (2D, per camera)
+``        + sum_k rho(|s p_k(q) - y_k|^2 / sigma_mm^2)``                  (3D, when given)
+``        + sum_j ((theta_j - mu_j) / sigma_theta)^2 + ((s - s0) / sigma_s)^2``   (prior)
+
+with ``rho`` Huber's loss (one sigma), joint limits enforced by projection after every
+step, and Levenberg-Marquardt steps (thesis eq. 2.22 with adaptive damping). The
+Jacobian chains the camera's projection Jacobian with the point Jacobian of the tree
+(thesis eq. 2.16 / report eq. 8-10): ``d pi / d v = J_pi (s J_p)`` and
+``d pi / d s = J_pi p``.
+
+**Metric scale.** With one camera the image constrains ``s`` only through the prior: a
+hand ``s`` times larger at ``s`` times the depth projects to the same pixels. The scale is
+then held at ``s0`` (the nominal hand, or the user's calibrated hand), and the depth
+error is the hand-size error: a hand 10 % larger than assumed is placed 10 % too far.
+With 3D keypoints or two or more cameras ``s`` is fitted.
+
+The start comes from the palm: the wrist and the four MCP joints are coplanar and fixed
+in the palm frame, so a planar pose (OpenCV's IPPE, both of its solutions) places the
+palm in a camera; 3D targets use :func:`~digiteyes.kinematics.procrustes.kabsch`. The
+fit scouts from each start (a few iterations with the fingers extended and curled, the
+better joints kept digit by digit) and refines the start of lowest cost.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import cv2
+import numpy as np
+
+from digiteyes.camera import Camera
+from digiteyes.detect.hand21 import DIGITS, HAND21_NAMES, PALM_FIXED, model_anchors
+from digiteyes.errors import DigitEyesError
+from digiteyes.kinematics import (
+    KinematicModel,
+    clip_to_limits,
+    forward_kinematics,
+    integrate,
+    point_jacobian,
+)
+from digiteyes.kinematics.procrustes import kabsch
+from digiteyes.kinematics.rotations import quaternion_from_matrix
+from digiteyes.solvers import GaussNewtonOptions, gauss_newton, robust_cost
+
+PLANAR_PALM = (0, 5, 9, 13, 17)
+"""Wrist and the four MCPs: coplanar in the palm frame (z = 0)."""
+SCOUT_ITERATIONS = 6
+"""Iterations of each scouting fit (extended and curled fingers) before the refinement."""
+DIGIT_KEYPOINTS = {d: [1 + 4 * i + j for j in range(4)] for i, d in enumerate(DIGITS)}
+"""The four keypoints of each digit (base to tip)."""
+
+
+@dataclass(frozen=True)
+class FitOptions:
+    """Settings of :func:`fit_keypoints`.
+
+    Attributes
+    ----------
+    sigma_px : expected keypoint error of the detector, px (the Huber scale of 2D terms).
+    sigma_mm : expected error of 3D keypoints, mm.
+    sigma_joint_deg : width of the prior on each joint angle about ``prior_mean`` (deg).
+    scale : assumed hand scale ``s0`` (1 = the model file's hand).
+    sigma_scale : width of the prior on the scale when it is fitted.
+    fit_scale : ``None`` fits the scale exactly when it is observable (3D targets or two
+        or more cameras); True or False forces it.
+    iterations : Levenberg-Marquardt iterations at most in the refinement.
+    """
+
+    sigma_px: float = 4.0
+    sigma_mm: float = 5.0
+    sigma_joint_deg: float = 45.0
+    scale: float = 1.0
+    sigma_scale: float = 0.15
+    fit_scale: bool | None = None
+    iterations: int = 15
+
+
+@dataclass
+class KeypointObservation:
+    """Detected keypoints in one camera: (21, 2) px and (21,) confidences in [0, 1]."""
+
+    camera: Camera
+    keypoints: np.ndarray
+    confidence: np.ndarray = field(default_factory=lambda: np.ones(21))
+
+
+@dataclass
+class PoseFit:
+    """A fitted hand.
+
+    Attributes
+    ----------
+    model : the nominal model the state belongs to.
+    q : state (n_q,) of ``model``; its base translation is in *model* units, so the posed
+        points are ``scale * p(q)`` (see :meth:`scaled_state`).
+    scale : fitted or assumed hand scale (dimensionless).
+    keypoints_world : (21, 3) mm in the world frame of the cameras.
+    reprojection_px : (n_cameras, 21) distance from each detected keypoint, px.
+    cost : final cost (robust, dimensionless).
+    iterations : solver iterations of the chosen start.
+    scale_fitted : whether ``scale`` was estimated (False: assumed).
+    """
+
+    model: KinematicModel
+    q: np.ndarray
+    scale: float
+    keypoints_world: np.ndarray
+    reprojection_px: np.ndarray
+    cost: float
+    iterations: int
+    scale_fitted: bool
+
+    def scaled_state(self) -> np.ndarray:
+        """The state of ``scaled_model(model, scale)`` that poses the same hand (mm)."""
+        q = np.array(self.q)
+        k = self.model.base_state
+        q[k + 4:k + 7] *= self.scale
+        return q
+
+    def keypoints_camera(self, camera: Camera) -> np.ndarray:
+        """The 21 keypoints in ``camera``'s frame (21, 3), mm."""
+        return camera.to_camera(self.keypoints_world)
+
+    def joint_angles_deg(self) -> dict[str, float]:
+        """Every angle state by name, degrees."""
+        return {spec.name: float(np.degrees(self.q[spec.index]))
+                for spec in self.model.spec.states if spec.kind == "angle"}
+
+
+class KeypointFitProblem:
+    """The cost of :mod:`this module <digiteyes.detect.model_fit>` as a
+    :class:`~digiteyes.solvers.LeastSquaresProblem` over ``x = (q, s)``; residuals are in
+    units of their sigma."""
+
+    def __init__(self, model: KinematicModel, observations: Sequence[KeypointObservation],
+                 target_3d: np.ndarray | None, options: FitOptions, fit_scale: bool,
+                 prior_mean: np.ndarray | None = None,
+                 target_weights: np.ndarray | None = None) -> None:
+        self.model = model
+        self.observations = list(observations)
+        self.target_3d = None if target_3d is None else np.asarray(target_3d, dtype=float)
+        self._weights_3d = np.ones(21) if target_weights is None else np.sqrt(
+            np.clip(np.asarray(target_weights, dtype=float), 0.0, 1.0))
+        if self.target_3d is not None:  # a missing 3D point (NaN) carries no weight
+            missing = ~np.isfinite(self.target_3d).all(axis=1)
+            self._weights_3d = np.where(missing, 0.0, self._weights_3d)
+            self.target_3d = np.where(missing[:, None], 0.0, self.target_3d)
+        self.options = options
+        self.fit_scale = fit_scale
+        self.rows, self.points = model_anchors(model)
+        self.angle_states = np.array([s.index for s in model.spec.states if s.kind == "angle"])
+        self.angle_columns = model.q_to_v[self.angle_states]
+        self.prior_mean = (model.neutral() if prior_mean is None else prior_mean)[
+            self.angle_states]
+        self.n_v = model.n_v + 1
+        self._weights = [np.sqrt(np.clip(o.confidence, 0.0, 1.0)) / options.sigma_px
+                         for o in self.observations]
+
+    def residuals(self, x: np.ndarray, jacobian: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        q, s = x[:-1], x[-1]
+        p, Jp = point_jacobian(forward_kinematics(self.model, q), self.rows, self.points)
+        parts, jac = [], []
+        n = self.model.n_v
+        for obs, w in zip(self.observations, self._weights, strict=True):
+            uv, Jw = obs.camera.project_with_jacobian(s * p, jacobian)
+            parts.append(((uv - obs.keypoints) * w[:, None]).ravel())
+            if jacobian:
+                block = np.empty((21, 2, n + 1))
+                block[..., :n] = s * np.einsum("kab,kbn->kan", Jw, Jp)
+                block[..., n] = np.einsum("kab,kb->ka", Jw, p)
+                jac.append((block * w[:, None, None]).reshape(42, n + 1))
+        if self.target_3d is not None:
+            sigma = self.options.sigma_mm
+            w3 = self._weights_3d[:, None] / sigma
+            parts.append(((s * p - self.target_3d) * w3).ravel())
+            if jacobian:
+                block = np.concatenate([s * Jp, p[..., None]], axis=2) * w3[..., None]
+                jac.append(block.reshape(63, n + 1))
+        sigma_joint = np.radians(self.options.sigma_joint_deg)
+        parts.append((q[self.angle_states] - self.prior_mean) / sigma_joint)
+        if jacobian:
+            block = np.zeros((len(self.angle_states), n + 1))
+            block[np.arange(len(self.angle_states)), self.angle_columns] = 1.0 / sigma_joint
+            jac.append(block)
+        parts.append(np.array([(s - self.options.scale) / self.options.sigma_scale]))
+        if jacobian:
+            row = np.zeros((1, n + 1))
+            row[0, n] = 1.0 / self.options.sigma_scale
+            jac.append(row)
+        r = np.concatenate(parts)
+        if not jacobian:
+            return r, None
+        J = np.concatenate(jac)
+        if not self.fit_scale:
+            J[:, n] = 0.0
+        return r, J
+
+    def keypoint_errors(self, x: np.ndarray) -> np.ndarray:
+        """Per keypoint (21,): squared weighted 2D and 3D residuals summed over cameras."""
+        r, _ = self.residuals(x, False)
+        n_2d = 42 * len(self.observations)
+        errors = (r[:n_2d].reshape(-1, 21, 2) ** 2).sum(axis=(0, 2))
+        if self.target_3d is not None:
+            errors = errors + (r[n_2d:n_2d + 63].reshape(21, 3) ** 2).sum(axis=1)
+        return errors
+
+    def retract(self, x: np.ndarray, dv: np.ndarray) -> np.ndarray:
+        s = x[-1] + (dv[-1] if self.fit_scale else 0.0)
+        return np.append(integrate(self.model, x[:-1], dv[:-1]), s)
+
+    def project(self, x: np.ndarray) -> np.ndarray:
+        return np.append(clip_to_limits(self.model, x[:-1]), min(max(x[-1], 0.5), 2.0))
+
+
+def palm_points(model: KinematicModel, q: np.ndarray | None = None) -> np.ndarray:
+    """The 21 keypoints (21, 3) mm in the palm frame at the joint angles of ``q`` (its base
+    pose ignored; default: the neutral joint angles)."""
+    q = model.neutral() if q is None else np.array(q, dtype=float)
+    k = model.base_state
+    q[k:k + 7] = model.neutral()[k:k + 7]
+    rows, points = model_anchors(model)
+    return forward_kinematics(model, q).points(rows, points)
+
+
+def _state_from_pose(model: KinematicModel, R: np.ndarray, t: np.ndarray, scale: float,
+                     joints: np.ndarray) -> np.ndarray:
+    q = np.array(joints, dtype=float)
+    k = model.base_state
+    q[k:k + 4] = quaternion_from_matrix(R)
+    q[k + 4:k + 7] = t / scale
+    return q
+
+
+def starts_from_3d(model: KinematicModel, target: np.ndarray, scale: float) -> list[np.ndarray]:
+    """One start: the palm-fixed keypoints of the model (scaled) aligned to ``target``."""
+    keys = [k for k in PALM_FIXED if np.isfinite(target[k]).all()]
+    if len(keys) < 3:
+        raise DigitEyesError("model fit: at least three of the wrist, thumb CMC and MCP 3D "
+                             "points are needed to place the palm")
+    palm = scale * palm_points(model)[keys]
+    R, t, _ = kabsch(palm, np.asarray(target)[keys])
+    return [_state_from_pose(model, R, t, scale, model.neutral())]
+
+
+def starts_from_image(model: KinematicModel, obs: KeypointObservation,
+                      scale: float) -> list[np.ndarray]:
+    """Starts from the palm's planar pose in one camera (both IPPE solutions), in world."""
+    palm = scale * palm_points(model)[list(PLANAR_PALM)]
+    image = np.asarray(obs.keypoints, dtype=float)[list(PLANAR_PALM)]
+    if not np.isfinite(image).all():
+        raise DigitEyesError("model fit: the wrist and the four MCP keypoints are needed to "
+                             "place the palm")
+    cam = obs.camera
+    try:
+        count, rvecs, tvecs, _ = cv2.solvePnPGeneric(
+            palm.astype(np.float64), image.astype(np.float64), np.asarray(cam.K),
+            np.asarray(cam.dist), flags=cv2.SOLVEPNP_IPPE)
+    except cv2.error as exc:
+        raise DigitEyesError(f"model fit: palm pose failed ({exc.err})") from None
+    starts = []
+    T_world_cam = cam.T_world_cam
+    for rvec, tvec in zip(rvecs[:count], tvecs[:count], strict=True):
+        T = np.eye(4)
+        T[:3, :3] = cv2.Rodrigues(rvec)[0]
+        T[:3, 3] = np.ravel(tvec)
+        if not np.isfinite(T).all() or T[2, 3] <= 0:
+            continue
+        T_world_palm = T_world_cam @ T
+        starts.append(_state_from_pose(model, T_world_palm[:3, :3], T_world_palm[:3, 3],
+                                       scale, model.neutral()))
+    if not starts:
+        raise DigitEyesError("model fit: no palm pose in front of the camera fits the keypoints")
+    return starts
+
+
+CURLED_START_DEG = 40.0
+"""Flexion of every finger joint (MCP, PIP, DIP) in the curled start, degrees."""
+
+
+def _curled(model: KinematicModel, q: np.ndarray) -> np.ndarray:
+    """``q`` with the finger flexions at :data:`CURLED_START_DEG` (thumb unchanged)."""
+    q = np.array(q)
+    for digit in DIGITS[1:]:
+        for joint in ("mcp", "pip", "dip"):
+            q[model.state_index(f"{digit}.{joint}")] = np.radians(CURLED_START_DEG)
+    return clip_to_limits(model, q)
+
+
+@lru_cache(maxsize=16)
+def _digit_states(model: KinematicModel) -> dict[str, list[int]]:
+    return {d: [s.index for s in model.spec.states if s.name.startswith(f"{d}.")]
+            for d in DIGITS}
+
+
+def _solver_options(iterations: int) -> GaussNewtonOptions:
+    return GaussNewtonOptions(max_iterations=iterations, damping="levenberg-marquardt",
+                              robust_loss="huber", scale_px=1.0, step_tolerance=1e-6,
+                              cost_tolerance=1e-7)
+
+
+def _scout(problem: KeypointFitProblem, x0: np.ndarray) -> tuple[np.ndarray, float]:
+    """A few iterations from the extended and from the curled fingers, then digit by
+    digit the joints whose keypoints fit better (a finger seen from the front can bend
+    towards or away from the camera; the digits are independent given the palm). Returns
+    the combined parameters and their cost."""
+    model = problem.model
+    short = _solver_options(SCOUT_ITERATIONS)
+    scouts = [gauss_newton(problem, x0, short)[0],
+              gauss_newton(problem, np.append(_curled(model, x0[:-1]), x0[-1]), short)[0]]
+    errors = [problem.keypoint_errors(x) for x in scouts]
+    x = np.array(scouts[0])
+    for digit, states in _digit_states(model).items():
+        keys = DIGIT_KEYPOINTS[digit]
+        if errors[1][keys].sum() < errors[0][keys].sum():
+            x[states] = scouts[1][states]
+    r, _ = problem.residuals(x, False)
+    return x, float(robust_cost(r, "huber", 1.0).sum())
+
+
+def fit_keypoints(model: KinematicModel, observations: Sequence[KeypointObservation] = (),
+                  target_3d: np.ndarray | None = None,
+                  options: FitOptions = FitOptions(),
+                  q0: np.ndarray | None = None) -> PoseFit:
+    """Fit ``model`` to 2D keypoints in any number of cameras and/or 3D keypoints (mm).
+
+    Parameters
+    ----------
+    model : the hand model (the 21 keypoints of :mod:`~digiteyes.detect.hand21`).
+    observations : detected keypoints per camera (world frame of the cameras).
+    target_3d : (21, 3) world mm, or None; rows of NaN are missing points.
+    options : :class:`FitOptions`.
+    q0 : a start state of ``model`` (translation in model units); None starts from the
+        palm pose.
+
+    Raises :class:`DigitEyesError` when there is nothing to fit.
+    """
+    observations = list(observations)
+    if not observations and target_3d is None:
+        raise DigitEyesError("model fit: give keypoints in at least one camera or 3D keypoints")
+    fit_scale = options.fit_scale
+    if fit_scale is None:
+        fit_scale = target_3d is not None or len(observations) >= 2
+    problem = KeypointFitProblem(model, observations, target_3d, options, fit_scale)
+    if q0 is not None:
+        starts = [np.asarray(q0, dtype=float)]
+    elif target_3d is not None:
+        starts = starts_from_3d(model, target_3d, options.scale)
+    else:
+        best = max(observations, key=lambda o: float(np.sum(o.confidence)))
+        starts = starts_from_image(model, best, options.scale)
+    full = _solver_options(options.iterations)
+    if q0 is not None:
+        best_x, best_summary = gauss_newton(problem, np.append(starts[0], options.scale), full)
+    else:  # scout every palm start, refine the best
+        scouted = [_scout(problem, np.append(q, options.scale)) for q in starts]
+        x_start = min(scouted, key=lambda pair: pair[1])[0]
+        best_x, best_summary = gauss_newton(problem, x_start, full)
+    q, s = best_x[:-1], float(best_x[-1])
+    rows, points = problem.rows, problem.points
+    world = s * forward_kinematics(model, q).points(rows, points)
+    reproj = np.array([np.linalg.norm(o.camera.project(world) - o.keypoints, axis=1)
+                       for o in observations]).reshape(len(observations), 21)
+    return PoseFit(model, q, s, world, reproj, float(best_summary.cost_final),
+                   best_summary.iterations, bool(fit_scale))
+
+
+__all__ = ["HAND21_NAMES", "FitOptions", "KeypointFitProblem", "KeypointObservation",
+           "PoseFit", "fit_keypoints", "palm_points", "starts_from_3d", "starts_from_image"]

@@ -1,0 +1,123 @@
+"""Hand pose from single images: detection, then the model fit, per image or camera set.
+
+:func:`estimate_pose` is what ``digiteyes pose`` runs for each image (one camera) or each
+set of simultaneous images (a rig). :func:`make_detector` creates a detector by name.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from digiteyes.camera import Rig
+from digiteyes.detect.candidate import HandCandidate, HandDetector
+from digiteyes.detect.hand21 import HAND21_NAMES
+from digiteyes.detect.model_fit import FitOptions, KeypointObservation, PoseFit, fit_keypoints
+from digiteyes.errors import DigitEyesError
+from digiteyes.kinematics import KinematicModel
+
+DETECTORS = ("auto", "mediapipe", "classic")
+
+
+def make_detector(name: str, model: KinematicModel | None = None) -> HandDetector:
+    """``"mediapipe"`` (needs the extra), ``"classic"`` or ``"auto"`` (MediaPipe when
+    installed, else classic)."""
+    from digiteyes.detect.classic import ClassicDetector
+    from digiteyes.detect.mediapipe_detector import MediaPipeDetector, mediapipe_available
+
+    if name == "auto":
+        name = "mediapipe" if mediapipe_available() else "classic"
+    if name == "mediapipe":
+        return MediaPipeDetector(max_hands=1)
+    if name == "classic":
+        return ClassicDetector(model)
+    raise DigitEyesError(f"unknown detector {name!r}; choose one of {', '.join(DETECTORS)}")
+
+
+@dataclass
+class PoseResult:
+    """One image set's detections and fit (``fit`` is None when no camera found a hand).
+
+    Attributes
+    ----------
+    candidates : per camera, the best candidate or None.
+    fit : the model fit, or None.
+    seconds : ``{"detect": s, "fit": s}`` wall time.
+    """
+
+    candidates: list[HandCandidate | None]
+    fit: PoseFit | None
+    seconds: dict[str, float]
+
+
+def estimate_pose(images: Sequence[np.ndarray], rig: Rig, detector: HandDetector,
+                  model: KinematicModel, options: FitOptions | None = None) -> PoseResult:
+    """Detect the hand in each camera's image and fit ``model`` to all detections."""
+    rig.check_images(images)
+    start = time.perf_counter()
+    candidates = []
+    for image, camera in zip(images, rig, strict=True):
+        found = detector.detect(image, camera)
+        candidates.append(found[0] if found else None)
+    detected = time.perf_counter()
+    observations = [KeypointObservation(cam, c.keypoints, c.keypoint_confidence)
+                    for cam, c in zip(rig, candidates, strict=True) if c is not None]
+    options = FitOptions() if options is None else options
+    fit = fit_keypoints(model, observations, options=options) if observations else None
+    return PoseResult(candidates, fit, {"detect": detected - start,
+                                        "fit": time.perf_counter() - detected})
+
+
+def pose_to_json(result: PoseResult, rig: Rig, sources: Sequence[str]) -> dict:
+    """A JSON-ready record: detections, 3D keypoints (mm) in the world and in each camera,
+    joint angles (deg), the scaled state, hand scale and timings."""
+    out: dict = {"images": list(sources), "seconds": result.seconds,
+                 "detections": {cam.name: None if c is None else c.to_json()
+                                for cam, c in zip(rig, result.candidates, strict=True)}}
+    fit = result.fit
+    if fit is None:
+        out["hand"] = None
+        return out
+
+    def named(points: np.ndarray) -> dict:
+        return {n: [round(float(v), 3) for v in p]
+                for n, p in zip(HAND21_NAMES, points, strict=True)}
+
+    out["hand"] = {
+        "scale": fit.scale, "scale_fitted": fit.scale_fitted,
+        "keypoints_world_mm": named(fit.keypoints_world),
+        "keypoints_camera_mm": {cam.name: named(fit.keypoints_camera(cam)) for cam in rig},
+        "joint_angles_deg": fit.joint_angles_deg(),
+        "state": dict(zip(fit.model.state_names, fit.scaled_state().tolist(), strict=True)),
+        "reprojection_rms_px": float(np.sqrt(np.mean(fit.reprojection_px ** 2)))
+        if fit.reprojection_px.size else None,
+    }
+    return out
+
+
+def write_pose_csv(result: PoseResult, rig: Rig, path: str | Path) -> None:
+    """One row per keypoint and camera: pixel position and confidence of the detection,
+    the fitted point in that camera's frame (mm)."""
+    with open(path, "w", newline="", encoding="utf-8") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["camera", "keypoint", "u_px", "v_px", "confidence", "x_cam_mm",
+                         "y_cam_mm", "z_cam_mm"])
+        for cam, cand in zip(rig, result.candidates, strict=True):
+            xyz = (result.fit.keypoints_camera(cam) if result.fit is not None
+                   else np.full((21, 3), np.nan))
+            for k, name in enumerate(HAND21_NAMES):
+                uv = (np.full(2, np.nan) if cand is None else cand.keypoints[k])
+                conf = np.nan if cand is None else cand.keypoint_confidence[k]
+                writer.writerow([cam.name, name, f"{uv[0]:.2f}", f"{uv[1]:.2f}", f"{conf:.3f}",
+                                 *(f"{v:.2f}" for v in xyz[k])])
+
+
+def write_pose_json(record: dict, path: str | Path) -> None:
+    """Write :func:`pose_to_json`'s record."""
+    Path(path).write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")

@@ -1,0 +1,103 @@
+"""``pose``, ``calibrate-camera`` and ``calibrate-hand`` end to end on rendered images."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from digiteyes import load_model
+from digiteyes.camera import Camera, Rig, load_rig, save_rig
+from digiteyes.camera.calibration import render_chessboard
+from digiteyes.cli import main
+from digiteyes.detect.hand_size import model_hand_length
+from digiteyes.kinematics.rotations import matrix_from_quaternion, quaternion_from_rotvec
+from digiteyes.synth.options import RenderOptions
+from digiteyes.synth.scenarios import basis_joint_angles
+from digiteyes.synth.views import render_views
+
+
+@pytest.fixture(scope="module")
+def hand_image(tmp_path_factory):
+    """A rendered open right hand on a grey wall, its camera's rig file and the truth."""
+    hand = load_model("hand")
+    cam = Camera.look_at("front", eye=(0, 0, 450), target=(0, 0, 0), up=(0, -1, 0))
+    q = basis_joint_angles(hand, "EEEEE")
+    q[0:4] = quaternion_from_rotvec(np.array([0.2, 0.1, 3.0]))
+    q[4:7] = (0.0, 30.0, 0.0)
+    view = render_views(hand, np.clip(q, hand.lower, hand.upper), [cam],
+                        RenderOptions(color=True, background="uniform", background_level=0.45),
+                        rng=0)[0]
+    folder = tmp_path_factory.mktemp("pose")
+    path = folder / "hand.png"
+    cv2.imwrite(str(path), cv2.cvtColor(view.image, cv2.COLOR_RGB2BGR))
+    save_rig(Rig((cam,)), folder / "rig.json")
+    return path, folder / "rig.json", cam.to_camera(view.keypoints_3d)
+
+
+def test_pose_writes_json_and_csv(hand_image, tmp_path):
+    image, rig, truth_cam = hand_image
+    out = tmp_path / "out"
+    assert main(["pose", str(image), "--rig", str(rig), "--detector", "classic",
+                 "-o", str(out)]) == 0
+    record = json.loads((out / "hand.json").read_text())
+    hand = record["hand"]
+    assert hand["scale"] == 1.0 and not hand["scale_fitted"]
+    wrist = np.array(hand["keypoints_camera_mm"]["front"]["wrist"])
+    assert wrist[2] == pytest.approx(truth_cam[:, 2].mean(), rel=0.12)  # 450 mm away
+    assert set(hand["joint_angles_deg"]) >= {"index.mcp", "thumb.ip"}
+    with open(out / "hand.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == 21 and rows[0]["keypoint"] == "wrist"
+    assert float(rows[0]["z_cam_mm"]) == pytest.approx(wrist[2], abs=0.01)
+
+
+def test_pose_without_a_rig_uses_the_default_camera(hand_image, tmp_path):
+    image, _, _ = hand_image
+    assert main(["pose", str(image), "--detector", "classic", "-o", str(tmp_path)]) == 0
+    record = json.loads((tmp_path / "hand.json").read_text())
+    assert record["hand"] is not None and "camera" in record["hand"]["keypoints_camera_mm"]
+
+
+def test_pose_reports_an_unreadable_image(tmp_path, capsys):
+    bad = tmp_path / "bad.png"
+    bad.write_text("not an image")
+    assert main(["pose", str(bad), "--detector", "classic", "-o", str(tmp_path / "o")]) == 2
+    assert "not an image" in capsys.readouterr().err
+
+
+def test_calibrate_camera_from_a_folder(tmp_path):
+    K = np.array([[650.0, 0, 318.0], [0, 650.0, 242.0], [0, 0, 1]])
+    cam = Camera.create("truth", K, 640, 480)
+    rng = np.random.default_rng(0)
+    folder = tmp_path / "boards"
+    folder.mkdir()
+    for i in range(6):
+        T = np.eye(4)
+        T[:3, :3] = matrix_from_quaternion(quaternion_from_rotvec(rng.uniform(-0.45, 0.45, 3)))
+        T[:3, 3] = np.array([rng.uniform(-30, 30), rng.uniform(-20, 20), 420.0]) \
+            - T[:3, :3] @ np.array([75.0, 50.0, 0.0])
+        cv2.imwrite(str(folder / f"b{i}.png"), render_chessboard(cam, T, (7, 5), 25.0))
+    out = tmp_path / "rig.json"
+    assert main(["calibrate-camera", str(folder), "--pattern", "7x5", "--square-mm", "25",
+                 "-o", str(out)]) == 0
+    got = load_rig(out)[0].K
+    np.testing.assert_allclose(got[[0, 1], [0, 1]], [650.0, 650.0], rtol=0.015)
+
+
+def test_calibrate_hand_from_a_measured_length(tmp_path):
+    hand = load_model("hand")
+    out = tmp_path / "me.dh"
+    length = 1.1 * model_hand_length(hand)
+    assert main(["calibrate-hand", "--hand-length-mm", f"{length:.4f}", "-o", str(out)]) == 0
+    mine = load_model(out)
+    assert model_hand_length(mine) == pytest.approx(length, rel=1e-4)
+    assert mine.name == "me"
+
+
+def test_calibrate_hand_needs_a_scale_source(tmp_path, capsys):
+    assert main(["calibrate-hand", "-o", str(tmp_path / "x.dh")]) == 2
+    assert "one camera cannot see the hand's size" in capsys.readouterr().err

@@ -1,0 +1,101 @@
+"""The classic detector finds rendered hands on plain backgrounds and names their digits."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from digiteyes.detect.classic import ClassicDetector, similarity_2d
+from digiteyes.detect.hand21 import TIPS, model_anchors
+from digiteyes.detect.model_fit import KeypointObservation, fit_keypoints
+from digiteyes.detect.segmentation import BackgroundModel, border_background, hand_mask
+from digiteyes.kinematics import forward_kinematics
+from digiteyes.kinematics.rotations import quaternion_from_rotvec
+from digiteyes.synth.options import RenderOptions
+from digiteyes.synth.scenarios import basis_joint_angles
+from digiteyes.synth.views import render_views
+
+
+def open_hand(hand, seed: int) -> np.ndarray:
+    """An open hand (basis configuration EEEEE plus a little random flexion), palm to the
+    camera of the ``camera`` fixture, fingers up the image, turned by up to 25 degrees."""
+    rng = np.random.default_rng(seed)
+    q = basis_joint_angles(hand, "EEEEE")
+    q[7:] += rng.uniform(0.0, 0.2, hand.n_q - 7)
+    q[0:4] = quaternion_from_rotvec(np.array([0.2, 0.1, np.pi + rng.uniform(-0.45, 0.45)]))
+    q[4:7] = (rng.uniform(-20, 20), rng.uniform(10, 40), 0.0)
+    return np.clip(q, hand.lower, hand.upper)
+
+
+SCENES = [
+    ("uniform", True, 0.45),   # grey wall, colour camera: skin and border colour
+    ("uniform", False, 0.45),  # grey wall, grey camera: border colour only
+    ("black", False, 0.08),    # the thesis's black cloth
+]
+
+
+@pytest.mark.parametrize(("background", "color", "level"), SCENES)
+@pytest.mark.parametrize("seed", [0, 1])
+def test_classic_finds_and_labels_rendered_hands(hand, camera, background, color, level, seed):
+    q = open_hand(hand, seed)
+    options = RenderOptions(color=color, background=background, background_level=level)
+    view = render_views(hand, q, [camera], options, rng=seed)[0]
+    rows, points = model_anchors(hand)
+    truth = camera.project(forward_kinematics(hand, q).points(rows, points))
+    found = ClassicDetector().detect(view.image, camera)
+    assert len(found) == 1
+    cand = found[0]
+    tip_error = np.linalg.norm(cand.keypoints[list(TIPS)] - truth[list(TIPS)], axis=1)
+    assert tip_error.max() < 20.0, tip_error  # every digit found and named
+    assert np.median(np.linalg.norm(cand.keypoints - truth, axis=1)) < 20.0
+    assert cand.confidence > 0.5
+    x0, y0, x1, y1 = cand.bbox
+    assert x0 <= truth[:, 0].min() + 10 and x1 >= truth[:, 0].max() - 10
+    assert y0 <= truth[:, 1].min() + 10 and y1 >= truth[:, 1].max() - 10
+
+
+def test_classic_keypoints_start_the_model_fit(hand, camera):
+    """Detection + fit on a rendered frame (hand size known): the palm keypoints within
+    25 mm across the line of sight and 10 % in depth (the template's proportions set the
+    depth from one camera)."""
+    q = open_hand(hand, 3)
+    view = render_views(hand, q, [camera], RenderOptions(color=True, background="uniform",
+                                                          background_level=0.45), rng=0)[0]
+    cand = ClassicDetector().detect(view.image, camera)[0]
+    fit = fit_keypoints(hand, [KeypointObservation(camera, cand.keypoints,
+                                                   cand.keypoint_confidence)])
+    rows, points = model_anchors(hand)
+    truth = forward_kinematics(hand, q).points(rows, points)
+    palm = [0, 5, 9, 13, 17]
+    fitted, true = camera.to_camera(fit.keypoints_world[palm]), camera.to_camera(truth[palm])
+    assert np.linalg.norm(fitted[:, :2] - true[:, :2], axis=1).max() < 25.0
+    assert np.abs(fitted[:, 2] / true[:, 2] - 1).max() < 0.10
+
+
+def test_no_hand_on_an_empty_wall(camera):
+    wall = np.full((480, 640, 3), 120, dtype=np.uint8)
+    wall += np.random.default_rng(0).integers(0, 6, wall.shape, dtype=np.uint8)
+    assert ClassicDetector().detect(wall, camera) == []
+
+
+def test_border_colour_and_static_background():
+    rng = np.random.default_rng(1)
+    frames = [np.clip(100 + rng.normal(0, 2, (60, 80, 3)), 0, 255).astype(np.uint8)
+              for _ in range(5)]
+    model = BackgroundModel.from_frames(frames)
+    image = frames[0].copy()
+    image[20:40, 30:50] = (200, 140, 110)  # a skin-coloured patch
+    fg = model.foreground(image)
+    assert fg[20:40, 30:50].all() and fg.sum() == 400
+    assert not border_background(image)[25, 35] and border_background(image)[5, 5]
+    mask = hand_mask(image, model)
+    assert mask[22:38, 32:48].all() and mask.sum() < 450
+
+
+def test_similarity_2d_recovers_scale_and_turn():
+    rng = np.random.default_rng(2)
+    x = rng.normal(size=(6, 2))
+    a = 1.7 * np.exp(0.6j)
+    z = a * (x[:, 0] + 1j * x[:, 1]) + (3 - 2j)
+    fit_a, fit_b = similarity_2d(x, np.column_stack([z.real, z.imag]), np.ones(6))
+    assert fit_a == pytest.approx(a) and fit_b == pytest.approx(3 - 2j)

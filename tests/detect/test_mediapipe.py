@@ -1,0 +1,49 @@
+"""The MediaPipe detector: a clear error without the extra; candidates in the 21-keypoint
+order on a real frame when both the extra and the real data are present."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from digiteyes.detect.mediapipe_detector import MediaPipeDetector, mediapipe_available
+from digiteyes.errors import DigitEyesError
+
+VIDEO = Path(__file__).resolve().parents[3] / "shared" / "data" / "real_video" / \
+    "human_hand_video.mp4"
+
+
+def test_missing_extra_names_the_install_command(monkeypatch):
+    monkeypatch.setitem(sys.modules, "mediapipe", None)  # import fails as if absent
+    assert not mediapipe_available()
+    with pytest.raises(DigitEyesError, match=r'pip install "digiteyes\[mediapipe\]"'):
+        MediaPipeDetector()
+
+
+@pytest.mark.skipif(not mediapipe_available(), reason="optional extra digiteyes[mediapipe]")
+def test_mediapipe_on_an_empty_image_finds_nothing():
+    detector = MediaPipeDetector()
+    assert detector.detect(np.full((240, 320), 128, dtype=np.uint8)) == []
+    with pytest.raises(DigitEyesError, match="uint8"):
+        detector.detect(np.zeros((240, 320, 3)))
+
+
+@pytest.mark.skipif(not (mediapipe_available() and VIDEO.is_file()),
+                    reason="needs the mediapipe extra and ../shared/data")
+def test_mediapipe_finds_the_right_hand_of_the_real_video():
+    from digiteyes.detect.classic import ClassicDetector
+    from digiteyes.io.video import VideoReader
+
+    with VideoReader(VIDEO) as reader:
+        frame = reader.read()
+    found = MediaPipeDetector(max_hands=1).detect(frame)
+    assert len(found) == 1 and found[0].handedness == "right"
+    cand = found[0]
+    assert cand.keypoints.shape == (21, 2) and cand.keypoints_3d.shape == (21, 3)
+    classic = ClassicDetector().detect(frame)[0]
+    tips = [4, 8, 12, 16, 20]  # both detectors put each named fingertip in the same place
+    gap = np.linalg.norm(classic.keypoints[tips] - cand.keypoints[tips], axis=1)
+    assert gap.max() < 25.0, gap

@@ -1,0 +1,130 @@
+"""The model fit recovers rendered hands from their keypoints; its Jacobian is exact."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from digiteyes.camera import Camera
+from digiteyes.detect.hand21 import HAND21_NAMES, TIPS, model_anchors
+from digiteyes.detect.model_fit import (
+    FitOptions,
+    KeypointFitProblem,
+    KeypointObservation,
+    fit_keypoints,
+)
+from digiteyes.errors import DigitEyesError
+from digiteyes.kinematics import forward_kinematics, integrate
+from digiteyes.kinematics.keypoints import keypoint_names, keypoints
+from digiteyes.synth.views import render_views
+
+
+def true_points(hand, q, scale=1.0):
+    rows, points = model_anchors(hand)
+    return scale * forward_kinematics(hand, q).points(rows, points)
+
+
+def test_anchors_agree_with_library_keypoints(hand, posed):
+    """Joints are the link bases of kinematics.keypoints; tips lie beyond the sphere centre."""
+    q = posed(hand, 0)
+    names, ref = keypoints(hand, forward_kinematics(hand, q))
+    ours = true_points(hand, q)
+    assert ours.shape == (21, 3) and len(HAND21_NAMES) == 21
+    ref_of = dict(zip(names, ref[0], strict=True))
+    np.testing.assert_allclose(ours[5], ref_of["index.proximal.base"], atol=1e-9)
+    np.testing.assert_allclose(ours[3], ref_of["thumb.distal.base"], atol=1e-9)
+    tip_gap = np.linalg.norm(ours[8] - ref_of["index.tip"])
+    assert tip_gap == pytest.approx(hand.link("index.tip").radius)
+    assert "palm" in keypoint_names(hand)
+
+
+def test_jacobian_matches_finite_differences(hand, camera, posed):
+    q = posed(hand, 1)
+    uv = camera.project(true_points(hand, q)) + 3.0
+    cam2 = Camera.look_at("side", eye=(250, 0, 400), target=(0, 0, 0), up=(0, -1, 0))
+    obs = [KeypointObservation(camera, uv, np.linspace(0.2, 1.0, 21)),
+           KeypointObservation(cam2, cam2.project(true_points(hand, q)))]
+    problem = KeypointFitProblem(hand, obs, true_points(hand, q) + 2.0, FitOptions(), True)
+    x = np.append(q, 1.05)
+    r0, J = problem.residuals(x, True)
+    eps = 1e-6
+    J_fd = np.empty_like(J)
+    for i in range(problem.n_v):
+        dv = np.zeros(problem.n_v)
+        dv[i] = eps
+        J_fd[:, i] = (problem.residuals(problem.retract(x, dv), False)[0]
+                      - problem.residuals(problem.retract(x, -dv), False)[0]) / (2 * eps)
+    np.testing.assert_allclose(J, J_fd, atol=1e-5 * np.abs(J).max())
+    assert r0.shape == (42 * 2 + 63 + 21 + 1,)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_monocular_fit_recovers_rendered_keypoints(hand, camera, posed, seed):
+    """Keypoints of a rendered hand (render_views truth): the fit reprojects them within
+    3 px and puts the palm within 8 mm when the hand size is known."""
+    q = posed(hand, seed)
+    view = render_views(hand, q, [camera], rng=0)[0]
+    assert view.image.max() > 100  # the hand is in the picture
+    uv = camera.project(true_points(hand, q))
+    fit = fit_keypoints(hand, [KeypointObservation(camera, uv)])
+    assert not fit.scale_fitted and fit.scale == 1.0
+    assert np.median(fit.reprojection_px) < 1.0
+    assert fit.reprojection_px.max() < 4.0
+    truth = true_points(hand, q)
+    assert np.linalg.norm(fit.keypoints_world[0] - truth[0]) < 8.0  # wrist, metric
+    root_rel = (fit.keypoints_world - fit.keypoints_world[9]) - (truth - truth[9])
+    assert np.median(np.linalg.norm(root_rel, axis=1)) < 10.0
+
+
+def test_monocular_depth_follows_the_assumed_scale(hand, camera, posed):
+    """A hand 10 % larger than assumed is placed about 10 % too close (same pixels)."""
+    q = posed(hand, 4)
+    truth = true_points(hand, q, 1.1)
+    fit = fit_keypoints(hand, [KeypointObservation(camera, camera.project(truth))])
+    depth_true = camera.depth(truth[9])
+    depth_fit = camera.depth(fit.keypoints_world[9])
+    assert depth_fit / depth_true == pytest.approx(1 / 1.1, abs=0.03)
+
+
+def test_stereo_fit_recovers_scale_and_state(hand, camera, posed):
+    q = posed(hand, 5)
+    truth = true_points(hand, q, 1.12)
+    cam2 = Camera.look_at("side", eye=(250, 0, 400), target=(0, 0, 0), up=(0, -1, 0))
+    obs = [KeypointObservation(c, c.project(truth)) for c in (camera, cam2)]
+    fit = fit_keypoints(hand, obs)
+    assert fit.scale_fitted
+    assert fit.scale == pytest.approx(1.12, abs=0.02)
+    assert np.linalg.norm(fit.keypoints_world - truth, axis=1).max() < 6.0
+
+
+def test_3d_fit_with_scale(hand, posed):
+    q = posed(hand, 6, flex=(0.0, 0.9))
+    truth = true_points(hand, q, 0.93)
+    fit = fit_keypoints(hand, target_3d=truth)
+    assert fit.scale == pytest.approx(0.93, abs=0.01)
+    assert np.linalg.norm(fit.keypoints_world - truth, axis=1).max() < 3.0
+    np.testing.assert_allclose(fit.scaled_state()[4:7], fit.scale * fit.q[4:7])
+
+
+def test_fit_from_a_perturbed_start_and_joint_limits(hand, camera, posed):
+    q = posed(hand, 7)
+    uv = camera.project(true_points(hand, q))
+    start = integrate(hand, q, np.r_[np.zeros(6), np.full(hand.n_v - 6, 0.1)])
+    fit = fit_keypoints(hand, [KeypointObservation(camera, uv)], q0=start)
+    assert np.all(fit.q >= hand.lower - 1e-12) and np.all(fit.q <= hand.upper + 1e-12)
+    assert np.median(fit.reprojection_px[0][list(TIPS)]) < 2.0
+
+
+def test_fit_needs_data(hand, posed):
+    with pytest.raises(DigitEyesError, match="at least one camera"):
+        fit_keypoints(hand)
+
+
+def test_3d_fit_ignores_missing_points(hand, posed):
+    q = posed(hand, 8)
+    truth = true_points(hand, q, 1.05)
+    given = truth.copy()
+    given[0] = np.nan  # e.g. STB labels the palm centre, not the wrist
+    fit = fit_keypoints(hand, target_3d=given)
+    assert fit.scale == pytest.approx(1.05, abs=0.01)
+    assert np.linalg.norm(fit.keypoints_world - truth, axis=1).max() < 3.0
