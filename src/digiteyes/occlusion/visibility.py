@@ -130,15 +130,16 @@ def _plane_depth(windows: ImageWindows, k: int, camera: Camera, w: np.ndarray) -
     return float(camera.depth(rays_o[0] + t * rays_d[0]))
 
 
-def _overlap_depths(windows: ImageWindows, parts, j: int, k: int,
-                    camera: Camera) -> tuple[bool, float, float]:
+def _overlap_depths(windows: ImageWindows, parts, j: int, k: int, camera: Camera,
+                    margin: float) -> tuple[bool, float, float]:
     """Whether the windows of j and k overlap, and the two parts' depths where they come
-    closest (front surface of links and tips: axis depth minus radius)."""
+    closest (front surface of links and tips: axis depth minus radius); outlines closer
+    than ``margin`` px count as overlapping."""
     P, r = windows.points, windows.radius
     kinds = windows.kind
     if kinds[j] == CAPSULE and kinds[k] == CAPSULE:
         dist, s, t = _segment_closest(P[j, 0], P[j, 1], P[k, 0], P[k, 1])
-        if dist >= r[j] + r[k]:
+        if dist >= r[j] + r[k] + margin:
             return False, 0.0, 0.0
         zj = (1 - s) * windows.depth[j, 0] + s * windows.depth[j, 1] - parts[j].radius
         zk = (1 - t) * windows.depth[k, 0] + t * windows.depth[k, 1] - parts[k].radius
@@ -149,7 +150,7 @@ def _overlap_depths(windows: ImageWindows, parts, j: int, k: int,
     best = None
     for s in np.linspace(0.0, 1.0, 9):
         w = (1 - s) * P[cap, 0] + s * P[cap, 1]
-        inside = _inside_polygon(P[poly], w) + r[cap]
+        inside = _inside_polygon(P[poly], w) + r[cap] + margin
         if inside > 0 and (best is None or inside > best[0]):
             best = (inside, s, w)
     if best is None:
@@ -161,9 +162,11 @@ def _overlap_depths(windows: ImageWindows, parts, j: int, k: int,
 
 
 def occlusion_relations(parts: tuple[TemplatePart, ...], windows: ImageWindows,
-                        camera: Camera) -> list[OcclusionRelation]:
-    """The binary occlusion relations of all overlapping pairs (module docstring)."""
+                        camera: Camera, margin: float = 0.0) -> list[OcclusionRelation]:
+    """The binary occlusion relations of all pairs whose windows overlap or come within
+    ``margin`` px of each other (module docstring)."""
     bounds = windows.bounds()
+    bounds[:, :2] -= margin
     relations = []
     K = len(parts)
     for j in range(K):
@@ -173,7 +176,7 @@ def occlusion_relations(parts: tuple[TemplatePart, ...], windows: ImageWindows,
                 continue
             relation = _joint_relation(parts, windows, camera, j, k)
             if relation is None:
-                overlap, zj, zk = _overlap_depths(windows, parts, j, k, camera)
+                overlap, zj, zk = _overlap_depths(windows, parts, j, k, camera, margin)
                 if not overlap:
                     continue
                 front, back = (j, k) if zj <= zk else (k, j)
@@ -284,6 +287,7 @@ def occlusion_events(previous: VisibilityOrder | None,
 
 
 def predict_visibility(parts: tuple[TemplatePart, ...], windows: ImageWindows,
-                       camera: Camera) -> VisibilityOrder:
-    """Relations, graph and order for one camera at the state of ``windows``."""
-    return visibility_order(len(parts), occlusion_relations(parts, windows, camera))
+                       camera: Camera, margin: float = 0.0) -> VisibilityOrder:
+    """Relations, graph and order for one camera at the state of ``windows`` (pairs
+    within ``margin`` px count as overlapping)."""
+    return visibility_order(len(parts), occlusion_relations(parts, windows, camera, margin))

@@ -109,15 +109,15 @@ def bilinear_gradient(image, x, y):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def layered_kernel(image, pix_part, p_world, w, Jp, values, weights, twists, occ_start,
-                   occ_index, win_kind, win_pts, win_r, win_dpts, win_dr, tau, H6, g6,
-                   b6, b_pts, b_r, r_out, v_out, rows_region, rows_dv,
+                   occ_index, win_kind, win_pts, win_r, win_dpts, win_dr, tau, margin, H6,
+                   g6, b6, b_pts, b_r, r_out, v_out, rows_region, rows_dv,
                    form_rows):  # pragma: no cover - compiled
     """One pass over the template pixels of one camera; returns the layered error
     ``E = sum_i weight_i V_i r_i^2 / 2``.
 
     Per pixel i of part k at image point ``w_i``: ``r_i = I(w_i) - T_i`` (eq. 2.11),
     ``V_i = prod_j (1 - M_j(w_i))`` over the parts j that occlude k (window tree,
-    eq. 3.7, 3.9). Adds ``V m m^T`` to ``H6[k]`` and ``V r m`` to ``g6[k]`` (region
+    eq. 3.7, 3.9), the occluders' outlines grown by ``margin`` px. Adds ``V m m^T`` to ``H6[k]`` and ``V r m`` to ``g6[k]`` (region
     terms, eq. 3.10, in twist coordinates). The boundary terms ``r^2 / 2 dV`` (eq. 3.12)
     are split by what moves: the pixel (part k's twist coordinates, ``b6[k]``), the
     occluder's outline points (``b_pts[j]``, px) and its radius (``b_r[j]``); the caller
@@ -148,7 +148,7 @@ def layered_kernel(image, pix_part, p_world, w, Jp, values, weights, twists, occ
         n_occ = occ_start[k + 1] - occ_start[k]
         for o in range(n_occ):
             j = occ_index[occ_start[k] + o]
-            d = window_distance(win_kind[j], win_pts[j], win_r[j], wx, wy, gw, gp)
+            d = window_distance(win_kind[j], win_pts[j], win_r[j], wx, wy, gw, gp) + margin
             M, _ = window_value(d, tau)
             Ms[o] = M
             ds[o] = d
@@ -186,7 +186,7 @@ def layered_kernel(image, pix_part, p_world, w, Jp, values, weights, twists, occ
             if abs(ds[o]) >= reach:
                 continue
             j = occ_index[occ_start[k] + o]
-            d = window_distance(win_kind[j], win_pts[j], win_r[j], wx, wy, gw, gp)
+            d = window_distance(win_kind[j], win_pts[j], win_r[j], wx, wy, gw, gp) + margin
             M, dM = window_value(d, tau)
             others = 1.0
             for o2 in range(n_occ):

@@ -74,6 +74,8 @@ class TemplateOptions:
     refresh_max_rms : refresh only frames whose visible-pixel residual RMS is below this
         (grey levels of the filtered image).
     refresh_min_visibility : a pixel is well seen when its ``V`` is at least this.
+    occlusion_margin_px : occluding outlines are grown by this much (px) in the layered
+        error (about the LoG's reach), and parts this close count as overlapping.
     """
 
     log: LogFilter = field(default_factory=LogFilter)
@@ -84,6 +86,7 @@ class TemplateOptions:
     reference_pull: float = 0.05
     refresh_max_rms: float = 12.0
     refresh_min_visibility: float = 0.99
+    occlusion_margin_px: float = 3.0
 
     def __post_init__(self) -> None:
         if self.window not in WINDOWS:
@@ -187,8 +190,8 @@ def world_points(templates: CameraTemplates, kin: Kinematics,
 def evaluate_layered(templates: CameraTemplates, image: np.ndarray, camera: Camera,
                      kin: Kinematics, planes: list[TemplatePlane],
                      order: VisibilityOrder | None, tau: float,
-                     form_rows: bool = False, p_shape: np.ndarray | None = None
-                     ) -> LayeredEvaluation:
+                     form_rows: bool = False, p_shape: np.ndarray | None = None,
+                     margin: float = 0.0) -> LayeredEvaluation:
     """The layered template error and its derivatives (module docstring) for one camera.
 
     Parameters
@@ -202,13 +205,16 @@ def evaluate_layered(templates: CameraTemplates, image: np.ndarray, camera: Came
     tau : window width, px (0: unit windows).
     form_rows : also return the per-pixel rows ``dr/dv`` and ``dV/dv``.
     p_shape : the shape-frame pixel points of ``planes`` if already computed.
+    margin : occluder outlines are grown by this many pixels (px): the LoG filter
+        spreads an occluder's edge over its neighbourhood, so template pixels that close
+        to an occluding outline no longer look like the template.
     """
     if p_shape is None:
         p_shape = templates.shape_points(planes)
     parts = templates.parts
     windows = image_windows(parts, planes, kin, camera)
     if order is None:
-        order = predict_visibility(parts, windows, camera)
+        order = predict_visibility(parts, windows, camera, margin)
     occ_start, occ_index = order.csr()
     twists = part_twists(parts, kin)
     p_world = world_points(templates, kin, p_shape)
@@ -227,7 +233,7 @@ def evaluate_layered(templates: CameraTemplates, image: np.ndarray, camera: Came
     energy = layered_kernel(image, templates.part_of, p_world, w, Jp, templates.values,
                             templates.weights, twists, occ_start, occ_index, windows.kind,
                             windows.points, windows.radius, windows.d_points,
-                            windows.d_radius, float(tau), H6, g6, b6, b_pts, b_r, r, V,
+                            windows.d_radius, float(tau), float(margin), H6, g6, b6, b_pts, b_r, r, V,
                             rows_r, rows_v, form_rows)
     g_boundary = (np.einsum("kan,ka->n", twists, b6)
                   + np.einsum("kqcn,kqc->n", windows.d_points, b_pts)
@@ -241,13 +247,15 @@ def evaluate_layered(templates: CameraTemplates, image: np.ndarray, camera: Came
 
 
 def acquire_templates(parts: tuple[TemplatePart, ...], image: np.ndarray, camera: Camera,
-                      kin: Kinematics, spacing_px: float = 1.0) -> CameraTemplates:
+                      kin: Kinematics, spacing_px: float = 1.0,
+                      margin: float = 0.0) -> CameraTemplates:
     """Templates of ``parts`` from a filtered ``image`` seen at the known state of
     ``kin`` (thesis Sec. 2.4.1; no label image needed).
 
     Each part's pixel grid has a spacing of ``spacing_px`` image pixels at the part's
     depth. A template pixel is kept (weight 1) where the model's own visibility order
-    says it is seen and it falls inside the image; the others wait for a refresh.
+    says it is seen (occluders grown by ``margin`` px) and it falls inside the image;
+    the others wait for a refresh.
     """
     planes = []
     abs_, part_of, slices, sides = [], [], [], []
@@ -269,7 +277,7 @@ def acquire_templates(parts: tuple[TemplatePart, ...], image: np.ndarray, camera
     templates = CameraTemplates(parts, np.concatenate(abs_), np.concatenate(part_of), slices,
                                 np.zeros(P, dtype=np.float32), np.zeros(P, dtype=np.float32),
                                 np.ones(P, dtype=np.float32), np.array(sides))
-    ev = evaluate_layered(templates, image, camera, kin, planes, None, 0.0)
+    ev = evaluate_layered(templates, image, camera, kin, planes, None, 0.0, margin=margin)
     seen = ev.visibility >= 1.0
     observed = (ev.residuals + templates.values).astype(np.float32)
     templates.values[:] = np.where(seen, observed, 0.0)

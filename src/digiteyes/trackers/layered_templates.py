@@ -229,8 +229,9 @@ class LayeredTemplateTracker:
         timings["filtering"] = time.perf_counter() - tic
         if not self.templates:
             kin = forward_kinematics(self.model, predicted)
-            self.templates = [acquire_templates(self.parts, image, cam, kin,
-                                                self.options.templates.spacing_px)
+            topts = self.options.templates
+            self.templates = [acquire_templates(self.parts, image, cam, kin, topts.spacing_px,
+                                                topts.occlusion_margin_px)
                               for image, cam in zip(images, self.rig, strict=True)]
         setup = self._frame_setup(predicted, timings)
         q, summary = self._solve(predicted, images, greys, setup, timings)
@@ -253,7 +254,8 @@ class LayeredTemplateTracker:
         orders, events = [], []
         for c, cam in enumerate(self.rig):
             windows = image_windows(self.parts, planes[c], kin, cam)
-            order = predict_visibility(self.parts, windows, cam)
+            order = predict_visibility(self.parts, windows, cam,
+                                       self.options.templates.occlusion_margin_px)
             events.append(occlusion_events(self._orders[c], order))
             orders.append(order)
         self._orders = list(orders)
@@ -266,7 +268,8 @@ class LayeredTemplateTracker:
         tic = time.perf_counter()
         ev = evaluate_layered(self.templates[c], images[c], self.rig[c], kin,
                               setup["planes"][c], setup["orders"][c],
-                              self.options.templates.tau, p_shape=setup["points"][c])
+                              self.options.templates.tau, p_shape=setup["points"][c],
+                              margin=self.options.templates.occlusion_margin_px)
         timings["residual"] += time.perf_counter() - tic
         return ev
 
