@@ -46,7 +46,7 @@ def test_template_pixel_motion_matches_finite_differences():
     p_shape = plane.points(template_grid(part, 4.0))
     rows = np.full(len(p_shape), part.row)
     p, J = point_jacobian(kin, rows, p_shape)
-    w, Jp = cam.project_with_jacobian(p)
+    _, Jp = cam.project_with_jacobian(p)
     analytic = np.einsum("pij,pjk->pik", Jp, J)
     h = 1e-6
     for c in range(hand.n_v):

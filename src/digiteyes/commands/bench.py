@@ -10,6 +10,7 @@ SUITES = {
     "kinematics": "digiteyes.benchmarks.kinematics",
     "render": "digiteyes.benchmarks.render",
     "tracker": "digiteyes.benchmarks.tracker",
+    "templates": "digiteyes.benchmarks.templates",
 }
 
 
@@ -20,7 +21,7 @@ SUITES = {
                    "suffixed by the suite name).")
 @click.option("--quick", is_flag=True, help="Fewer repeats and frames (for a smoke run).")
 def bench(suite: str, json_path: str | None, quick: bool) -> None:
-    """Run benchmark SUITE: kinematics, render, tracker or all."""
+    """Run benchmark SUITE: kinematics, render, tracker, templates or all."""
     names = list(SUITES) if suite == "all" else [suite]
     for name in names:
         path = json_path

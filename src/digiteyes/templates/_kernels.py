@@ -117,12 +117,13 @@ def layered_kernel(image, pix_part, p_world, w, Jp, values, weights, twists, occ
 
     Per pixel i of part k at image point ``w_i``: ``r_i = I(w_i) - T_i`` (eq. 2.11),
     ``V_i = prod_j (1 - M_j(w_i))`` over the parts j that occlude k (window tree,
-    eq. 3.7, 3.9), the occluders' outlines grown by ``margin`` px. Adds ``V m m^T`` to ``H6[k]`` and ``V r m`` to ``g6[k]`` (region
-    terms, eq. 3.10, in twist coordinates). The boundary terms ``r^2 / 2 dV`` (eq. 3.12)
-    are split by what moves: the pixel (part k's twist coordinates, ``b6[k]``), the
-    occluder's outline points (``b_pts[j]``, px) and its radius (``b_r[j]``); the caller
-    chains them with the twists and window Jacobians. With ``form_rows`` the per-pixel
-    rows ``dr/dv`` and ``dV/dv`` are written out too (for tests and the generic solvers).
+    eq. 3.7, 3.9), the occluders' outlines grown by ``margin`` px. Adds ``V m m^T`` to
+    ``H6[k]`` and ``V r m`` to ``g6[k]`` (region terms, eq. 3.10, in twist coordinates).
+    The boundary terms ``r^2 / 2 dV`` (eq. 3.12) are split by what moves: the pixel
+    (part k's twist coordinates, ``b6[k]``), the occluder's outline points
+    (``b_pts[j]``, px) and its radius (``b_r[j]``); the caller chains them with the
+    twists and window Jacobians. With ``form_rows`` the per-pixel rows ``dr/dv`` and
+    ``dV/dv`` are written out too (for tests and the generic solvers).
     """
     height, width = image.shape
     n_v = twists.shape[2]

@@ -62,7 +62,9 @@ class TemplateOptions:
 
     Attributes
     ----------
-    log : the LoG filter of images and templates (thesis Sec. 2.4.2, 4.4.2: 13 x 13).
+    log : the LoG filter of images and templates (thesis Sec. 2.4.2). The thesis used
+        13 x 13 (Sec. 4.4.2); at 640 x 480 a 7 x 7 kernel tracked better here
+        (docs/templates.md), so that is the default.
     spacing_px : template pixel spacing in image pixels at acquisition (1: one template
         pixel per image pixel; 2 quarters the work).
     window : ``"unit"`` (thesis Sec. 4.4.2) or ``"smooth"`` (logistic windows).
@@ -78,12 +80,12 @@ class TemplateOptions:
         error (about the LoG's reach), and parts this close count as overlapping.
     """
 
-    log: LogFilter = field(default_factory=LogFilter)
-    spacing_px: float = 1.0
+    log: LogFilter = field(default_factory=lambda: LogFilter(size=7))
+    spacing_px: float = 2.0
     window: str = "smooth"
     window_px: float = 1.0
-    refresh_rate: float = 0.1
-    reference_pull: float = 0.05
+    refresh_rate: float = 0.3
+    reference_pull: float = 0.02
     refresh_max_rms: float = 12.0
     refresh_min_visibility: float = 0.99
     occlusion_margin_px: float = 3.0
@@ -233,8 +235,8 @@ def evaluate_layered(templates: CameraTemplates, image: np.ndarray, camera: Came
     energy = layered_kernel(image, templates.part_of, p_world, w, Jp, templates.values,
                             templates.weights, twists, occ_start, occ_index, windows.kind,
                             windows.points, windows.radius, windows.d_points,
-                            windows.d_radius, float(tau), float(margin), H6, g6, b6, b_pts, b_r, r, V,
-                            rows_r, rows_v, form_rows)
+                            windows.d_radius, float(tau), float(margin), H6, g6, b6,
+                            b_pts, b_r, r, V, rows_r, rows_v, form_rows)
     g_boundary = (np.einsum("kan,ka->n", twists, b6)
                   + np.einsum("kqcn,kqc->n", windows.d_points, b_pts)
                   + b_r @ windows.d_radius)

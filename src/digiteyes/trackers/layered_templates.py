@@ -99,9 +99,9 @@ class LayeredTemplateOptions:
     iterations_per_frame: int = 3
     solver: str = "gauss-newton"
     step_size: float = 1e-4
-    template_weight: float = 0.01
+    template_weight: float = 0.1
     conditioning: tuple[float, float, float] = (1.0, 10.0, 1000.0)
-    prediction: PredictionKind = "none"
+    prediction: PredictionKind = "constant-velocity"
     clip_to_limits: bool = True
     edge_features: bool = False
     features: FeatureOptions = field(default_factory=FeatureOptions)
