@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from digiteyes.camera import Camera
+from digiteyes.occlusion._kernels import pair_overlap_kernel
 from digiteyes.occlusion.windows import CAPSULE, ImageWindows
 from digiteyes.templates.geometry import TemplatePart, towards_camera
 
@@ -78,87 +79,20 @@ class VisibilityOrder:
         return {(min(r.front, r.back), max(r.front, r.back)): r.front for r in self.relations}
 
 
-def _segment_closest(p0, p1, q0, q1) -> tuple[float, float, float]:
-    """Closest points of two 2D segments: (distance, s on p, t on q), s, t in [0, 1]."""
-    best = (np.inf, 0.0, 0.0)
-    d1, d2 = p1 - p0, q1 - q0
-    candidates = []
-    for t in (0.0, 1.0):
-        q = q0 + t * d2
-        s = np.clip((q - p0) @ d1 / max(d1 @ d1, 1e-12), 0.0, 1.0)
-        candidates.append((s, t))
-    for s in (0.0, 1.0):
-        p = p0 + s * d1
-        t = np.clip((p - q0) @ d2 / max(d2 @ d2, 1e-12), 0.0, 1.0)
-        candidates.append((s, t))
-    denom = d1[0] * d2[1] - d1[1] * d2[0]
-    if abs(denom) > 1e-12:
-        e = q0 - p0
-        s = (e[0] * d2[1] - e[1] * d2[0]) / denom
-        t = (e[0] * d1[1] - e[1] * d1[0]) / denom
-        if 0.0 <= s <= 1.0 and 0.0 <= t <= 1.0:
-            candidates.append((s, t))
-    for s, t in candidates:
-        dist = float(np.linalg.norm(p0 + s * d1 - q0 - t * d2))
-        if dist < best[0]:
-            best = (dist, float(s), float(t))
-    return best
-
-
-def _inside_polygon(points: np.ndarray, w: np.ndarray) -> float:
-    """Signed distance of ``w`` inside a convex polygon (positive inside), px."""
-    area = sum(points[i, 0] * points[(i + 1) % 4, 1] - points[(i + 1) % 4, 0] * points[i, 1]
-               for i in range(4))
-    s = 1.0 if area >= 0 else -1.0
-    best = np.inf
-    for i in range(4):
-        e = points[(i + 1) % 4] - points[i]
-        best = min(best, s * (e[0] * (w[1] - points[i, 1]) - e[1] * (w[0] - points[i, 0]))
-                   / max(np.linalg.norm(e), 1e-12))
-    return float(best)
-
-
-def _plane_depth(windows: ImageWindows, k: int, camera: Camera, w: np.ndarray) -> float:
-    """Camera depth of the palm face of part k seen at pixel ``w`` (mm)."""
-    corners = windows.world[k]
-    origin, normal = corners[0], np.cross(corners[1] - corners[0], corners[3] - corners[0])
-    rays_o, rays_d = camera.viewing_rays(np.asarray(w, dtype=float)[None])
-    denom = float(rays_d[0] @ normal)
-    if abs(denom) < 1e-9:
-        return float(windows.depth[k].mean())
-    t = float((origin - rays_o[0]) @ normal) / denom
-    return float(camera.depth(rays_o[0] + t * rays_d[0]))
-
-
-def _overlap_depths(windows: ImageWindows, parts, j: int, k: int, camera: Camera,
-                    margin: float) -> tuple[bool, float, float]:
-    """Whether the windows of j and k overlap, and the two parts' depths where they come
-    closest (front surface of links and tips: axis depth minus radius); outlines closer
-    than ``margin`` px count as overlapping."""
-    P, r = windows.points, windows.radius
-    kinds = windows.kind
-    if kinds[j] == CAPSULE and kinds[k] == CAPSULE:
-        dist, s, t = _segment_closest(P[j, 0], P[j, 1], P[k, 0], P[k, 1])
-        if dist >= r[j] + r[k] + margin:
-            return False, 0.0, 0.0
-        zj = (1 - s) * windows.depth[j, 0] + s * windows.depth[j, 1] - parts[j].radius
-        zk = (1 - t) * windows.depth[k, 0] + t * windows.depth[k, 1] - parts[k].radius
-        return True, zj, zk
-    if kinds[j] != CAPSULE and kinds[k] != CAPSULE:
-        return False, 0.0, 0.0
-    cap, poly = (j, k) if kinds[j] == CAPSULE else (k, j)
-    best = None
-    for s in np.linspace(0.0, 1.0, 9):
-        w = (1 - s) * P[cap, 0] + s * P[cap, 1]
-        inside = _inside_polygon(P[poly], w) + r[cap] + margin
-        if inside > 0 and (best is None or inside > best[0]):
-            best = (inside, s, w)
-    if best is None:
-        return False, 0.0, 0.0
-    _, s, w = best
-    z_cap = (1 - s) * windows.depth[cap, 0] + s * windows.depth[cap, 1] - parts[cap].radius
-    z_poly = _plane_depth(windows, poly, camera, w)
-    return (True, z_cap, z_poly) if cap == j else (True, z_poly, z_cap)
+def _plane_depths(windows: ImageWindows, polys: list[int], camera: Camera,
+                  pixels: np.ndarray) -> np.ndarray:
+    """Camera depths (mm) of the palm faces ``polys`` seen at ``pixels`` (n, 2)."""
+    if not polys:
+        return np.zeros(0)
+    corners = windows.world[polys]
+    origin = corners[:, 0]
+    normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 3] - corners[:, 0])
+    rays_o, rays_d = camera.viewing_rays(pixels)
+    denom = np.einsum("ij,ij->i", rays_d, normal)
+    safe = np.where(np.abs(denom) < 1e-9, 1.0, denom)
+    t = np.einsum("ij,ij->i", origin - rays_o, normal) / safe
+    z = camera.depth(rays_o + t[:, None] * rays_d)
+    return np.where(np.abs(denom) < 1e-9, windows.depth[polys].mean(axis=1), z)
 
 
 def occlusion_relations(parts: tuple[TemplatePart, ...], windows: ImageWindows,
@@ -167,22 +101,44 @@ def occlusion_relations(parts: tuple[TemplatePart, ...], windows: ImageWindows,
     ``margin`` px of each other (module docstring)."""
     bounds = windows.bounds()
     bounds[:, :2] -= margin
-    relations = []
     K = len(parts)
-    for j in range(K):
-        for k in range(j + 1, K):
-            if (bounds[j, 0] > bounds[k, 2] or bounds[k, 0] > bounds[j, 2]
-                    or bounds[j, 1] > bounds[k, 3] or bounds[k, 1] > bounds[j, 3]):
+    j, k = np.triu_indices(K, 1)
+    near = ~((bounds[j, 0] > bounds[k, 2]) | (bounds[k, 0] > bounds[j, 2])
+             | (bounds[j, 1] > bounds[k, 3]) | (bounds[k, 1] > bounds[j, 3]))
+    pairs = np.ascontiguousarray(np.stack([j[near], k[near]], axis=1), dtype=np.int64)
+    overlap = np.zeros(len(pairs), dtype=np.bool_)
+    s_at = np.zeros(len(pairs))
+    t_at = np.zeros(len(pairs))
+    pair_overlap_kernel(windows.kind, windows.points, windows.radius, float(margin), pairs,
+                        overlap, s_at, t_at)
+    relations: list[OcclusionRelation | None] = []
+    palm_pairs, polys, pixels, z_caps = [], [], [], []
+    depth = windows.depth
+    for n, (a, b) in enumerate(pairs):
+        a, b = int(a), int(b)
+        relation = _joint_relation(parts, windows, camera, a, b)
+        if relation is None and overlap[n]:
+            s, t = s_at[n], t_at[n]
+            if windows.kind[a] == CAPSULE and windows.kind[b] == CAPSULE:
+                za = (1 - s) * depth[a, 0] + s * depth[a, 1] - parts[a].radius
+                zb = (1 - t) * depth[b, 0] + t * depth[b, 1] - parts[b].radius
+                front, back = (a, b) if za <= zb else (b, a)
+                relation = OcclusionRelation(front, back, abs(za - zb), "depth")
+            else:
+                cap, poly = (a, b) if windows.kind[a] == CAPSULE else (b, a)
+                palm_pairs.append((len(relations), cap, poly))
+                polys.append(poly)
+                pixels.append((1 - s) * windows.points[cap, 0] + s * windows.points[cap, 1])
+                z_caps.append((1 - s) * depth[cap, 0] + s * depth[cap, 1] - parts[cap].radius)
+                relations.append(None)
                 continue
-            relation = _joint_relation(parts, windows, camera, j, k)
-            if relation is None:
-                overlap, zj, zk = _overlap_depths(windows, parts, j, k, camera, margin)
-                if not overlap:
-                    continue
-                front, back = (j, k) if zj <= zk else (k, j)
-                relation = OcclusionRelation(front, back, abs(zj - zk), "depth")
+        if relation is not None:
             relations.append(relation)
-    return relations
+    z_polys = _plane_depths(windows, polys, camera, np.array(pixels).reshape(-1, 2))
+    for (index, cap, poly), z_cap, z_poly in zip(palm_pairs, z_caps, z_polys, strict=True):
+        front, back = (cap, poly) if z_cap <= z_poly else (poly, cap)
+        relations[index] = OcclusionRelation(front, back, float(abs(z_cap - z_poly)), "depth")
+    return [r for r in relations if r is not None]
 
 
 def _joint_relation(parts, windows: ImageWindows, camera: Camera, j: int,
