@@ -1,6 +1,9 @@
 """Layered template benchmark: accuracy and speed of the template trackers on the
 synthetic scenarios, and agreement of the predicted visibility orders with the renderer.
 
+Each scenario is tracked with the templates alone and (except ``natural`` with one
+camera) with templates plus edge features.
+
 * ``two-finger-occlusion`` (thesis Sec. 4.4.2, one camera, 80 frames): largest deviation
   of the middle finger's joints from the truth (rad; target 0.03), index joint-angle RMS
   (deg; target 3), mean fingertip error (mm; target 3), lost frames (target 0);
@@ -71,7 +74,8 @@ def track_scenario(name: str, n_cameras: int, n_frames: int | None,
     kt = forward_kinematics(model, truth).T_world_shape[:, tips, :3, 3]
     ke = forward_kinematics(model, est).T_world_shape[:, tips, :3, 3]
     tip_error = np.linalg.norm(kt - ke, axis=2)
-    out = {"scenario": name, "cameras": n_cameras, "frames": len(truth),
+    out = {"scenario": name, "tracker": tracker.name, "cameras": n_cameras,
+           "frames": len(truth),
            "iterations_per_frame": options.iterations_per_frame,
            "mean_tip_error_mm": float(tip_error.mean()),
            "max_frame_tip_error_mm": float(tip_error.mean(axis=1).max()),
@@ -119,27 +123,30 @@ def visibility_agreement(name: str, n_states: int, seed: int = 0) -> dict:
 def run(json_path: str | None = None, quick: bool = False) -> dict:
     """Run the benchmark, print a table, optionally write JSON (see module docstring)."""
     options = LayeredTemplateOptions()
-    runs = [("two-finger-occlusion", 1, 30 if quick else None),
-            ("natural", 2, 40 if quick else None),
-            ("natural", 1, 40 if quick else None)]
+    runs = [("two-finger-occlusion", 1, 30 if quick else None, False),
+            ("two-finger-occlusion", 1, 30 if quick else None, True),
+            ("natural", 2, 40 if quick else None, False),
+            ("natural", 2, 40 if quick else None, True),
+            ("natural", 1, 40 if quick else None, False)]
     with kernel_threads(1, 1):
-        tracking = [track_scenario(n, c, f, options) for n, c, f in runs]
+        tracking = [track_scenario(n, c, f, options, combined) for n, c, f, combined in runs]
         visibility = [visibility_agreement(n, 5 if quick else 30)
                       for n in ("two-finger-occlusion", "natural")]
     result = {"tracking": tracking, "visibility": visibility,
               "machine": machine_info(), "quick": quick}
     lines = [*machine_lines(result["machine"]), "",
-             "scenario               cams frames  tip mm  max mm  lost   fps  "
-             "idx RMS deg  mid dev rad"]
+             "scenario              tracker            cams frames  tip mm  max mm  lost   "
+             "fps  idx RMS deg  mid dev rad"]
     for t in tracking:
-        lines.append(f"{t['scenario']:<22} {t['cameras']:>4} {t['frames']:>6} "
+        lines.append(f"{t['scenario']:<21} {t['tracker']:<18} {t['cameras']:>4} "
+                     f"{t['frames']:>6} "
                      f"{t['mean_tip_error_mm']:>7.2f} {t['max_frame_tip_error_mm']:>7.2f} "
                      f"{t['lost_frames']:>5} {t['frames_per_second'] or 0:>5.1f}  "
                      f"{t.get('index_joint_rms_deg', float('nan')):>11.2f}  "
                      f"{t.get('middle_max_deviation_rad', float('nan')):>11.3f}")
     lines += ["", "ms per iteration: " + ", ".join(STAGES)]
     for t in tracking:
-        lines.append(f"{t['scenario']:<22} {t['cameras']} cam: " + "  ".join(
+        lines.append(f"{t['scenario']:<21} {t['tracker']:<18} {t['cameras']} cam: " + "  ".join(
             f"{t['ms_per_iteration'][s]:.2f}" for s in STAGES))
     lines += ["", "visibility order vs depth buffer"]
     for v in visibility:
