@@ -11,6 +11,7 @@ SUITES = {
     "render": "digiteyes.benchmarks.render",
     "tracker": "digiteyes.benchmarks.tracker",
     "smc": "digiteyes.benchmarks.smc",
+    "templates": "digiteyes.benchmarks.templates",
 }
 
 
@@ -21,7 +22,7 @@ SUITES = {
                    "suffixed by the suite name).")
 @click.option("--quick", is_flag=True, help="Fewer repeats and frames (for a smoke run).")
 def bench(suite: str, json_path: str | None, quick: bool) -> None:
-    """Run benchmark SUITE: kinematics, render, tracker or all."""
+    """Run benchmark SUITE (one of the names above) or all."""
     names = list(SUITES) if suite == "all" else [suite]
     for name in names:
         path = json_path

@@ -1,0 +1,403 @@
+"""Layered template trackers (Rehg thesis Ch. 3 and Sec. 4.4; real time and several
+cameras, the future work of Ch. 6).
+
+Per frame:
+
+1. predict the state (previous estimate, or constant velocity);
+2. per camera: LoG-filter the image, turn the template planes to face the camera and
+   predict the visibility order at the predicted state (Sec. 3.2, 3.4; order and planes
+   are held over the frame's iterations, as in the thesis);
+3. a few iterations of stabilised Gauss-Newton (eq. 2.22) or fixed-step gradient descent
+   (eq. 2.12) on the layered template error of all cameras
+   (:mod:`digiteyes.templates.layered`), normal equations accumulated directly;
+   :class:`LayeredFeatureTracker` stacks the edge features of the feature tracker
+   (thesis Sec. 2.5) for the links no other part occludes into the same system;
+4. track-loss rules, then the template refresh (only on frames that are not lost).
+
+Track loss: a frame is ``lost`` when the visibility-weighted template residual RMS
+exceeds ``max_residual_rms`` (grey levels of the filtered image), when fewer than
+``min_visible_fraction`` of the acquired template pixels are visible in all cameras, or
+when the RMS grew over ``growth_frames`` frames to ``growth_factor`` times its value
+(and above ``growth_min``). Lost frames do not refresh the templates.
+
+The templates are acquired from the first frame at the state given to :meth:`reset`.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from digiteyes.camera import Rig
+from digiteyes.errors import StateError
+from digiteyes.features import FeatureOptions, feature_residuals, measure_features
+from digiteyes.features.slices import prepare_image
+from digiteyes.kinematics import KinematicModel, forward_kinematics, validate_state
+from digiteyes.occlusion.visibility import (
+    VisibilityOrder,
+    occlusion_events,
+    predict_visibility,
+)
+from digiteyes.occlusion.windows import image_windows
+from digiteyes.solvers import SolverSummary, hand_conditioning, solve_normal_equations
+from digiteyes.templates.filtering import TemplateError
+from digiteyes.templates.geometry import TemplatePlane, template_parts
+from digiteyes.templates.layered import (
+    CameraTemplates,
+    LayeredEvaluation,
+    TemplateOptions,
+    acquire_templates,
+    evaluate_layered,
+    refresh_templates,
+    segment_image,
+)
+from digiteyes.trackers.base import TrackResult
+from digiteyes.trackers.parameterisation import StateParameterisation
+from digiteyes.trackers.prediction import PREDICTIONS, PredictionKind, StatePredictor
+
+TEMPLATE_TIMING_STAGES = ("prediction", "filtering", "visibility", "template_rendering",
+                          "residual", "jacobian", "linear_solve", "refresh", "total")
+"""Stage names of :attr:`TrackResult.timings` for the template trackers (seconds).
+``template_rendering`` is placing the template pixels (planes, points, projection),
+``residual`` the compiled pass that samples the image and sums the error and normal
+equations, ``jacobian`` chaining the twist and window sums into ``H`` and ``g``."""
+
+SOLVERS = ("gauss-newton", "gradient-descent")
+
+
+@dataclass(frozen=True)
+class LayeredTemplateOptions:
+    """Settings of :class:`LayeredTemplateTracker`.
+
+    Attributes
+    ----------
+    templates : template, filter, window and refresh settings.
+    iterations_per_frame : solver iterations per frame (thesis Sec. 4.4: 2).
+    solver : ``"gauss-newton"`` (eq. 2.22) or ``"gradient-descent"`` (eq. 2.12).
+    step_size : gradient-descent step (state units per unit of scaled gradient).
+    template_weight : the template error is multiplied by this (1 / grey level^2), so a
+        residual of ``1 / sqrt(template_weight)`` grey levels weighs like a pixel of
+        feature residual against the conditioning ``S``.
+    conditioning : ``S`` weights (rotation, translation, joint angle) of eq. 2.22.
+    prediction : ``"none"`` or ``"constant-velocity"``.
+    clip_to_limits : clip joint states into their limits after every step.
+    edge_features : stack edge features of unoccluded links (the combined tracker).
+    features : feature-search settings of the combined tracker.
+    feature_weight : weight of the feature residuals (px) against the template error.
+    max_residual_rms : loss rule, grey levels.
+    min_visible_fraction : loss rule: visible share of the acquired template pixels.
+    growth_frames, growth_factor, growth_min : loss rule on a residual that grew in each
+        of the last ``growth_frames`` frames to ``growth_factor`` times its value and
+        above ``growth_min`` grey levels.
+    """
+
+    templates: TemplateOptions = field(default_factory=TemplateOptions)
+    iterations_per_frame: int = 3
+    solver: str = "gauss-newton"
+    step_size: float = 1e-4
+    template_weight: float = 0.1
+    conditioning: tuple[float, float, float] = (1.0, 10.0, 1000.0)
+    prediction: PredictionKind = "constant-velocity"
+    clip_to_limits: bool = True
+    edge_features: bool = False
+    features: FeatureOptions = field(default_factory=FeatureOptions)
+    feature_weight: float = 1.0
+    max_residual_rms: float = 40.0
+    min_visible_fraction: float = 0.2
+    growth_frames: int = 5
+    growth_factor: float = 2.5
+    growth_min: float = 15.0
+
+    def __post_init__(self) -> None:
+        if isinstance(self.iterations_per_frame, bool) or int(self.iterations_per_frame) != \
+                self.iterations_per_frame or self.iterations_per_frame < 1:
+            raise TemplateError(f"iterations_per_frame must be a positive integer, got "
+                                f"{self.iterations_per_frame!r}")
+        if self.solver not in SOLVERS:
+            raise TemplateError(f"solver must be one of {', '.join(SOLVERS)}, got "
+                                f"{self.solver!r}")
+        if self.prediction not in PREDICTIONS:
+            raise TemplateError(f"prediction must be one of {', '.join(PREDICTIONS)}, got "
+                                f"{self.prediction!r}")
+        for name in ("step_size", "template_weight", "max_residual_rms", "growth_factor"):
+            if not getattr(self, name) > 0:
+                raise TemplateError(f"{name} must be positive, got {getattr(self, name)!r}")
+        if not 0.0 <= self.min_visible_fraction <= 1.0:
+            raise TemplateError(f"min_visible_fraction must be in [0, 1], got "
+                                f"{self.min_visible_fraction!r}")
+
+
+@dataclass
+class TemplateDetails:
+    """What the template trackers report beyond the common :class:`TrackResult` core.
+
+    Attributes
+    ----------
+    templates : the templates of each camera after this frame's refresh.
+    orders : the visibility order of each camera (predicted at the predicted state).
+    events : occlusion events of each camera since the last frame
+        (:func:`~digiteyes.occlusion.visibility.occlusion_events`).
+    evaluations : the layered error of each camera at the final state (residuals ``r``,
+        visibility ``V``, image positions, windows).
+    planes : the template planes of each camera used in this frame.
+    segmentations : (H, W) int16 part index per pixel of each camera (list priority).
+    visible_fraction : share of the acquired template pixels that were visible.
+    residual_rms : visibility-weighted template residual RMS, grey levels.
+    feature_links : links whose edge features were used (combined tracker), per camera.
+    refreshed : template pixels refreshed in this frame, all cameras.
+    """
+
+    templates: list[CameraTemplates]
+    orders: list[VisibilityOrder]
+    events: list[list[tuple[str, int, int]]]
+    evaluations: list[LayeredEvaluation]
+    planes: list[list[TemplatePlane]]
+    segmentations: list[np.ndarray]
+    visible_fraction: float
+    residual_rms: float
+    feature_links: list[list[str]]
+    refreshed: int
+
+
+class LayeredTemplateTracker:
+    """Track a kinematic model with layered templates (thesis Ch. 3).
+
+    Parameters
+    ----------
+    model : the kinematic model.
+    rig : the cameras; :meth:`step` takes one image per camera in rig order.
+    options : :class:`LayeredTemplateOptions`.
+
+    Each :class:`TrackResult` carries a :class:`TemplateDetails` as ``result.details``.
+    """
+
+    name = "templates"
+    timing_stages = TEMPLATE_TIMING_STAGES
+
+    def __init__(self, model: KinematicModel, rig: Rig,
+                 options: LayeredTemplateOptions | None = None) -> None:
+        self.model = model
+        self.rig = rig
+        self.options = LayeredTemplateOptions() if options is None else options
+        self.parts = template_parts(model)
+        self.parameterisation = StateParameterisation(model, "tangent",
+                                                      self.options.clip_to_limits)
+        self.S = hand_conditioning(model, *self.options.conditioning)
+        self.predictor = StatePredictor(model, self.options.prediction,
+                                        self.options.clip_to_limits)
+        self.templates: list[CameraTemplates] = []
+        self.state: np.ndarray | None = None
+        self._orders: list[VisibilityOrder | None] = []
+        self._rms_history: deque[float] = deque(maxlen=self.options.growth_frames)
+        self._frame_index = 0
+        self._feature_links = [link.name for link in model.links if link.kind == "link"]
+        self._part_of_link = {p.link: k for k, p in enumerate(self.parts)}
+
+    def reset(self, initial_state: np.ndarray) -> None:
+        """Start a new track from ``initial_state`` (n_q,); the templates are acquired
+        from the next frame at this state."""
+        q = np.asarray(getattr(initial_state, "q", initial_state), dtype=float)
+        if q.shape != (self.model.n_q,):
+            raise StateError(f"initial state must hold {self.model.n_q} numbers for model "
+                             f"{self.model.name!r}, got shape {q.shape}")
+        q = self.parameterisation.project(validate_state(self.model, q, normalize=True))
+        self.state = q
+        self.predictor.reset(q)
+        self.templates = []
+        self._orders = [None] * len(self.rig)
+        self._rms_history.clear()
+        self._frame_index = 0
+
+    # ------------------------------------------------------------------ per frame
+    def step(self, frames: Sequence[np.ndarray]) -> TrackResult:
+        """Estimate the state for one set of frames (one image per camera)."""
+        if self.state is None:
+            raise StateError("the tracker has no state: call reset(initial_state) first")
+        start_total = time.perf_counter()
+        self.rig.check_images(frames)
+        timings = dict.fromkeys(TEMPLATE_TIMING_STAGES, 0.0)
+        tic = time.perf_counter()
+        predicted = self.predictor.predict()
+        timings["prediction"] = time.perf_counter() - tic
+        tic = time.perf_counter()
+        images = [self.options.templates.log.apply(f) for f in frames]
+        greys = [prepare_image(f) for f in frames] if self.options.edge_features else []
+        timings["filtering"] = time.perf_counter() - tic
+        if not self.templates:
+            kin = forward_kinematics(self.model, predicted)
+            topts = self.options.templates
+            self.templates = [acquire_templates(self.parts, image, cam, kin, topts.spacing_px,
+                                                topts.occlusion_margin_px)
+                              for image, cam in zip(images, self.rig, strict=True)]
+        setup = self._frame_setup(predicted, timings)
+        q, summary = self._solve(predicted, images, greys, setup, timings)
+        final = [self._evaluate(q, images, setup, c, timings) for c in range(len(self.rig))]
+        result = self._result(q, predicted, summary, final, setup, timings)
+        self.state = q
+        self.predictor.update(q, reliable=not result.lost)
+        self._frame_index += 1
+        timings["total"] = time.perf_counter() - start_total
+        return result
+
+    def _frame_setup(self, predicted: np.ndarray, timings: dict[str, float]) -> dict:
+        """Planes, pixel points and visibility orders at the predicted state."""
+        tic = time.perf_counter()
+        kin = forward_kinematics(self.model, predicted)
+        planes = [t.planes(kin, cam) for t, cam in zip(self.templates, self.rig, strict=True)]
+        points = [t.shape_points(p) for t, p in zip(self.templates, planes, strict=True)]
+        timings["template_rendering"] += time.perf_counter() - tic
+        tic = time.perf_counter()
+        orders, events = [], []
+        for c, cam in enumerate(self.rig):
+            windows = image_windows(self.parts, planes[c], kin, cam)
+            order = predict_visibility(self.parts, windows, cam,
+                                       self.options.templates.occlusion_margin_px)
+            events.append(occlusion_events(self._orders[c], order))
+            orders.append(order)
+        self._orders = list(orders)
+        timings["visibility"] += time.perf_counter() - tic
+        return {"planes": planes, "points": points, "orders": orders, "events": events}
+
+    def _evaluate(self, q: np.ndarray, images: list[np.ndarray], setup: dict, c: int,
+                  timings: dict[str, float], kin=None) -> LayeredEvaluation:
+        kin = forward_kinematics(self.model, q) if kin is None else kin
+        tic = time.perf_counter()
+        ev = evaluate_layered(self.templates[c], images[c], self.rig[c], kin,
+                              setup["planes"][c], setup["orders"][c],
+                              self.options.templates.tau, p_shape=setup["points"][c],
+                              margin=self.options.templates.occlusion_margin_px)
+        timings["residual"] += time.perf_counter() - tic
+        return ev
+
+    def _unoccluded_links(self, order: VisibilityOrder) -> list[str]:
+        """Cylinder links that no part occludes and that occlude no part's middle."""
+        names = []
+        for name in self._feature_links:
+            link = next(i for i, lk in enumerate(self.model.links) if lk.name == name)
+            k = self._part_of_link.get(link)
+            if k is not None and not order.occluders[k] and not any(
+                    r.back == k and r.rule == "depth" for r in order.relations):
+                names.append(name)
+        return names
+
+    def _solve(self, q0: np.ndarray, images, greys, setup: dict,
+               timings: dict[str, float]) -> tuple[np.ndarray, SolverSummary]:
+        opts = self.options
+        summary = SolverSummary()
+        q = q0
+        weight = opts.template_weight
+        for iteration in range(opts.iterations_per_frame):
+            kin = forward_kinematics(self.model, q)
+            H = np.zeros((self.model.n_v, self.model.n_v))
+            g = np.zeros(self.model.n_v)
+            energy = 0.0
+            for c in range(len(self.rig)):
+                ev = self._evaluate(q, images, setup, c, timings, kin)
+                tic = time.perf_counter()
+                H += weight * ev.H
+                g += weight * ev.gradient
+                energy += weight * ev.energy
+                timings["jacobian"] += time.perf_counter() - tic
+            if opts.edge_features:
+                tic = time.perf_counter()
+                for c, cam in enumerate(self.rig):
+                    links = self._unoccluded_links(setup["orders"][c])
+                    if not links:
+                        continue
+                    meas = measure_features(greys[c], cam, self.model, kin, opts.features,
+                                            links, [])
+                    r, J, _ = feature_residuals(meas, cam, kin, jacobian=True)
+                    H += opts.feature_weight * (J.T @ J)
+                    g += opts.feature_weight * (J.T @ r)
+                    energy += 0.5 * opts.feature_weight * float(r @ r)
+                timings["jacobian"] += time.perf_counter() - tic
+            if iteration == 0:
+                summary.cost_initial = energy
+            summary.cost_history.append(energy)
+            tic = time.perf_counter()
+            if opts.solver == "gauss-newton":
+                dv, truncated = solve_normal_equations(H + np.diag(self.S), g)
+                summary.n_pseudo_inverse += truncated
+                dv = -dv
+            else:
+                dv = -opts.step_size * g
+            if not np.isfinite(dv).all():
+                summary.termination = "singular"
+                timings["linear_solve"] += time.perf_counter() - tic
+                break
+            q = self.parameterisation.project(self.parameterisation.retract(q, dv))
+            summary.iterations += 1
+            summary.step_norms.append(float(np.linalg.norm(dv)))
+            timings["linear_solve"] += time.perf_counter() - tic
+        summary.termination = summary.termination or "max_iterations"
+        return q, summary
+
+    def _result(self, q, predicted, summary: SolverSummary, final: list[LayeredEvaluation],
+                setup: dict, timings: dict[str, float]) -> TrackResult:
+        opts = self.options
+        energy = sum(ev.energy for ev in final) * opts.template_weight
+        summary.cost_final = energy
+        summary.n_residuals = int(sum(len(ev.residuals) for ev in final))
+        weight_sum = sum(float(ev.visibility.sum()) for ev in final)
+        rms = float(np.sqrt(sum(float((ev.visibility * ev.residuals ** 2).sum())
+                                for ev in final) / weight_sum)) if weight_sum > 0 else np.nan
+        acquired = sum(float(t.weights.sum()) for t in self.templates)
+        visible_fraction = weight_sum / acquired if acquired > 0 else 0.0
+        reasons = self._loss_reasons(rms, visible_fraction)
+        if np.isfinite(rms):
+            self._rms_history.append(rms)
+        refreshed = 0
+        if not reasons:
+            tic = time.perf_counter()
+            refreshed = sum(refresh_templates(t, ev, opts.templates)
+                            for t, ev in zip(self.templates, final, strict=True))
+            timings["refresh"] = time.perf_counter() - tic
+        segmentations = [segment_image(ev.windows, order, cam.width, cam.height)
+                         for ev, order, cam in zip(final, setup["orders"], self.rig,
+                                                   strict=True)]
+        feature_links = ([self._unoccluded_links(o) for o in setup["orders"]]
+                         if opts.edge_features else [[] for _ in self.rig])
+        result = TrackResult(
+            state=q, residual_rms_px=rms, cost=energy, lost=bool(reasons),
+            loss_reason="; ".join(reasons), iterations=summary.iterations, summary=summary,
+            predicted_state=predicted, frame_index=self._frame_index, timings=timings)
+        result.details = TemplateDetails(
+            list(self.templates), setup["orders"], setup["events"], final, setup["planes"],
+            segmentations, visible_fraction, rms, feature_links, refreshed)
+        return result
+
+    def _loss_reasons(self, rms: float, visible_fraction: float) -> list[str]:
+        opts = self.options
+        if not np.isfinite(rms):
+            return ["no template pixel visible"]
+        reasons = []
+        if rms > opts.max_residual_rms:
+            reasons.append(f"template residual RMS {rms:.1f} > {opts.max_residual_rms:.1f}")
+        if visible_fraction < opts.min_visible_fraction:
+            reasons.append(f"only {visible_fraction:.0%} of the template pixels visible")
+        k = opts.growth_frames
+        if len(self._rms_history) >= k:
+            values = np.append(np.asarray(self._rms_history, dtype=float)[-k:], rms)
+            if (np.all(np.diff(values) > 0) and rms > opts.growth_factor * values[0]
+                    and rms > opts.growth_min):
+                reasons.append(f"template residual RMS grew from {values[0]:.1f} to "
+                               f"{rms:.1f} over {k} frames")
+        return reasons
+
+
+class LayeredFeatureTracker(LayeredTemplateTracker):
+    """Layered templates everywhere plus the DigitEyes edge features (thesis Sec. 2.5) of
+    the links that no other part occludes, in one least-squares system."""
+
+    name = "templates+features"
+
+    def __init__(self, model: KinematicModel, rig: Rig,
+                 options: LayeredTemplateOptions | None = None) -> None:
+        options = LayeredTemplateOptions() if options is None else options
+        if not options.edge_features:
+            options = LayeredTemplateOptions(**{**options.__dict__, "edge_features": True})
+        super().__init__(model, rig, options)

@@ -1,0 +1,134 @@
+"""The layered template error: zero at the acquisition state, region and boundary
+derivatives against finite differences of the smoothed error, the Gauss-Newton matrix,
+the refresh rule and the segmentation."""
+
+import numpy as np
+import pytest
+
+from digiteyes.kinematics import forward_kinematics, integrate
+from digiteyes.templates.geometry import template_parts
+from digiteyes.templates.layered import (
+    TemplateOptions,
+    acquire_templates,
+    evaluate_layered,
+    refresh_templates,
+    segment_image,
+)
+
+
+@pytest.fixture(scope="module")
+def setup(two_finger):
+    scenario, images = two_finger
+    model, cam = scenario.model, scenario.rig[0]
+    parts = template_parts(model)
+    kin0 = forward_kinematics(model, scenario.states[0])
+    templates = acquire_templates(parts, images[0], cam, kin0, spacing_px=2.0, margin=2.0)
+    return scenario, images, model, cam, templates
+
+
+def test_acquired_templates_fit_their_own_frame(setup):
+    scenario, images, model, cam, templates = setup
+    kin = forward_kinematics(model, scenario.states[0])
+    ev = evaluate_layered(templates, images[0], cam, kin, templates.planes(kin, cam), None,
+                          0.0, margin=2.0)
+    assert ev.energy < 1e-6
+    assert 0.5 < templates.weights.mean() < 1.0  # occluded pixels wait for a refresh
+    assert ev.visible_rms < 1e-4
+
+
+@pytest.mark.parametrize("tau", [0.0, 1.5])
+def test_gradient_matches_finite_differences(setup, tau, fd_gradient):
+    scenario, images, model, cam, templates = setup
+    q = integrate(model, scenario.states[12],
+                  np.r_[0.8, -0.5, 0.6, 0.05, -0.04, 0.06, 0.03, -0.02, 0.04])
+    kin = forward_kinematics(model, q)
+    planes = templates.planes(kin, cam)
+    ev = evaluate_layered(templates, images[12], cam, kin, planes, None, tau, margin=2.0)
+    assert ev.order.relations, "the test state must have occlusions"
+
+    def energy(dv):
+        kin_dv = forward_kinematics(model, integrate(model, q, dv))
+        return evaluate_layered(templates, images[12], cam, kin_dv, planes, ev.order, tau,
+                                margin=2.0).energy
+
+    fd = fd_gradient(energy, model.n_v)
+    scale = np.abs(fd).max()
+    np.testing.assert_allclose(ev.gradient, fd, atol=2e-3 * scale)
+    if tau == 0.0:
+        assert not ev.gradient_boundary.any()
+    else:
+        assert np.abs(ev.gradient_boundary).max() > 1e-3 * scale
+
+
+def test_boundary_term_alone_matches_finite_differences_of_visibility(setup, fd_gradient):
+    """With the residuals frozen, E changes only through V: that is eq. 3.12's part."""
+    scenario, images, model, cam, templates = setup
+    q = integrate(model, scenario.states[12], np.r_[0.5, 0.5, -0.5, 0.08, 0.02, -0.05,
+                                                    0.0, 0.03, 0.0])
+    kin = forward_kinematics(model, q)
+    planes = templates.planes(kin, cam)
+    tau = 2.0
+    ev = evaluate_layered(templates, images[12], cam, kin, planes, None, tau, form_rows=True,
+                          margin=2.0)
+    r = ev.residuals
+
+    def frozen(dv):
+        kin_dv = forward_kinematics(model, integrate(model, q, dv))
+        other = evaluate_layered(templates, images[12], cam, kin_dv, planes, ev.order, tau,
+                                 margin=2.0)
+        return 0.5 * float((templates.weights * other.visibility * r * r).sum())
+
+    fd = fd_gradient(frozen, model.n_v)
+    np.testing.assert_allclose(ev.gradient_boundary, fd, atol=2e-3 * np.abs(fd).max())
+    rows_fd = 0.5 * (templates.weights * r * r) @ ev.rows_visibility
+    np.testing.assert_allclose(rows_fd, ev.gradient_boundary, rtol=1e-9,
+                               atol=1e-9 * np.abs(fd).max())
+
+
+def test_gauss_newton_matrix_is_the_visible_region_rows(setup):
+    scenario, images, model, cam, templates = setup
+    kin = forward_kinematics(model, scenario.states[12])
+    ev = evaluate_layered(templates, images[12], cam, kin, templates.planes(kin, cam), None,
+                          1.0, form_rows=True, margin=2.0)
+    s = templates.weights * ev.visibility
+    H = (ev.rows_region * s[:, None]).T @ ev.rows_region
+    np.testing.assert_allclose(ev.H, H, rtol=1e-8, atol=1e-8 * np.abs(H).max())
+    np.testing.assert_allclose(ev.gradient_region, ev.rows_region.T @ (s * ev.residuals),
+                               rtol=1e-8, atol=1e-8 * np.abs(ev.gradient_region).max())
+
+
+def test_refresh_blends_only_good_frames(setup):
+    scenario, images, model, cam, base = setup
+    kin0 = forward_kinematics(model, scenario.states[0])
+    templates = acquire_templates(base.parts, images[0], cam, kin0, spacing_px=2.0)
+    kin = forward_kinematics(model, scenario.states[12])
+    ev = evaluate_layered(templates, images[12], cam, kin, templates.planes(kin, cam), None,
+                          0.0)
+    before = templates.values.copy()
+    options = TemplateOptions(refresh_rate=0.5, reference_pull=0.0, refresh_max_rms=1e3)
+    assert refresh_templates(templates, ev, options) > 0
+    seen = (ev.visibility >= 0.99) & (base.weights > 0)
+    observed = ev.residuals + before
+    np.testing.assert_allclose(templates.values[seen], 0.5 * (before + observed)[seen],
+                               atol=1e-3)
+    strict = TemplateOptions(refresh_max_rms=1e-3)
+    assert refresh_templates(templates, ev, strict) == 0
+
+
+def test_segmentation_puts_the_front_part_on_top(setup):
+    scenario, images, model, cam, templates = setup
+    kin = forward_kinematics(model, scenario.states[12])
+    ev = evaluate_layered(templates, images[12], cam, kin, templates.planes(kin, cam), None,
+                          0.0)
+    labels = segment_image(ev.windows, ev.order, cam.width, cam.height)
+    single = {}
+    for k in range(len(templates.parts)):
+        alone = type(ev.order)(np.array([k]), [])
+        single[k] = segment_image(ev.windows, alone, cam.width, cam.height) == k
+    assert ev.order.relations
+    for relation in ev.order.relations:
+        both = single[relation.front] & single[relation.back]
+        if both.any():
+            assert not (labels[both] == relation.back).any()
+    covered = np.any(np.stack(list(single.values())), axis=0)
+    np.testing.assert_array_equal(labels >= 0, covered)
