@@ -13,13 +13,13 @@ from pathlib import Path
 
 import click
 
-from digiteyes.commands.render import render_scenario
 from digiteyes.commands.track import print_run, tracker_options
 from digiteyes.evaluate import evaluate_run, headline_rows, write_report
 from digiteyes.io import open_sequence, read_state_log
 from digiteyes.pipeline import run_tracker
 from digiteyes.synth.scenarios import build_scenario
-from digiteyes.trackers import FeatureTracker
+from digiteyes.synth.sequence import render_scenario
+from digiteyes.trackers import DEFAULT_TRACKER, create_tracker
 
 
 @click.command()
@@ -47,10 +47,12 @@ def demo(output: str, scenario_name: str, frames: int | None, iterations: int, s
 
     click.echo(f"2/3 tracking with {iterations} Gauss-Newton iterations per frame")
     options = tracker_options(iterations, 20.0, "default", sequence.model, None, "none")
-    tracker = FeatureTracker(sequence.model, sequence.rig, options)
+    tracker = create_tracker(DEFAULT_TRACKER, sequence.model, sequence.rig,
+                             **vars(options))
     run = run_tracker(tracker, sequence.model, sequence.rig, iter(sequence),
                       sequence.initial_state, out / "track", fps=sequence.fps,
-                      total=sequence.n_frames, progress=not quiet)
+                      total=sequence.n_frames, progress=not quiet,
+                      tracker_name=DEFAULT_TRACKER)
     print_run(run)
 
     click.echo("3/3 evaluating against ground truth")
