@@ -73,6 +73,30 @@ def tracker_help() -> str:
         f"{name} ({tracker_entry(name).help})" for name in tracker_names()) + "."
 
 
+class TrackerChoice(click.Choice):
+    """The registered tracker names, read when the command line is parsed (so a tracker
+    registered after this module was imported is a choice too)."""
+
+    def __init__(self) -> None:
+        super().__init__(())
+
+    @property
+    def choices(self) -> tuple[str, ...]:
+        return tracker_names()
+
+    @choices.setter
+    def choices(self, value) -> None:
+        """The registry decides; :class:`click.Choice` sets this in its constructor."""
+
+
+class TrackerOption(click.Option):
+    """``--tracker``, whose help lists the trackers registered when it is shown."""
+
+    def get_help_record(self, ctx: click.Context) -> tuple[str, str] | None:
+        self.help = tracker_help()
+        return super().get_help_record(ctx)
+
+
 def print_run(run: TrackingRun) -> None:
     """Headline figures of a run and where its files are."""
     per_iteration = (f", {run.ms_per_iteration:.2f} ms per iteration"
@@ -100,8 +124,8 @@ def print_run(run: TrackingRun) -> None:
               help="Initial state JSON (default: the dataset's).")
 @click.option("-o", "--output", required=True, type=click.Path(file_okay=False),
               help="Output folder.")
-@click.option("--tracker", "tracker_name", type=click.Choice(tracker_names()),
-              default=DEFAULT_TRACKER, show_default=True, help=tracker_help())
+@click.option("--tracker", "tracker_name", cls=TrackerOption, type=TrackerChoice(),
+              default=DEFAULT_TRACKER, show_default=True)
 @click.option("--option", "option_pairs", multiple=True, metavar="KEY=VALUE",
               help="A field of the tracker's options (repeatable), e.g. "
                    "--option iterations_per_frame=3; for the features tracker on top of "
