@@ -100,9 +100,9 @@ def test_registry_creates_by_name_and_rejects_unknown_names_and_options(sequence
     assert tracker_names()[:1] == ("features",) and "hold-still" in tracker_names()
     tracker = create_tracker("hold-still", seq.model, seq.rig, lost_after=2)
     assert isinstance(tracker, HoldStillTracker) and tracker.options.lost_after == 2
-    with pytest.raises(TrackerError, match="no tracker named 'nope'.*features"):
+    with pytest.raises(TrackerError, match=r"no tracker named 'nope'.*features"):
         create_tracker("nope", seq.model, seq.rig)
-    with pytest.raises(TrackerError, match="no option 'speed'.*lost_after"):
+    with pytest.raises(TrackerError, match=r"no option 'speed'.*lost_after"):
         create_tracker("hold-still", seq.model, seq.rig, speed=2)
     features = create_tracker("features", seq.model, seq.rig, iterations_per_frame=2,
                               form="quaternion")
