@@ -30,8 +30,6 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from digiteyes import __version__
-from digiteyes._files import read_json_object
 from digiteyes.camera import Rig, load_rig, save_rig
 from digiteyes.errors import DatasetError, StateError
 from digiteyes.io.video import (
@@ -41,6 +39,7 @@ from digiteyes.io.video import (
     VideoWriter,
     checked_crf,
 )
+from digiteyes.jsonfile import read_json_object
 from digiteyes.kinematics import (
     KinematicModel,
     State,
@@ -48,6 +47,7 @@ from digiteyes.kinematics import (
     read_states_csv,
     write_states_csv,
 )
+from digiteyes.version import __version__
 
 FORMAT = "digiteyes-sequence"
 VERSION = 1
