@@ -31,7 +31,7 @@ LAYERS = (
     ("trackers",),
     ("apps", "viz"),
     ("evaluate",),
-    ("pipeline",),
+    ("pipeline", "warmup"),
     ("benchmarks",),
     ("commands",),
     ("cli", "__init__", "__main__"),

@@ -166,3 +166,18 @@ def test_benchmark_loop_takes_any_tracker():
     assert set(outcome.stage_seconds) == {"measure", "hold"} and outcome.iterations == 0
     np.testing.assert_allclose(outcome.log.states,
                                np.tile(sequence.scenario.initial_state, (3, 1)))
+
+
+def test_warm_up_step_leaves_the_track_unchanged(sequence, tmp_path):
+    from digiteyes.pipeline import run_tracker, step_frames
+
+    seq = open_sequence(sequence)
+    cold = [r.state for _, _, r, _ in step_frames(
+        create_tracker("features", seq.model, seq.rig, iterations_per_frame=2), iter(seq),
+        seq.initial_state)]
+    tracker = create_tracker("features", seq.model, seq.rig, iterations_per_frame=2)
+    run = run_tracker(tracker, seq.model, seq.rig, iter(seq), seq.initial_state,
+                      tmp_path / "warm", overlay=False, views_every=0, progress=False)
+    assert run.warm_up_seconds > 0 and run.n_frames == 4
+    warm = read_state_log(run.files["states"], seq.model).states
+    np.testing.assert_allclose(warm, np.array(cold), atol=1e-9)  # CSV keeps 1e-9 or better

@@ -20,6 +20,7 @@ from digiteyes.pipeline import run_tracker
 from digiteyes.synth.scenarios import build_scenario
 from digiteyes.synth.sequence import render_scenario
 from digiteyes.trackers import DEFAULT_TRACKER, create_tracker
+from digiteyes.warmup import COMPILE_MESSAGE, cold_kernels
 
 
 @click.command()
@@ -40,6 +41,8 @@ def demo(output: str, scenario_name: str, frames: int | None, iterations: int, s
     if out.exists():
         shutil.rmtree(out)
     scenario = build_scenario(scenario_name, seed=seed, n_frames=frames)
+    if cold_kernels():
+        click.echo(COMPILE_MESSAGE)
     click.echo(f"1/3 rendering {scenario.name}: {scenario.n_frames} frames x "
                f"{len(scenario.rig)} camera(s) -> {out / 'sequence'}")
     render_scenario(scenario, out / "sequence", seed=seed, progress=not quiet)

@@ -25,6 +25,7 @@ from digiteyes.trackers import (
     tracker_entry,
     tracker_names,
 )
+from digiteyes.warmup import COMPILE_MESSAGE, cold_kernels
 
 HELP = """Track INPUT with a registered tracker (--tracker; default: the DigitEyes feature
 tracker, thesis Sec. 4.3).
@@ -104,6 +105,9 @@ def print_run(run: TrackingRun) -> None:
     click.echo(f"tracked {run.n_frames} frame(s) with {run.tracker} in "
                f"{run.tracker_seconds:.2f} s of tracker time ({run.tracker_fps:.1f} frames/s"
                f"{per_iteration})")
+    if run.warm_up_seconds >= 1.0:
+        click.echo(f"  (kernels compiled or loaded in a first, untimed step: "
+                   f"{run.warm_up_seconds:.1f} s, not counted above)")
     if run.n_lost:
         click.echo(f"track flagged lost in {run.n_lost} frame(s), first at frame "
                    f"{run.first_lost_frame}")
@@ -194,6 +198,8 @@ def track(inputs: tuple[str, ...], model_name: str | None, rig_path: str | None,
         flags = tracker_options(iterations, window, links, model, robust, prediction, shading)
         options = {**vars(flags), **options}
     tracker = create_tracker(tracker_name, model, rig, **options)
+    if cold_kernels():
+        click.echo(COMPILE_MESSAGE)
     run = run_tracker(tracker, model, rig, chain([first], frames), np.asarray(initial),
                       output, fps=rate, total=total, overlay=not no_overlay,
                       progress=not quiet, tracker_name=tracker_name)
