@@ -7,12 +7,17 @@ run after an install compiles them (about a minute on a slow machine); later run
 them in well under a second. :func:`cold_kernels` tells beforehand whether a run will
 compile, so the commands can say so; :func:`warm_up` steps a tracker once on the first
 frame and resets it, so that the timed loop of :func:`digiteyes.pipeline.run_tracker`
-measures tracking, not compiling.
+measures tracking, not compiling. :func:`compile_in_background` compiles the tracking
+kernels in a second process while the first one does something else (``digiteyes demo``
+renders its sequence meanwhile): on two or more cores the compiling then costs little
+wall time.
 """
 
 from __future__ import annotations
 
 import importlib
+import subprocess
+import sys
 import time
 from collections.abc import Iterable, Sequence
 from pathlib import Path
@@ -67,3 +72,31 @@ def warm_up(tracker: Tracker, images: Sequence[np.ndarray], initial_state: np.nd
     tracker.reset(np.asarray(initial_state, dtype=float))
     tracker.step(list(images))
     return time.perf_counter() - start
+
+
+def compile_in_background(scenario: str = "whole-hand") -> subprocess.Popen | None:
+    """Start a process that renders one frame of ``scenario`` and steps the feature
+    tracker on it, filling numba's cache with every kernel a track of that scenario uses;
+    None when nothing is left to compile. :meth:`~subprocess.Popen.wait` for it before
+    tracking (the kernels are then loaded, not compiled again)."""
+    if not cold_kernels():
+        return None
+    return subprocess.Popen([sys.executable, "-m", "digiteyes.warmup", scenario],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+
+def _compile(scenario_name: str) -> None:
+    """Render frame 0 of ``scenario_name`` (as ``digiteyes render`` does) and track it."""
+    from digiteyes.synth import RenderOptions
+    from digiteyes.synth.scenarios import build_scenario
+    from digiteyes.synth.sequence import render_frames
+    from digiteyes.trackers import DEFAULT_TRACKER, create_tracker
+
+    scenario = build_scenario(scenario_name, seed=0, n_frames=1)
+    images, _ = next(render_frames(scenario, RenderOptions()))
+    warm_up(create_tracker(DEFAULT_TRACKER, scenario.model, scenario.rig), images,
+            scenario.initial_state)
+
+
+if __name__ == "__main__":
+    _compile(sys.argv[1] if len(sys.argv) > 1 else "whole-hand")

@@ -20,7 +20,7 @@ from digiteyes.pipeline import run_tracker
 from digiteyes.synth.scenarios import build_scenario
 from digiteyes.synth.sequence import render_scenario
 from digiteyes.trackers import DEFAULT_TRACKER, create_tracker
-from digiteyes.warmup import COMPILE_MESSAGE, cold_kernels
+from digiteyes.warmup import COMPILE_MESSAGE, compile_in_background
 
 
 @click.command()
@@ -41,11 +41,16 @@ def demo(output: str, scenario_name: str, frames: int | None, iterations: int, s
     if out.exists():
         shutil.rmtree(out)
     scenario = build_scenario(scenario_name, seed=seed, n_frames=frames)
-    if cold_kernels():
+    compiling = compile_in_background(scenario.name)
+    if compiling is not None:
         click.echo(COMPILE_MESSAGE)
     click.echo(f"1/3 rendering {scenario.name}: {scenario.n_frames} frames x "
                f"{len(scenario.rig)} camera(s) -> {out / 'sequence'}")
-    render_scenario(scenario, out / "sequence", seed=seed, progress=not quiet)
+    try:
+        render_scenario(scenario, out / "sequence", seed=seed, progress=not quiet)
+    finally:
+        if compiling is not None:
+            compiling.wait()
     sequence = open_sequence(out / "sequence")
 
     click.echo(f"2/3 tracking with {iterations} Gauss-Newton iterations per frame")
