@@ -13,8 +13,8 @@ from digiteyes.kinematics import (
     forward_kinematics,
     load_model,
     parse_model_text,
-    shipped_models,
 )
+from digiteyes.models import shipped_models
 
 
 def _without_lines(spec):
