@@ -448,7 +448,9 @@ class FeatureTracker:
         predicted = self.predictor.predict()
         timings["prediction"] = time.perf_counter() - start
         start = time.perf_counter()
-        images = [prepare_image(frame) for frame in frames]
+        # one image type for the frames and the shading prediction (float32): the
+        # feature kernels are then compiled once, not twice (uint8 and float32)
+        images = [prepare_image(frame).astype(np.float32, copy=False) for frame in frames]
         timings["feature_detection"] += time.perf_counter() - start
         if self.options.shading_correction:
             start = time.perf_counter()
