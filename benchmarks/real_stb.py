@@ -362,8 +362,8 @@ def track_once(model: KinematicModel, rig: Rig, images: list[np.ndarray], q0: np
             "before": joint_error(model, q0, truth), "after": joint_error(model, result.state,
                                                                           truth),
             "residual_rms_px": float(result.residual_rms_px),
-            "valid_features": int(result.n_valid_links + result.n_valid_tips),
-            "features": int(result.n_features), "lost": bool(result.lost),
+            "valid_features": int(result.details.n_valid_links + result.details.n_valid_tips),
+            "features": int(result.details.n_features), "lost": bool(result.lost),
             "loss_reason": result.loss_reason, "seconds": float(result.timings["total"])}, result
 
 

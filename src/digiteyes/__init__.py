@@ -8,6 +8,7 @@ trackers (:mod:`digiteyes.trackers`). Units are millimetres and radians througho
 
 from digiteyes.errors import DigitEyesError
 from digiteyes.kinematics import KinematicModel, State, forward_kinematics, load_model
+from digiteyes.version import __version__
 
-__all__ = ["DigitEyesError", "KinematicModel", "State", "forward_kinematics", "load_model"]
-__version__ = "0.1.0"
+__all__ = ["DigitEyesError", "KinematicModel", "State", "__version__", "forward_kinematics",
+           "load_model"]

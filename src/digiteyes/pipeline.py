@@ -5,14 +5,20 @@ This is the layer between :mod:`digiteyes.io` (frames in, logs out) and
 ``digiteyes demo`` and the tracker benchmark. Outputs in ``out_dir``:
 
 * ``states.csv``: the state log (named columns, one row per frame, flushed per row);
-* ``overlay.mp4``: every camera's image with the T-shaped trackers, edge points, feature
-  lines and residual vectors (report Fig. 4), cameras side by side (H.264,
+* ``overlay.mp4``: every camera's image with what the tracker measured drawn on it (the
+  feature tracker: T-shaped trackers, edge points, feature lines and residual vectors,
+  report Fig. 4; :mod:`digiteyes.viz.track_overlay`), cameras side by side (H.264,
   :data:`OVERLAY_CRF`, :data:`OVERLAY_PRESET`);
 * ``views/estimate-NNNNNN.png``: the estimated model rendered from another viewpoint
   (thesis Fig. 4.6) every ``views_every`` frames and at the last frame;
 * ``trajectory-palm.png`` and ``trajectory-joints.png``: the estimated palm pose and the
   index and thumb joint angles over time (thesis Figs. 4.7, 4.8);
-* ``summary.json``: frames, losses, timings per stage (thesis Table 4.1 rows).
+* ``summary.json``: the tracker, frames, losses, timings per stage (the stages the
+  tracker declares in ``Tracker.stages``; thesis Table 4.1 rows for the feature tracker).
+
+Any :class:`~digiteyes.trackers.Tracker` runs through :func:`run_tracker`;
+:func:`step_frames` is the bare loop (reset, then one timed ``step`` per frame) that the
+benchmarks share.
 
 Ctrl-C stops the loop; every frame tracked so far is already in ``states.csv`` and the
 other outputs are written before the interruption is reported (``interrupted=True``).
@@ -22,8 +28,9 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
+from itertools import chain
 from pathlib import Path
 
 import numpy as np
@@ -34,10 +41,10 @@ from digiteyes.io import StateLogWriter, VideoWriter
 from digiteyes.kinematics import KinematicModel
 from digiteyes.trackers import Tracker, TrackResult
 from digiteyes.viz.model_view import write_model_png
-from digiteyes.viz.overlay import draw_features
-from digiteyes.viz.plots import plot_joint_angles, plot_palm_trajectory, save_figure
+from digiteyes.viz.track_overlay import overlay_image
+from digiteyes.viz.trajectory import write_trajectory_plots
+from digiteyes.warmup import warm_up
 
-STAGES = ("forward_kinematics", "feature_detection", "jacobian", "linear_solve")
 OVERLAY_CRF = 23
 OVERLAY_PRESET = "veryfast"
 """H.264 settings of ``overlay.mp4``: x264's default quality and a fast preset, a video to
@@ -49,21 +56,27 @@ dataset videos at the medium preset took 60 KB and 45 ms)."""
 class TrackingRun:
     """What a run produced: counts, timings (seconds) and the files written.
 
+    ``warm_up_seconds`` is the untimed first step that compiles (or loads) the kernels
+    (:func:`digiteyes.warmup.warm_up`), kept out of every other figure;
     ``tracker_seconds`` sums the ``step`` calls; ``loop_seconds`` is the whole per-frame
     loop (reading frames, tracking, logging, overlays); ``wall_seconds`` adds the one-off
     outputs written at the end (plots, last 3D view, summary).
     """
 
     out_dir: Path
+    tracker: str = ""
+    stages: tuple[str, ...] = ()
     n_frames: int = 0
     n_lost: int = 0
     first_lost_frame: int | None = None
     interrupted: bool = False
+    warm_up_seconds: float = 0.0
     tracker_seconds: float = 0.0
     loop_seconds: float = 0.0
     wall_seconds: float = 0.0
     iterations: int = 0
-    stage_seconds: dict[str, float] = field(default_factory=lambda: dict.fromkeys(STAGES, 0.0))
+    stage_seconds: dict[str, float] = field(default_factory=dict)
+    finger_lost_frames: dict[str, int] = field(default_factory=dict)
     files: dict[str, Path] = field(default_factory=dict)
 
     @property
@@ -78,7 +91,8 @@ class TrackingRun:
 
     @property
     def ms_per_iteration(self) -> float:
-        """Mean milliseconds per Gauss-Newton iteration inside ``step``."""
+        """Mean milliseconds per solver iteration inside ``step`` (NaN for trackers that
+        report no iterations)."""
         if not self.iterations:
             return float("nan")
         return 1e3 * self.tracker_seconds / self.iterations
@@ -87,11 +101,14 @@ class TrackingRun:
         per_iteration = {k: 1e3 * v / self.iterations if self.iterations else None
                          for k, v in self.stage_seconds.items()}
         return {
+            "tracker": self.tracker,
+            "stages": list(self.stages),
             "frames": self.n_frames,
             "lost_frames": self.n_lost,
             "first_lost_frame": self.first_lost_frame,
             "interrupted": self.interrupted,
             "iterations": self.iterations,
+            "warm_up_seconds": self.warm_up_seconds,
             "tracker_seconds": self.tracker_seconds,
             "loop_seconds": self.loop_seconds,
             "wall_seconds": self.wall_seconds,
@@ -99,24 +116,25 @@ class TrackingRun:
             "ms_per_iteration": None if np.isnan(self.ms_per_iteration)
             else self.ms_per_iteration,
             "ms_per_iteration_by_stage": per_iteration,
+            "ms_per_frame_by_stage": {k: 1e3 * v / self.n_frames if self.n_frames else None
+                                      for k, v in self.stage_seconds.items()},
+            "lost_frames_per_finger": dict(self.finger_lost_frames),
             "files": {k: str(v) for k, v in self.files.items()},
         }
 
 
-def overlay_image(images: Sequence[np.ndarray], result: TrackResult, rig: Rig) -> np.ndarray:
-    """Cameras side by side, each with its features drawn (RGB uint8, even size for h264)."""
-    panels = [draw_features(image, meas, cam, layout)
-              for image, meas, layout, cam in zip(images, result.measurements,
-                                                  result.residual_layouts, rig, strict=True)]
-    height = max(p.shape[0] for p in panels)
-    height += height % 2
-    width = sum(p.shape[1] for p in panels)
-    tiled = np.zeros((height, width + width % 2, 3), dtype=np.uint8)
-    left = 0
-    for panel in panels:
-        tiled[:panel.shape[0], left:left + panel.shape[1]] = panel
-        left += panel.shape[1]
-    return tiled
+def step_frames(tracker: Tracker, frames: Iterable[Sequence[np.ndarray]],
+                initial_state: np.ndarray) -> Iterator[tuple[int, Sequence[np.ndarray],
+                                                          TrackResult, float]]:
+    """Reset ``tracker`` to ``initial_state`` and step it through ``frames`` (one list of
+    images per time step, rig order); yields ``(index, images, result, seconds)`` per
+    frame, ``seconds`` the wall time of the ``step`` call."""
+    tracker.reset(np.asarray(initial_state, dtype=float))
+    for index, images in enumerate(frames):
+        images = list(images)
+        start = time.perf_counter()
+        result = tracker.step(images)
+        yield index, images, result, time.perf_counter() - start
 
 
 def run_tracker(
@@ -133,14 +151,28 @@ def run_tracker(
     views_every: int = 50,
     view: str = "bottom",
     progress: bool = True,
+    tracker_name: str | None = None,
+    warm: bool = True,
 ) -> TrackingRun:
     """Track ``frames`` (one list of images per time step, rig order) from
-    ``initial_state`` and write the outputs listed in the module docstring."""
+    ``initial_state`` with any :class:`~digiteyes.trackers.Tracker` and write the outputs
+    listed in the module docstring. ``tracker_name`` goes into ``summary.json`` (default:
+    the tracker's class name). With ``warm`` the tracker first steps once on the first
+    frame, untimed, and is reset (:func:`digiteyes.warmup.warm_up`): compiling the
+    kernels on a first run stays out of the figures."""
     out = Path(out_dir)
     (out / "views").mkdir(parents=True, exist_ok=True)
-    run = TrackingRun(out)
+    stages = tuple(tracker.stages)
+    run = TrackingRun(out, tracker=tracker_name or type(tracker).__name__, stages=stages,
+                      stage_seconds=dict.fromkeys(stages, 0.0))
     states: list[np.ndarray] = []
-    tracker.reset(np.asarray(initial_state, dtype=float))
+    frames = iter(frames)
+    first = next(frames, None)
+    if first is not None:
+        first = list(first)
+        frames = chain([first], frames)
+        if warm:
+            run.warm_up_seconds = warm_up(tracker, first, initial_state)
     started = time.perf_counter()
     log_path = out / "states.csv"
     video = VideoWriter(out / "overlay.mp4", fps, codec="h264", crf=OVERLAY_CRF,
@@ -148,17 +180,14 @@ def run_tracker(
     bar = tqdm(frames, total=total, unit="frame", desc="tracking", disable=not progress)
     try:
         with StateLogWriter(log_path, model) as log:
-            for index, images in enumerate(bar):
-                t0 = time.perf_counter()
-                result = tracker.step(list(images))
-                seconds = time.perf_counter() - t0
+            for index, images, result, seconds in step_frames(tracker, bar, initial_state):
                 log.append(index, result.state, time_s=seconds, lost=result.lost,
                            residual_rms_px=result.residual_rms_px,
                            iterations=result.iterations)
                 _account(run, result, index, seconds)
                 states.append(result.state)
                 if video is not None:
-                    video.write(overlay_image(images, result, rig))
+                    video.write(overlay_image(images, result, rig, model))
                 if views_every and index % views_every == views_every - 1:
                     _write_view(model, result.state, out, index, view, run)
                 bar.set_postfix(rms_px=f"{result.residual_rms_px:.2f}", lost=run.n_lost)
@@ -188,8 +217,10 @@ def _account(run: TrackingRun, result: TrackResult, index: int, seconds: float) 
     run.n_frames += 1
     run.tracker_seconds += seconds
     run.iterations += result.iterations
-    for stage in STAGES:
+    for stage in run.stages:
         run.stage_seconds[stage] += result.timings.get(stage, 0.0)
+    for finger, lost in result.finger_lost.items():
+        run.finger_lost_frames[finger] = run.finger_lost_frames.get(finger, 0) + bool(lost)
     if result.lost:
         run.n_lost += 1
         if run.first_lost_frame is None:
@@ -201,31 +232,3 @@ def _write_view(model: KinematicModel, q: np.ndarray, out: Path, index: int, vie
     path = write_model_png(model, q, out / "views" / f"estimate-{index:06d}.png", view=view,
                            width=480, height=360)
     run.files[f"view-{index:06d}"] = path
-
-
-def write_trajectory_plots(model: KinematicModel, states: np.ndarray, out: Path,
-                           truth: np.ndarray | None = None) -> dict[str, Path]:
-    """Palm pose (Fig. 4.7 style, pose-base models only) and joint angles of the index
-    finger and thumb (Fig. 4.8 style) over frames; ``truth`` (T, n_q) is drawn dashed."""
-    files: dict[str, Path] = {}
-    t = np.arange(len(states))
-    if model.base_state is not None:
-        k = model.base_state
-        fig = plot_palm_trajectory(
-            t, states[:, k:k + 4], None if truth is None else truth[:, k:k + 4],
-            states[:, k + 4:k + 7], None if truth is None else truth[:, k + 4:k + 7],
-            title="Estimated palm rotation and translation")
-        files["trajectory-palm"] = save_figure(fig, out / "trajectory-palm.png")
-    groups: dict[str, list[str]] = {}
-    for i, name in enumerate(model.state_names):
-        finger = name.split(".")[0]
-        if model.state_kinds[i] == "angle" and finger in ("index", "thumb"):
-            groups.setdefault(finger, []).append(name)
-    if groups:
-        est = {n: np.degrees(states[:, model.state_index(n)]) for g in groups.values()
-               for n in g}
-        true = None if truth is None else {
-            n: np.degrees(truth[:, model.state_index(n)]) for g in groups.values() for n in g}
-        fig = plot_joint_angles(t, groups, est, true, title="Joint angles, index and thumb")
-        files["trajectory-joints"] = save_figure(fig, out / "trajectory-joints.png")
-    return files

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import digiteyes.synth
+import digiteyes.synth.sequence
 from digiteyes.cli import main
 from digiteyes.io.dataset import open_sequence
 from digiteyes.kinematics.keypoints import keypoints
@@ -110,7 +110,7 @@ def test_interrupted_render_resumes_to_the_same_dataset(tmp_path, monkeypatch, c
     reference = tmp_path / "ref"
     assert main(["render", "mouse", "-o", str(reference), *args]) == 0
 
-    real = digiteyes.synth.render_views
+    real = digiteyes.synth.sequence.render_views
     calls = {"n": 0}
 
     def interrupted(*a, **k):
@@ -120,12 +120,12 @@ def test_interrupted_render_resumes_to_the_same_dataset(tmp_path, monkeypatch, c
         return real(*a, **k)
 
     out = tmp_path / "run"
-    monkeypatch.setattr(digiteyes.synth, "render_views", interrupted)
+    monkeypatch.setattr(digiteyes.synth.sequence, "render_views", interrupted)
     assert main(["render", "mouse", "-o", str(out), *args]) == 130
     assert "--resume" in capsys.readouterr().err
     partial = open_sequence(out)
     assert not partial.complete and partial.n_frames == 2
-    monkeypatch.setattr(digiteyes.synth, "render_views", real)
+    monkeypatch.setattr(digiteyes.synth.sequence, "render_views", real)
 
     assert main(["render", "mouse", "-o", str(out), "--frames", "5", "--resume"]) == 2
     assert "other settings" in one_line_error(capsys)

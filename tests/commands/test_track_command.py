@@ -9,8 +9,7 @@ import pytest
 
 from digiteyes.cli import main
 from digiteyes.io import VideoWriter, open_sequence, read_state_log
-from digiteyes.kinematics import State
-from digiteyes.models import load_model
+from digiteyes.kinematics import State, load_model
 from digiteyes.pipeline import run_tracker
 from digiteyes.trackers import FeatureTracker
 

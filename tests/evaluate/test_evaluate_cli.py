@@ -41,7 +41,7 @@ def test_evaluate_prints_table_and_writes_report(tmp_path, hand, dataset, capsys
     out = capsys.readouterr().out
     assert "fingertip error mean / median / max   6.00 / 6.00 / 6.00 mm" in out
     assert f"track life                            {N} of {N} frames" in out
-    for name in ("metrics.json", "report.md", "palm_trajectory.png"):
+    for name in ("metrics.json", "report.md", "trajectory-palm.png"):
         assert (tmp_path / "run" / "evaluation" / name).is_file()
     assert main(["evaluate", str(tmp_path / "run" / "states.csv"), str(gt), "-o",
                  str(tmp_path / "elsewhere"), "--loss-threshold-mm", "5"]) == 0

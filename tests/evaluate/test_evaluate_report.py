@@ -37,7 +37,7 @@ def test_report_writes_metrics_markdown_and_plots(tmp_path, hand, rig, make_traj
         metrics["joint_angle_error_deg"]["per_state"]["index.pip"]["max_abs"]
     text = report.read_text()
     images = re.findall(r"!\[[^]]*\]\(([^)]+)\)", text)
-    assert set(images) == {"fingertip_error.png", "palm_trajectory.png", "joint_angles.png",
+    assert set(images) == {"fingertip_error.png", "trajectory-palm.png", "trajectory-joints.png",
                            "joint_angle_error.png"}
     for name in images:
         image = cv2.imread(str(tmp_path / "out" / name))

@@ -11,9 +11,10 @@ from digiteyes.kinematics import (
     KinematicModel,
     format_model_text,
     forward_kinematics,
+    load_model,
     parse_model_text,
 )
-from digiteyes.models import load_model, shipped_models
+from digiteyes.models import shipped_models
 
 
 def _without_lines(spec):

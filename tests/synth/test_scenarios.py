@@ -9,12 +9,11 @@ from scipy.signal import find_peaks
 
 from digiteyes.errors import DigitEyesError
 from digiteyes.kinematics import forward_kinematics, validate_state
+from digiteyes.kinematics.anatomy import basis_configurations, basis_joint_angles
 from digiteyes.kinematics.keypoints import keypoints
 from digiteyes.synth import RenderOptions, render_views
 from digiteyes.synth.scenarios import (
     SCENARIOS,
-    basis_configurations,
-    basis_joint_angles,
     build_scenario,
 )
 

@@ -11,7 +11,7 @@ from digiteyes.kinematics import forward_kinematics, load_model
 from digiteyes.kinematics.rotations import quaternion_from_matrix
 from digiteyes.synth import RenderOptions, render_views
 from digiteyes.trackers import (
-    TIMING_STAGES,
+    FeatureDetails,
     FeatureTracker,
     FeatureTrackerOptions,
     Tracker,
@@ -113,8 +113,9 @@ def test_blank_frames_flag_loss_and_tracking_resumes(rig, true_states, frames):
     assert not any(r.lost for r in results[:6])
     for r in results[6:9]:
         assert r.lost and r.loss_reason == "no features measured"
-        assert r.n_valid_links == r.n_valid_tips == 0 and np.isnan(r.residual_rms_px)
-        assert r.summary.termination == "no residuals"
+        assert r.details.n_valid_links == r.details.n_valid_tips == 0
+        assert np.isnan(r.residual_rms_px)
+        assert r.details.summary.termination == "no residuals"
     # after the first blank frame the velocity is dropped: the estimate holds still
     np.testing.assert_array_equal(results[7].state, results[6].state)
     np.testing.assert_array_equal(results[8].state, results[7].state)
@@ -161,20 +162,23 @@ def test_result_fields_and_timings(rig, true_states, frames):
     np.testing.assert_array_equal(first.predicted_state, true_states[0])
     assert (first.frame_index, second.frame_index) == (0, 1)
     for result in (first, second):
-        assert result.iterations == result.summary.iterations == 3
-        assert result.n_features == 2 * 18
-        assert len(result.measurements) == len(result.residual_layouts) == 2
-        assert [m.camera for m in result.measurements] == ["left", "right"]
-        assert len(result.residuals) == sum(lay.n_rows for lay in result.residual_layouts)
-        assert result.n_valid_links == sum(int(m.link_valid.sum()) for m in result.measurements)
-        assert result.n_valid_tips == sum(int(m.tip_valid.sum()) for m in result.measurements)
-        assert result.residual_rms_px == pytest.approx(np.sqrt(np.mean(result.residuals**2)))
-        assert result.cost == pytest.approx(0.5 * result.residuals @ result.residuals)
-        assert set(result.timings) == set(TIMING_STAGES)
-        stages = [result.timings[k] for k in TIMING_STAGES if k != "total"]
+        d = result.details
+        assert isinstance(d, FeatureDetails)
+        assert result.iterations == d.summary.iterations == 3
+        assert d.n_features == 2 * 18
+        assert len(d.measurements) == len(d.residual_layouts) == 2
+        assert [m.camera for m in d.measurements] == ["left", "right"]
+        assert len(d.residuals) == sum(lay.n_rows for lay in d.residual_layouts)
+        assert d.n_valid_links == sum(int(m.link_valid.sum()) for m in d.measurements)
+        assert d.n_valid_tips == sum(int(m.tip_valid.sum()) for m in d.measurements)
+        assert result.residual_rms_px == pytest.approx(np.sqrt(np.mean(d.residuals**2)))
+        assert result.cost == pytest.approx(0.5 * d.residuals @ d.residuals)
+        assert result.finger_lost == {}
+        assert set(result.timings) == {*FeatureTracker.stages, "total"}
+        stages = [result.timings[k] for k in FeatureTracker.stages]
         assert all(t > 0 for t in stages)
         assert sum(stages) <= result.timings["total"]
-        names = {HAND.links[i].name for m in result.measurements for i in m.link_ids}
+        names = {HAND.links[i].name for m in d.measurements for i in m.link_ids}
         assert "middle.proximal" not in names and "index.proximal" in names
 
 

@@ -24,6 +24,7 @@ def test_hand_sliding_out_of_view_is_flagged_lost_and_tracking_goes_on() -> None
         results.append(tracker.step([image]))
     assert not results[0].lost
     assert results[-1].lost and results[-1].loss_reason
-    assert results[-1].n_valid_links + results[-1].n_valid_tips < results[0].n_valid_links
+    assert results[-1].details.n_valid_links + results[-1].details.n_valid_tips \
+            < results[0].details.n_valid_links
     assert all(np.isfinite(r.state).all() for r in results)
     assert np.isclose(np.linalg.norm(results[-1].state[:4]), 1.0)

@@ -69,7 +69,7 @@ import contextlib
 import tempfile
 import time
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -91,10 +91,17 @@ from digiteyes.features import FeatureOptions, feature_residuals, measure_featur
 from digiteyes.io import GroundTruth, SequenceWriter, StateLog, open_sequence, read_state_log
 from digiteyes.io.video import VIDEO_CODECS
 from digiteyes.kinematics import KinematicModel, forward_kinematics
-from digiteyes.pipeline import TrackingRun, run_tracker
-from digiteyes.synth import RenderOptions, perturb_model, render_views
+from digiteyes.pipeline import TrackingRun, run_tracker, step_frames
+from digiteyes.synth import RenderOptions
 from digiteyes.synth.scenarios import Scenario, build_scenario
-from digiteyes.trackers import FeatureTracker, FeatureTrackerOptions, thesis_whole_hand_links
+from digiteyes.synth.sequence import perturbed_truth, render_frames
+from digiteyes.trackers import (
+    DEFAULT_TRACKER,
+    FeatureTracker,
+    FeatureTrackerOptions,
+    create_tracker,
+    thesis_whole_hand_links,
+)
 
 SEED = 0
 """Seed of the scenarios' motion, the sensor noise, the clutter and the perturbation."""
@@ -103,7 +110,9 @@ NOISE_SIGMA = 2.0
 PERTURB_LINK_LENGTH = 0.05
 """Link-length perturbation of the "perturbed" true hand (fraction)."""
 
-STAGES = ("forward_kinematics", "feature_detection", "jacobian", "linear_solve")
+STAGES = tuple(s for s in FeatureTracker.stages if s in (
+    "forward_kinematics", "feature_detection", "jacobian", "linear_solve"))
+"""The stages of the feature tracker that are rows of thesis Table 4.1."""
 THESIS_TABLE_4_1_MS = {
     "forward_kinematics": 18.0, "feature_detection": 46.2, "state_estimation": 72.0,
     "jacobian": 35.0, "linear_solve": 37.0, "overlay_display": 10.0, "total": 146.0,
@@ -213,31 +222,24 @@ def render_sequence(scenario: Scenario, background: str = "black", perturbed: bo
     seeds as ``digiteyes render --seed``. ``flat`` lights the skin evenly (ambient light
     only: no shading towards the silhouette); ``cameras`` renders only those cameras of
     the rig (None: all)."""
-    model = scenario.model
-    truth_model = perturb_model(model, link_length=PERTURB_LINK_LENGTH, rng=seed) \
-        if perturbed else model
+    truth_model, _ = perturbed_truth(scenario.model, PERTURB_LINK_LENGTH if perturbed else 0.0,
+                                     seed)
     options = RenderOptions(background=background, noise_sigma=NOISE_SIGMA,
                             background_seed=seed)
     if flat:
         options = replace(options, ambient=1.0)
     rig = scenario.rig if cameras is None else Rig(tuple(scenario.rig.cameras[i]
                                                           for i in cameras))
-    images, kp3, kp2, visible = [], [], [], []
-    names: tuple[str, ...] = ()
     label = (f"render {scenario.name} {background} {'perturbed' if perturbed else 'exact'}"
              f"{' flat' if flat else ''}")
-    for t in tqdm(range(scenario.n_frames), desc=label, unit="frame", leave=False,
-                  disable=not progress):
-        views = render_views(truth_model, scenario.states[t], rig, options,
-                             np.random.default_rng([seed, t]))
-        images.append([v.image for v in views])
-        names = tuple(views[0].keypoint_names)
-        kp3.append(views[0].keypoints_3d)
-        kp2.append(np.stack([v.keypoints_2d for v in views]))
-        visible.append(np.stack([v.visible for v in views]))
-    truth = GroundTruth(np.array(scenario.states, dtype=float), names, np.array(kp3),
-                        np.array(kp2), np.array(visible))
-    return RenderedSequence(scenario, rig, images, truth, truth_model)
+    frames = list(render_frames(scenario, options, seed=seed, truth_model=truth_model,
+                                rig=rig, progress=progress, label=label))
+    truth = GroundTruth(np.array(scenario.states, dtype=float), frames[0][1].keypoint_names,
+                        np.array([f.keypoints_3d for _, f in frames]),
+                        np.array([f.keypoints_2d for _, f in frames]),
+                        np.array([f.visible for _, f in frames]))
+    return RenderedSequence(scenario, rig, [images for images, _ in frames], truth,
+                            truth_model)
 
 
 # --------------------------------------------------------------------------- tracking
@@ -252,27 +254,31 @@ class TrackOutcome:
     features_per_frame: float
 
 
-def track_sequence(sequence: RenderedSequence, options: FeatureTrackerOptions,
-                   label: str = "track", progress: bool = False) -> TrackOutcome:
-    """Track ``sequence`` from its true first state with the feature tracker."""
+def track_sequence(sequence: RenderedSequence, options: Any, label: str = "track",
+                   progress: bool = False, tracker: str = DEFAULT_TRACKER) -> TrackOutcome:
+    """Track ``sequence`` from its true first state with the registered ``tracker``
+    (:func:`~digiteyes.trackers.create_tracker`; ``options`` an instance of its options
+    type), through the run loop of ``digiteyes track``
+    (:func:`~digiteyes.pipeline.step_frames`)."""
     model = sequence.scenario.model
-    tracker = FeatureTracker(model, sequence.rig, options)
-    tracker.reset(sequence.scenario.initial_state)
+    settings = {f.name: getattr(options, f.name) for f in fields(options)}
+    runner = create_tracker(tracker, model, sequence.rig, **settings)
     n = sequence.n_frames
     states = np.empty((n, model.n_q))
     lost = np.zeros(n, dtype=bool)
     rms = np.full(n, np.nan)
     iterations = np.zeros(n, dtype=int)
     seconds = np.zeros(n)
-    stage = dict.fromkeys((*STAGES, "prediction", "shading"), 0.0)
+    stage = dict.fromkeys(runner.stages, 0.0)
     features = 0
-    for t in tqdm(range(n), desc=label, unit="frame", leave=False, disable=not progress):
-        start = time.perf_counter()
-        result = tracker.step(sequence.images[t])
-        seconds[t] = time.perf_counter() - start
+    frames = tqdm(sequence.images, desc=label, unit="frame", leave=False,
+                  disable=not progress)
+    for t, _, result, step_seconds in step_frames(runner, frames,
+                                                  sequence.scenario.initial_state):
+        seconds[t] = step_seconds
         states[t], lost[t], rms[t] = result.state, result.lost, result.residual_rms_px
         iterations[t] = result.iterations
-        features += result.n_features
+        features += getattr(result.details, "n_features", 0)
         for key in stage:
             stage[key] += result.timings.get(key, 0.0)
     log = StateLog(np.arange(n), states, lost, rms, iterations, seconds)
@@ -477,10 +483,11 @@ def _track_video(folder: Path, iterations: int, overlay: bool, out_dir: Path
     frames per second of the whole command (with the final plots) and the state log."""
     start = time.perf_counter()
     with open_sequence(folder) as seq:
-        tracker = FeatureTracker(seq.model, seq.rig,
-                                 FeatureTrackerOptions(iterations_per_frame=iterations))
+        tracker = create_tracker(DEFAULT_TRACKER, seq.model, seq.rig,
+                                 iterations_per_frame=iterations)
         run = run_tracker(tracker, seq.model, seq.rig, iter(seq), seq.initial_state, out_dir,
-                          fps=seq.fps, total=seq.n_frames, overlay=overlay, progress=False)
+                          fps=seq.fps, total=seq.n_frames, overlay=overlay, progress=False,
+                          tracker_name=DEFAULT_TRACKER)
         log = read_state_log(run.files["states"], seq.model)
     return run, run.n_frames / (time.perf_counter() - start), log
 

@@ -28,9 +28,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from digiteyes._files import read_json_object
 from digiteyes.camera.camera import Camera
 from digiteyes.errors import CameraError
+from digiteyes.jsonfile import read_json_object
 
 
 @dataclass(frozen=True)

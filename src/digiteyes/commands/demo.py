@@ -13,13 +13,14 @@ from pathlib import Path
 
 import click
 
-from digiteyes.commands.render import render_scenario
 from digiteyes.commands.track import print_run, tracker_options
 from digiteyes.evaluate import evaluate_run, headline_rows, write_report
 from digiteyes.io import open_sequence, read_state_log
 from digiteyes.pipeline import run_tracker
 from digiteyes.synth.scenarios import build_scenario
-from digiteyes.trackers import FeatureTracker
+from digiteyes.synth.sequence import render_scenario
+from digiteyes.trackers import DEFAULT_TRACKER, create_tracker
+from digiteyes.warmup import COMPILE_MESSAGE, compile_in_background
 
 
 @click.command()
@@ -40,17 +41,26 @@ def demo(output: str, scenario_name: str, frames: int | None, iterations: int, s
     if out.exists():
         shutil.rmtree(out)
     scenario = build_scenario(scenario_name, seed=seed, n_frames=frames)
+    compiling = compile_in_background(scenario.name)
+    if compiling is not None:
+        click.echo(COMPILE_MESSAGE)
     click.echo(f"1/3 rendering {scenario.name}: {scenario.n_frames} frames x "
                f"{len(scenario.rig)} camera(s) -> {out / 'sequence'}")
-    render_scenario(scenario, out / "sequence", seed=seed, progress=not quiet)
+    try:
+        render_scenario(scenario, out / "sequence", seed=seed, progress=not quiet)
+    finally:
+        if compiling is not None:
+            compiling.wait()
     sequence = open_sequence(out / "sequence")
 
     click.echo(f"2/3 tracking with {iterations} Gauss-Newton iterations per frame")
     options = tracker_options(iterations, 20.0, "default", sequence.model, None, "none")
-    tracker = FeatureTracker(sequence.model, sequence.rig, options)
+    tracker = create_tracker(DEFAULT_TRACKER, sequence.model, sequence.rig,
+                             **vars(options))
     run = run_tracker(tracker, sequence.model, sequence.rig, iter(sequence),
                       sequence.initial_state, out / "track", fps=sequence.fps,
-                      total=sequence.n_frames, progress=not quiet)
+                      total=sequence.n_frames, progress=not quiet,
+                      tracker_name=DEFAULT_TRACKER)
     print_run(run)
 
     click.echo("3/3 evaluating against ground truth")

@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import click
-import numpy as np
 
 from digiteyes.errors import DigitEyesError
 from digiteyes.synth.scenarios import SCENARIOS
@@ -18,45 +16,6 @@ through every camera of the scenario's rig and written with its true state, keyp
 (3D and per camera) and their visibility. The same SCENARIO, --seed and options give the
 same dataset, so an interrupted render (Ctrl-C) continues with --resume.
 """
-
-
-def _options(background: str, color: bool, noise: float, blur: float, seed: int):
-    from digiteyes.synth import RenderOptions
-
-    return RenderOptions(color=color, background=background, noise_sigma=noise,
-                         blur_sigma=blur, background_seed=seed)
-
-
-def _truth_model(model, perturb: float, seed: int) -> tuple[object, dict | None]:
-    """The model the images are rendered from and its description for the metadata."""
-    if perturb == 0.0:
-        return model, None
-    from digiteyes.synth import perturb_model
-
-    truth = perturb_model(model, link_length=perturb, rng=seed)
-    links = {link.name: {"length_mm": round(link.length, 6), "radius_mm": round(link.radius, 6)}
-             for link in truth.links if link.kind != "palm"}
-    palm = [link for link in truth.links if link.kind == "palm"]
-    for link in palm:
-        links[link.name] = {"size_mm": [round(v, 6) for v in link.size]}
-    return truth, {"perturb_model": {"model": model.name, "link_length": perturb, "rng": seed},
-                   "file": "truth/model.dh", "links": links}
-
-
-def _check_resume(folder: Path, settings: dict) -> None:
-    """Refuse to resume a sequence that was written with other settings."""
-    path = folder / "sequence.json"
-    if not path.is_file():
-        return
-    try:
-        old = json.loads(path.read_text(encoding="utf-8")).get("scenario", {}).get("render")
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, AttributeError):
-        return  # the writer reports unreadable folders itself
-    if old is not None and old != settings:
-        changed = sorted(k for k in set(old) | set(settings) if old.get(k) != settings.get(k))
-        raise DigitEyesError(f"{folder}: cannot resume: it was rendered with other settings "
-                             f"({', '.join(f'{k}={old.get(k)!r}' for k in changed)}); use the "
-                             "same options, or --force to start again")
 
 
 @click.command(help=HELP)
@@ -88,65 +47,16 @@ def render(scenario_name: str, output: str, background: str, color: bool, noise:
         raise DigitEyesError("--force and --resume exclude each other: --force starts again, "
                              "--resume continues")
     from digiteyes.synth.scenarios import build_scenario
+    from digiteyes.synth.sequence import render_scenario
 
     scenario = build_scenario(scenario_name, seed=seed, n_frames=frames)
-    render_scenario(scenario, Path(output), seed=seed, background=background, color=color,
-                    noise=noise, blur=blur, perturb=perturb, video=video, force=force,
-                    resume=resume)
-
-
-def render_scenario(scenario, folder: Path, *, seed: int = 0, background: str = "black",
-                    color: bool = False, noise: float = 0.0, blur: float = 0.0,
-                    perturb: float = 0.0, video: bool = False, force: bool = False,
-                    resume: bool = False, progress: bool | None = None) -> Path:
-    """Render every frame of ``scenario`` through its rig into the sequence ``folder``
-    (shared by ``digiteyes render`` and ``digiteyes demo``); returns the folder."""
-    from tqdm import tqdm
-
-    from digiteyes.io.dataset import FrameTruth, SequenceWriter
-    from digiteyes.synth import render_views
-
-    options = _options(background, color, noise, blur, seed)
-    truth_model, truth_info = _truth_model(scenario.model, perturb, seed)
-    settings = {"scenario": scenario.name, "seed": seed, "frames": scenario.n_frames,
-                "background": background, "color": color, "noise_sigma": noise,
-                "blur_sigma": blur, "perturb": perturb}
-    if resume:
-        _check_resume(folder, settings)
-    metadata = {"name": scenario.name, "description": scenario.description, "seed": seed,
-                "planned_frames": scenario.n_frames, "render": settings,
-                "truth_model": truth_info, **scenario.metadata}
-    total = scenario.n_frames
-    with SequenceWriter(folder, scenario.model, scenario.rig, scenario.initial_state,
-                        scenario.fps, name=f"{scenario.name}-seed{seed}", scenario=metadata,
-                        video=video, overwrite=force, resume=resume) as writer:
-        start = writer.n_written
-        if start >= total:
-            raise DigitEyesError(f"{folder}: already holds {start} frames of {total}; "
-                                 "nothing to render")
-        bar = tqdm(total=total, initial=start, unit="frame", desc=f"render {scenario.name}",
-                   disable=None if progress is None else not progress)
-        try:
-            for t in range(start, total):
-                views = render_views(truth_model, scenario.states[t], scenario.rig, options,
-                                     np.random.default_rng([seed, t]))
-                writer.write_frame([v.image for v in views], FrameTruth(
-                    scenario.states[t], views[0].keypoint_names, views[0].keypoints_3d,
-                    np.stack([v.keypoints_2d for v in views]),
-                    np.stack([v.visible for v in views])))
-                bar.update()
-        except KeyboardInterrupt:
-            bar.close()
-            click.echo(f"digiteyes render: stopped after {writer.n_written} of {total} frames; "
-                       f"run the same command with --resume to continue", err=True)
-            raise
-        bar.close()
-    if truth_info is not None:
-        from digiteyes.kinematics import format_model_text
-
-        (folder / "truth").mkdir(exist_ok=True)
-        (folder / "truth" / "model.dh").write_text(format_model_text(truth_model.spec),
-                                                  encoding="utf-8")
-    click.echo(f"wrote {total - start} frame(s) x {len(scenario.rig)} camera(s) of "
-               f"{scenario.name} (seed {seed}) to {folder}")
-    return folder
+    try:
+        done = render_scenario(scenario, Path(output), seed=seed, background=background,
+                               color=color, noise=noise, blur=blur, perturb=perturb,
+                               video=video, force=force, resume=resume)
+    except KeyboardInterrupt:
+        click.echo(f"digiteyes render: stopped before the end of {scenario.n_frames} frames; "
+                   "run the same command with --resume to continue", err=True)
+        raise
+    click.echo(f"wrote {done.n_written} frame(s) x {len(scenario.rig)} camera(s) of "
+               f"{scenario.name} (seed {seed}) to {done.folder}")

@@ -1,7 +1,9 @@
-"""``digiteyes track``: run the DigitEyes feature tracker on a dataset folder or videos."""
+"""``digiteyes track``: run a registered tracker (default: the DigitEyes feature tracker)
+on a dataset folder or videos."""
 
 from __future__ import annotations
 
+import json
 from itertools import chain, islice
 from pathlib import Path
 
@@ -12,17 +14,21 @@ from digiteyes.camera import load_rig
 from digiteyes.errors import CameraError, DatasetError
 from digiteyes.features import FeatureOptions
 from digiteyes.io import open_sequence, open_video_frames
-from digiteyes.kinematics import State
-from digiteyes.models import load_model
+from digiteyes.kinematics import State, load_model
 from digiteyes.pipeline import TrackingRun, run_tracker
 from digiteyes.trackers import (
-    FeatureTracker,
+    DEFAULT_TRACKER,
     FeatureTrackerOptions,
     all_features,
+    create_tracker,
     thesis_whole_hand_links,
+    tracker_entry,
+    tracker_names,
 )
+from digiteyes.warmup import COMPILE_MESSAGE, cold_kernels
 
-HELP = """Track INPUT with the DigitEyes feature tracker (thesis Sec. 4.3).
+HELP = """Track INPUT with a registered tracker (--tracker; default: the DigitEyes feature
+tracker, thesis Sec. 4.3).
 
 INPUT is a dataset folder (see docs/dataset.md; its model, rig and initial state are used
 unless overridden) or one video file per camera of the rig, in rig order (then --model,
@@ -46,11 +52,62 @@ def tracker_options(iterations: int, window: float, links: str, model, robust: s
     )
 
 
+def parse_tracker_options(pairs: tuple[str, ...]) -> dict[str, object]:
+    """``KEY=VALUE`` pairs as options; a VALUE that reads as JSON (numbers, true, null,
+    lists) is taken as such, any other as a string."""
+    options: dict[str, object] = {}
+    for pair in pairs:
+        key, eq, value = pair.partition("=")
+        if not eq or not key:
+            raise click.BadParameter(f"expected KEY=VALUE, got {pair!r}",
+                                     param_hint="'--option'")
+        try:
+            options[key] = json.loads(value)
+        except json.JSONDecodeError:
+            options[key] = value
+    return options
+
+
+def tracker_help() -> str:
+    """The ``--tracker`` help: every registered name with its one line."""
+    return "Tracker to run: " + "; ".join(
+        f"{name} ({tracker_entry(name).help})" for name in tracker_names()) + "."
+
+
+class TrackerChoice(click.Choice):
+    """The registered tracker names, read when the command line is parsed (so a tracker
+    registered after this module was imported is a choice too)."""
+
+    def __init__(self) -> None:
+        super().__init__(())
+
+    @property
+    def choices(self) -> tuple[str, ...]:
+        return tracker_names()
+
+    @choices.setter
+    def choices(self, value) -> None:
+        """The registry decides; :class:`click.Choice` sets this in its constructor."""
+
+
+class TrackerOption(click.Option):
+    """``--tracker``, whose help lists the trackers registered when it is shown."""
+
+    def get_help_record(self, ctx: click.Context) -> tuple[str, str] | None:
+        self.help = tracker_help()
+        return super().get_help_record(ctx)
+
+
 def print_run(run: TrackingRun) -> None:
     """Headline figures of a run and where its files are."""
-    click.echo(f"tracked {run.n_frames} frame(s) in {run.tracker_seconds:.2f} s of tracker "
-               f"time ({run.tracker_fps:.1f} frames/s, {run.ms_per_iteration:.2f} ms per "
-               f"Gauss-Newton iteration)")
+    per_iteration = (f", {run.ms_per_iteration:.2f} ms per iteration"
+                     if run.iterations else "")
+    click.echo(f"tracked {run.n_frames} frame(s) with {run.tracker} in "
+               f"{run.tracker_seconds:.2f} s of tracker time ({run.tracker_fps:.1f} frames/s"
+               f"{per_iteration})")
+    if run.warm_up_seconds >= 1.0:
+        click.echo(f"  (kernels compiled or loaded in a first, untimed step: "
+                   f"{run.warm_up_seconds:.1f} s, not counted above)")
     if run.n_lost:
         click.echo(f"track flagged lost in {run.n_lost} frame(s), first at frame "
                    f"{run.first_lost_frame}")
@@ -71,8 +128,14 @@ def print_run(run: TrackingRun) -> None:
               help="Initial state JSON (default: the dataset's).")
 @click.option("-o", "--output", required=True, type=click.Path(file_okay=False),
               help="Output folder.")
+@click.option("--tracker", "tracker_name", cls=TrackerOption, type=TrackerChoice(),
+              default=DEFAULT_TRACKER, show_default=True)
+@click.option("--option", "option_pairs", multiple=True, metavar="KEY=VALUE",
+              help="A field of the tracker's options (repeatable), e.g. "
+                   "--option iterations_per_frame=3; for the features tracker on top of "
+                   "the flags below.")
 @click.option("--iterations", type=click.IntRange(min=1), default=5, show_default=True,
-              help="Gauss-Newton iterations per frame.")
+              help="Gauss-Newton iterations per frame (features tracker).")
 @click.option("--window", type=click.FloatRange(min=2.0), default=20.0, show_default=True,
               help="Feature search window, pixels (thesis Table 4.2).")
 @click.option("--links", type=click.Choice(["default", "all", "thesis"]), default="default",
@@ -96,7 +159,8 @@ def print_run(run: TrackingRun) -> None:
 @click.option("--no-overlay", is_flag=True, help="Skip the overlay video.")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 def track(inputs: tuple[str, ...], model_name: str | None, rig_path: str | None,
-          init_path: str | None, output: str, iterations: int, window: float, links: str,
+          init_path: str | None, output: str, tracker_name: str,
+          option_pairs: tuple[str, ...], iterations: int, window: float, links: str,
           robust: str | None, prediction: str, shading: bool, max_frames: int | None,
           fps: float | None, no_overlay: bool, quiet: bool) -> None:
     dataset = None
@@ -129,12 +193,16 @@ def track(inputs: tuple[str, ...], model_name: str | None, rig_path: str | None,
     first = next(frames, None)
     if first is None:
         raise DatasetError(f"{inputs[0]}: no frames to track")
-    rig.check_images(first)
-    options = tracker_options(iterations, window, links, model, robust, prediction, shading)
-    tracker = FeatureTracker(model, rig, options)
+    options = parse_tracker_options(option_pairs)
+    if tracker_name == DEFAULT_TRACKER:
+        flags = tracker_options(iterations, window, links, model, robust, prediction, shading)
+        options = {**vars(flags), **options}
+    tracker = create_tracker(tracker_name, model, rig, **options)
+    if cold_kernels():
+        click.echo(COMPILE_MESSAGE)
     run = run_tracker(tracker, model, rig, chain([first], frames), np.asarray(initial),
                       output, fps=rate, total=total, overlay=not no_overlay,
-                      progress=not quiet)
+                      progress=not quiet, tracker_name=tracker_name)
     print_run(run)
     if run.interrupted:
         raise KeyboardInterrupt

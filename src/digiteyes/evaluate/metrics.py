@@ -22,14 +22,20 @@ from digiteyes.errors import DatasetError
 from digiteyes.io.dataset import GroundTruth
 from digiteyes.io.state_log import StateLog
 from digiteyes.kinematics import KinematicModel, Kinematics, forward_kinematics
-from digiteyes.kinematics.rotations import quaternion_from_matrix
+from digiteyes.kinematics.anatomy import (
+    FINGERS,
+    finger_of,
+    joint_angle_states,
+    joint_type_of,
+    palm_pose,
+)
 
 KeypointFn = Callable[[KinematicModel, Kinematics], tuple[Sequence[str], np.ndarray]]
 
 #: default fingertip error (mm) above which a frame counts as track loss
 DEFAULT_LOSS_THRESHOLD_MM = 20.0
-#: finger prefixes of state names, in report order (others follow in model order)
-FINGERS = ("index", "middle", "ring", "little", "thumb")
+#: digit prefixes of state names, in report order (others follow in model order)
+REPORT_ORDER = (*FINGERS, "thumb")
 
 
 # --------------------------------------------------------------------------- geometry
@@ -56,64 +62,12 @@ def wrap_angle(angle: np.ndarray) -> np.ndarray:
     return (np.asarray(angle, dtype=float) + np.pi) % (2.0 * np.pi) - np.pi
 
 
-def palm_pose(model: KinematicModel, states: np.ndarray
-              ) -> tuple[np.ndarray, np.ndarray, str] | None:
-    """Palm orientation (T, 4) quaternions (w, x, y, z) and position (T, 3) mm, world frame.
-
-    With a pose base (7 states) they are those states ("pose states"); otherwise they are
-    the pose of the palm link's shape frame from forward kinematics ("palm frame"), which
-    for a palm on prismatic joints moves exactly by those joints. None when the model has
-    neither a pose base nor a palm link.
-    """
-    states = np.atleast_2d(np.asarray(states, dtype=float))
-    if model.base_state is not None:
-        k = model.base_state
-        quat = states[:, k:k + 4]
-        return quat / np.linalg.norm(quat, axis=1, keepdims=True), states[:, k + 4:k + 7], \
-            "pose states"
-    palm = [link for link in model.links if link.kind == "palm"]
-    if not palm:
-        return None
-    T = forward_kinematics(model, states).T_world_shape[:, palm[0].row]
-    return quaternion_from_matrix(T[:, :3, :3]), T[:, :3, 3].copy(), "palm frame"
-
-
-def palm_states(model: KinematicModel) -> np.ndarray:
-    """Indices of the states that move the palm (the pose base or the joints under it)."""
-    palm = [link for link in model.links if link.kind == "palm"]
-    if palm:
-        return np.flatnonzero(model.shape_moved_by[palm[0].row])
-    if model.base_state is not None:
-        return np.arange(model.base_state, model.base_state + 7)
-    return np.zeros(0, dtype=int)
-
-
-def joint_angle_states(model: KinematicModel) -> np.ndarray:
-    """Indices of the joint angles: states of kind ``angle`` that do not move the palm."""
-    moving_palm = set(palm_states(model).tolist())
-    return np.array([i for i, kind in enumerate(model.state_kinds)
-                     if kind == "angle" and i not in moving_palm], dtype=int)
-
-
-def finger_of(state_name: str) -> str:
-    """Finger (or part) of a state: the prefix before the first dot (``index.pip`` -> index)."""
-    return state_name.split(".", 1)[0]
-
-
-def joint_type_of(state_name: str) -> str:
-    """Joint type of a state: the suffix for fingers (``abd``, ``mcp``, ``pip``, ``dip``);
-    thumb joints keep their full name (``thumb.cmc_abd``), as each is its own type."""
-    prefix, dot, suffix = state_name.partition(".")
-    if not dot:
-        return state_name
-    return state_name if prefix == "thumb" else suffix
-
-
 def _grouped(names: Sequence[str], key: Callable[[str], str]) -> dict[str, list[int]]:
     groups: dict[str, list[int]] = {}
     for i, name in enumerate(names):
         groups.setdefault(key(name), []).append(i)
-    order = [f for f in FINGERS if f in groups] + [g for g in groups if g not in FINGERS]
+    order = [f for f in REPORT_ORDER if f in groups] + [g for g in groups
+                                                       if g not in REPORT_ORDER]
     return {g: groups[g] for g in order}
 
 

@@ -16,17 +16,15 @@ from typing import Any
 import numpy as np
 
 from digiteyes.errors import DatasetError
-from digiteyes.evaluate.metrics import finger_of, joint_angle_states, palm_pose
 from digiteyes.io.dataset import GroundTruth
 from digiteyes.io.state_log import StateLog
 from digiteyes.kinematics import KinematicModel
 from digiteyes.viz.plots import (
     plot_error_bars,
     plot_error_series,
-    plot_joint_angles,
-    plot_palm_trajectory,
     save_figure,
 )
+from digiteyes.viz.trajectory import JOINTS_PLOT, PALM_PLOT, write_trajectory_plots
 
 
 def _clean(value: Any) -> Any:
@@ -140,28 +138,11 @@ def write_report(metrics: dict[str, Any], estimated: StateLog, truth: GroundTrut
                         save_figure(fig, out / "fingertip_error.png").name))
 
     true_states = None if truth.states is None else truth.states[frames]
-    pose_e = palm_pose(model, estimated.states)
-    pose_t = None if true_states is None else palm_pose(model, true_states)
-    if pose_e is not None:
-        fig = plot_palm_trajectory(t, pose_e[0], None if pose_t is None else pose_t[0],
-                                   pose_e[1], None if pose_t is None else pose_t[1],
+    plots = write_trajectory_plots(model, estimated.states, out, truth=true_states, t=t,
                                    xlabel=xlabel)
-        figures.append(("Palm rotation and translation (thesis Fig. 4.7 style)",
-                        save_figure(fig, out / "palm_trajectory.png").name))
-
-    idx = joint_angle_states(model)
-    by_finger: dict[str, list[str]] = {}
-    for i in idx:
-        by_finger.setdefault(finger_of(model.state_names[i]), []).append(model.state_names[i])
-    chosen = [f for f in ("index", "thumb") if f in by_finger] or list(by_finger)[:2]
-    if chosen:
-        est_deg = {model.state_names[i]: np.degrees(estimated.states[:, i]) for i in idx}
-        true_deg = None if true_states is None else \
-            {model.state_names[i]: np.degrees(true_states[:, i]) for i in idx}
-        fig = plot_joint_angles(t, {f: by_finger[f] for f in chosen}, est_deg, true_deg,
-                                xlabel=xlabel)
-        figures.append((f"Joint angles of {' and '.join(chosen)} (thesis Fig. 4.8 style)",
-                        save_figure(fig, out / "joint_angles.png").name))
+    captions = {PALM_PLOT: "Palm rotation and translation (thesis Fig. 4.7 style)",
+                JOINTS_PLOT: "Joint angles (thesis Fig. 4.8 style)"}
+    figures += [(captions[key], path.name) for key, path in plots.items()]
 
     angles = metrics.get("joint_angle_error_deg")
     if angles:

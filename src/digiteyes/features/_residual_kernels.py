@@ -3,7 +3,7 @@
 :func:`feature_residuals_kernel` does the whole job for one measurement: it picks the
 model points of the valid features (axis points of the links, tip centres, the contour
 points of each width link, :func:`contour_points_kernel`), computes their world positions
-and point Jacobians (:func:`~digiteyes.kinematics._kernels.jacobian_kernel`), projects
+and point Jacobians (:func:`~digiteyes.kinematics.jacobian.jacobian_kernel`), projects
 them (:func:`~digiteyes.camera.camera.project_kernel`) and writes the residual rows
 (:func:`residual_rows_kernel`) with their labels. A profile of the numpy version showed
 about 40 small array operations per call whose overhead (about 120 us) outweighed the
@@ -19,7 +19,7 @@ from numba import njit
 
 from digiteyes.camera.camera import project_kernel, project_point
 from digiteyes.features.slices import tangent_pair
-from digiteyes.kinematics._kernels import jacobian_kernel
+from digiteyes.kinematics.jacobian import jacobian_kernel
 
 RESIDUAL_KINDS = ("link", "tip", "width")
 LINK_ROW, TIP_ROW, WIDTH_ROW = range(len(RESIDUAL_KINDS))  # row kind codes

@@ -55,6 +55,7 @@ from digiteyes.features.measure import FeatureMeasurement
 from digiteyes.features.slices import view_of
 from digiteyes.kinematics import KinematicModel, Kinematics
 from digiteyes.kinematics.jacobian import jacobian_tables
+from digiteyes.kinematics.step_form import StepForm
 
 _KIND_NAMES = np.array(RESIDUAL_KINDS)
 
@@ -105,7 +106,7 @@ def feature_residuals(
     kin: Kinematics,
     *,
     jacobian: bool = True,
-    form: str = "tangent",
+    form: StepForm | str = StepForm.TANGENT,
     axis_points: int = 2,
     width_weight: float = 0.0,
     max_width_error: float = 0.15,
@@ -133,8 +134,7 @@ def feature_residuals(
     J : (M, n) d r / d state, px per tangent unit (rad or mm), or None.
     layout : :class:`ResidualLayout`.
     """
-    if form not in ("tangent", "quaternion"):
-        raise ValueError(f"form must be 'tangent' or 'quaternion', got {form!r}")
+    form = StepForm.parse(form)
     if axis_points < 1:
         raise ValueError(f"axis_points must be >= 1, got {axis_points}")
     if not (width_weight >= 0 and max_width_error > 0):
@@ -148,7 +148,7 @@ def feature_residuals(
     model = kin.model
     n_links, n_tips = len(meas.link_ids), len(meas.tip_ids)
     n_max = axis_points * n_links + 2 * n_tips + n_links
-    n_cols = (model.n_q if form == "quaternion" else model.n_v) if jacobian else 0
+    n_cols = form.n_columns(model) if jacobian else 0
     r, J = np.empty(n_max), np.empty((n_max, n_cols))
     points_px = np.empty((n_max, 2))
     labels = np.empty((4, n_max), dtype=np.int64)  # kind code, feature, link index, component

@@ -30,8 +30,6 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from digiteyes import __version__
-from digiteyes._files import read_json_object
 from digiteyes.camera import Rig, load_rig, save_rig
 from digiteyes.errors import DatasetError, StateError
 from digiteyes.io.video import (
@@ -41,13 +39,15 @@ from digiteyes.io.video import (
     VideoWriter,
     checked_crf,
 )
+from digiteyes.jsonfile import read_json_object
 from digiteyes.kinematics import (
     KinematicModel,
     State,
-    parse_model_text,
+    load_model,
     read_states_csv,
     write_states_csv,
 )
+from digiteyes.version import __version__
 
 FORMAT = "digiteyes-sequence"
 VERSION = 1
@@ -588,12 +588,7 @@ class Sequence:
             raise DatasetError(f"{where}: n_frames must be >= 0 and fps > 0")
         self.complete = bool(payload.get("complete", True))
         self.scenario = payload.get("scenario") or {}
-        model_path = folder / payload["model"]
-        try:
-            text = model_path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
-            raise DatasetError(f"{model_path}: cannot read model file ({exc})") from None
-        self.model = KinematicModel(parse_model_text(text, str(model_path)))
+        self.model = load_model(folder / payload["model"])
         self.rig = load_rig(folder / payload["rig"])
         self.camera_names = [str(c) for c in payload["cameras"]]
         if self.camera_names != self.rig.names:

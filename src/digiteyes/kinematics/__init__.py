@@ -2,7 +2,7 @@
 
 from digiteyes.kinematics.forward import Kinematics, dh_transform, forward_kinematics
 from digiteyes.kinematics.jacobian import point_jacobian
-from digiteyes.kinematics.model import KinematicModel, Link, model_from_file
+from digiteyes.kinematics.model import KinematicModel, Link, load_model, model_from_file
 from digiteyes.kinematics.model_file import format_model_text, parse_model_text, read_model_file
 from digiteyes.kinematics.state import (
     State,
@@ -13,11 +13,11 @@ from digiteyes.kinematics.state import (
     validate_state,
     write_states_csv,
 )
-from digiteyes.models import load_model
+from digiteyes.kinematics.step_form import STEP_FORMS, StepForm
 
 __all__ = [
-    "KinematicModel", "Kinematics", "Link", "State", "clip_to_limits", "dh_transform",
-    "difference", "format_model_text", "forward_kinematics", "integrate", "load_model",
-    "model_from_file", "parse_model_text", "point_jacobian", "read_model_file", "read_states_csv",
-    "validate_state", "write_states_csv",
+    "STEP_FORMS", "KinematicModel", "Kinematics", "Link", "State", "StepForm",
+    "clip_to_limits", "dh_transform", "difference", "format_model_text", "forward_kinematics",
+    "integrate", "load_model", "model_from_file", "parse_model_text", "point_jacobian",
+    "read_model_file", "read_states_csv", "validate_state", "write_states_csv",
 ]

@@ -26,8 +26,9 @@ import numpy as np
 from digiteyes.kinematics._kernels import jacobian_kernel
 from digiteyes.kinematics.forward import Kinematics
 from digiteyes.kinematics.model import KinematicModel
+from digiteyes.kinematics.step_form import StepForm
 
-JacobianForm = Literal["tangent", "quaternion"]
+JacobianForm = StepForm | Literal["tangent", "quaternion"]
 
 
 @lru_cache(maxsize=64)
@@ -36,7 +37,7 @@ def jacobian_tables(model: KinematicModel, form: JacobianForm) -> tuple:
     its argument order: ``shape_moved_by, joint_row, theta_state, base_state, root,
     col_of_q, quaternion_form``. ``col_of_q`` maps each state number to its Jacobian
     column (``n_q`` columns in the quaternion form, ``n_v`` in the tangent form)."""
-    quaternion_form = form == "quaternion"
+    quaternion_form = StepForm.parse(form) is StepForm.QUATERNION
     col_of_q = np.arange(model.n_q) if quaternion_form else model.q_to_v
     return (model.shape_moved_by, model.joint_row, model.theta_state,
             -1 if model.base_state is None else model.base_state, model.root,
@@ -65,14 +66,13 @@ def point_jacobian(
     p_world : (N, P, 3) or (P, 3), mm.
     J : (N, P, 3, n) or (P, 3, n); units mm per radian (revolute, rotation) or mm/mm.
     """
-    if form not in ("tangent", "quaternion"):
-        raise ValueError(f"form must be 'tangent' or 'quaternion', got {form!r}")
+    form = StepForm.parse(form)
     rows = np.ascontiguousarray(rows, dtype=np.int64)
     p_shape = np.ascontiguousarray(p_shape, dtype=float).reshape(len(rows), 3)
     n = len(kin.q)
     tables = jacobian_tables(kin.model, form)
     p_world = np.empty((n, len(rows), 3))
-    n_cols = kin.model.n_q if form == "quaternion" else kin.model.n_v
+    n_cols = form.n_columns(kin.model)
     J = np.zeros((n, len(rows), 3, n_cols))
     jacobian_kernel(kin.T_world_shape, kin.q, rows, p_shape, *tables, p_world, J)
     if not kin.batched:

@@ -18,12 +18,14 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
 from digiteyes.errors import ModelFileError
 from digiteyes.kinematics.model_file import FrameSpec, ModelSpec, StateSpec, read_model_file
+from digiteyes.models import model_path
 
 
 @dataclass(frozen=True)
@@ -348,3 +350,19 @@ class KinematicModel:
 def model_from_file(path: str | Path) -> KinematicModel:
     """Build a :class:`KinematicModel` from a model file on disk."""
     return KinematicModel(read_model_file(path))
+
+
+@lru_cache(maxsize=32)
+def _load_cached(path: str, mtime: float) -> KinematicModel:
+    return model_from_file(path)
+
+
+def load_model(name_or_path: str | Path) -> KinematicModel:
+    """Load a :class:`KinematicModel` by shipped name (``"hand"``, docs/models.md) or model
+    file path: the one route to a model (loaded once per file and modification time)."""
+    path = model_path(name_or_path)
+    try:
+        mtime = path.stat().st_mtime
+    except OSError:
+        raise ModelFileError(str(path), None, "no such model file") from None
+    return _load_cached(str(path.resolve()), mtime)

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from digiteyes._files import read_json_object
 from digiteyes.errors import StateError
+from digiteyes.jsonfile import read_json_object
 from digiteyes.kinematics._kernels import integrate_kernel
 from digiteyes.kinematics.forward import as_state_batch
 from digiteyes.kinematics.model import KinematicModel

@@ -1,4 +1,5 @@
-"""Model files shipped with digiteyes, loadable by name: ``load_model("hand")``.
+"""Model files shipped with digiteyes, found by name (``model_path("hand")``); load one
+with :func:`digiteyes.kinematics.load_model`, the one route to a model.
 
 ``hand`` (thesis Appendix A), ``mouse-hand`` (thesis Sec. 4.3.4), ``two-finger``
 (Sec. 4.4.2) and ``cardboard-hand`` (Huang, Wu & Lin Sec. 2). See docs/models.md.
@@ -6,7 +7,6 @@
 
 from __future__ import annotations
 
-from functools import lru_cache
 from pathlib import Path
 
 from digiteyes.errors import ModelFileError
@@ -32,20 +32,3 @@ def model_path(name_or_path: str | Path) -> Path:
             "(or give a path to a .dh file)",
         )
     return shipped
-
-
-@lru_cache(maxsize=32)
-def _load(path: str, mtime: float):
-    from digiteyes.kinematics.model import model_from_file
-
-    return model_from_file(path)
-
-
-def load_model(name_or_path: str | Path):
-    """Load a :class:`~digiteyes.kinematics.KinematicModel` by shipped name or file path."""
-    path = model_path(name_or_path)
-    try:
-        mtime = path.stat().st_mtime
-    except OSError:
-        raise ModelFileError(str(path), None, "no such model file") from None
-    return _load(str(path.resolve()), mtime)

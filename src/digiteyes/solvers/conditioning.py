@@ -18,11 +18,10 @@ Two step layouts exist:
 
 from __future__ import annotations
 
-from typing import Literal
-
 import numpy as np
 
 from digiteyes.kinematics import KinematicModel
+from digiteyes.kinematics.step_form import StepForm
 
 
 def hand_conditioning(
@@ -30,7 +29,7 @@ def hand_conditioning(
     quaternion: float = 1.0,
     translation: float = 10.0,
     joint: float = 1000.0,
-    form: Literal["tangent", "quaternion"] = "tangent",
+    form: StepForm | str = StepForm.TANGENT,
 ) -> np.ndarray:
     """Diagonal of ``S`` (thesis eq. 2.22, Table 4.2) in the step layout of ``form``.
 
@@ -50,12 +49,11 @@ def hand_conditioning(
                         ("joint", joint)):
         if not (np.isfinite(value) and value >= 0):
             raise ValueError(f"{name} weight must be a non-negative number, got {value!r}")
-    if form not in ("tangent", "quaternion"):
-        raise ValueError(f"form must be 'tangent' or 'quaternion', got {form!r}")
+    form = StepForm.parse(form)
     weight_of_kind = {"quat": quaternion, "trans": translation, "length": translation,
                       "angle": joint}
     per_state = np.array([weight_of_kind[kind] for kind in model.state_kinds], dtype=float)
-    if form == "quaternion":
+    if form is StepForm.QUATERNION:
         return per_state
     S = np.empty(model.n_v)
     plain = model.q_to_v >= 0

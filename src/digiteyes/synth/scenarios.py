@@ -18,7 +18,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from itertools import product
 
 import numpy as np
 from scipy.optimize import brentq
@@ -26,6 +25,13 @@ from scipy.optimize import brentq
 from digiteyes.camera import Camera, Rig
 from digiteyes.errors import DigitEyesError
 from digiteyes.kinematics import KinematicModel, load_model
+from digiteyes.kinematics.anatomy import (
+    FINGERS,
+    SPREAD_DEG,
+    THUMB_JOINTS,
+    basis_configurations,
+    basis_joint_angles,
+)
 from digiteyes.kinematics.forward import forward_kinematics
 from digiteyes.kinematics.rotations import matrix_from_quaternion
 from digiteyes.synth.motion import (
@@ -42,13 +48,6 @@ HAND_CENTRE_PALM = np.array([0.0, 46.0, 0.0])
 R_PALM_DOWN = np.diag([-1.0, 1.0, -1.0])
 """World-from-palm rotation of a right hand lying palm-down with the fingers along world
 +y: palm x -> world -x (the thumb on the user's left), y -> +y, z (palmar) -> world -z."""
-
-SPREAD = {"index": -20.0, "middle": -5.0, "ring": 8.0, "little": 22.0}
-"""Abduction (degrees) of fingers held apart, so that neighbours do not touch (positive
-turns a finger towards the little-finger side, docs/models.md)."""
-
-FINGERS = ("index", "middle", "ring", "little")
-
 
 @dataclass(frozen=True)
 class Scenario:
@@ -169,7 +168,6 @@ WHOLE_HAND_FLEX = 0.65
 each finger adds +-0.1 of its own. Beyond about 0.7 (80 degrees from MCP to DIP) a finger
 seen from the cameras folds over itself and over its neighbours."""
 
-THUMB = ("thumb.cmc_flex", "thumb.cmc_abd", "thumb.mp_abd", "thumb.mp", "thumb.ip")
 THUMB_LOW = np.array([30.0, 0.0, -10.0, -5.0, -5.0])
 THUMB_HIGH = np.array([45.0, 10.0, 10.0, 15.0, 15.0])
 """Range (degrees) of the thumb joints in ``whole-hand`` and ``fast``: spread from the
@@ -182,16 +180,16 @@ def _set_fingers(model: KinematicModel, q: np.ndarray, flex: np.ndarray,
 
     ``flex`` (T, 4, 2): MCP and PIP flexion of index..little as fractions of 40 and 45
     degrees (clipped to [0, 1]); DIP is two thirds of PIP. ``abd`` (T, 4): abduction change
-    (degrees) from the spread pose :data:`SPREAD`. ``thumb`` (T, 5): degrees, order
-    :data:`THUMB`.
+    (degrees) from the spread pose :data:`~digiteyes.kinematics.anatomy.SPREAD_DEG`.
+    ``thumb`` (T, 5): degrees, order :data:`~digiteyes.kinematics.anatomy.THUMB_JOINTS`.
     """
     flex = np.clip(flex, 0.0, 1.0)
     for f, finger in enumerate(FINGERS):
-        _set(model, q, f"{finger}.abd", (SPREAD[finger] + abd[:, f]) * DEG)
+        _set(model, q, f"{finger}.abd", (SPREAD_DEG[finger] + abd[:, f]) * DEG)
         _set(model, q, f"{finger}.mcp", 40.0 * DEG * flex[:, f, 0])
         _set(model, q, f"{finger}.pip", 45.0 * DEG * flex[:, f, 1])
         _set(model, q, f"{finger}.dip", 30.0 * DEG * flex[:, f, 1])
-    for name, column in zip(THUMB, thumb.T, strict=True):
+    for name, column in zip(THUMB_JOINTS, thumb.T, strict=True):
         _set(model, q, name, column * DEG)
 
 
@@ -414,47 +412,6 @@ def two_finger_occlusion(seed: int = 0, n_frames: int | None = None) -> Scenario
 
 
 # --------------------------------------------------------------------------- natural
-DIGITS = ("thumb", *FINGERS)
-EXTENDED = {"abd": None, "mcp": 0.0, "pip": 0.0, "dip": 0.0}
-CURLED_FINGER = {"abd": 0.0, "mcp": 80.0, "pip": 95.0, "dip": 60.0}
-EXTENDED_THUMB = dict(zip(THUMB, (40.0, 10.0, 0.0, 0.0, 0.0), strict=True))
-CURLED_THUMB = dict(zip(THUMB, (0.0, 50.0, 0.0, -20.0, -20.0), strict=True))
-"""Joint angles (degrees) of extended and curled digits in the basis configurations of
-``natural``; an extended finger keeps the spread abduction :data:`SPREAD`, a curled one
-lies beside its neighbours (abduction 0)."""
-
-
-def basis_configurations() -> list[str]:
-    """The 28 basis configurations (Huang, Wu & Lin Sec. 2): every digit fully extended
-    (``E``) or fully curled (``C``), digits in the order thumb, index, middle, ring,
-    little. Of the 32 combinations we drop the four with the ring finger extended while
-    both of its neighbours are curled, which a hand cannot hold (the paper does not list
-    its 28)."""
-    names = []
-    for combo in product("EC", repeat=5):
-        if combo[3] == "E" and combo[2] == "C" and combo[4] == "C":
-            continue
-        names.append("".join(combo))
-    return names
-
-
-def basis_joint_angles(model: KinematicModel, name: str) -> np.ndarray:
-    """The joint part of a basis configuration as a full state (n_q,) with a zero base."""
-    q = np.zeros((1, model.n_q))
-    for digit, letter in zip(DIGITS, name, strict=True):
-        if digit == "thumb":
-            values = EXTENDED_THUMB if letter == "E" else CURLED_THUMB
-            for joint, value in values.items():
-                _set(model, q, joint, value * DEG)
-            continue
-        values = dict(EXTENDED if letter == "E" else CURLED_FINGER)
-        if values["abd"] is None:
-            values["abd"] = SPREAD[digit]
-        for joint, value in values.items():
-            _set(model, q, f"{digit}.{joint}", value * DEG)
-    return q[0]
-
-
 NATURAL_CENTRE = np.array([0.0, 0.0, 150.0])
 _S = np.sqrt(0.5)
 R_PALM_TO_CAMERAS = np.array([[-1.0, 0.0, 0.0], [0.0, -_S, _S], [0.0, _S, _S]])

@@ -1,21 +1,14 @@
-"""Trackers: one interface (``reset``, ``step`` -> :class:`TrackResult`) for all of them.
+"""Trackers: one interface (``reset``, ``step`` -> :class:`TrackResult`) and a registry.
 
 :class:`FeatureTracker` is DigitEyes (thesis Sec. 2.5, 4.3): point and line features,
-stabilised Gauss-Newton, several cameras stacked in one system.
-:class:`DivideConquerTracker` is Huang, Wu & Lin's (palm by ICP, fingers by SMC), with
-its baselines :class:`CondensationTracker` and :class:`RandomSearchTracker`.
+stabilised Gauss-Newton, several cameras stacked in one system; registered as
+``"features"``. :func:`create_tracker` builds any registered tracker by name.
 """
 
-from digiteyes.trackers.base import TIMING_STAGES, Tracker, TrackResult
-from digiteyes.trackers.divide_conquer import (
-    CondensationTracker,
-    DivideConquerDetails,
-    DivideConquerOptions,
-    DivideConquerTracker,
-    RandomSearchTracker,
-)
+from digiteyes.trackers.base import Tracker, TrackResult
 from digiteyes.trackers.feature_tracker import (
     THESIS_EXCLUDED_LINKS,
+    FeatureDetails,
     FeatureTracker,
     FeatureTrackerOptions,
     all_features,
@@ -23,11 +16,24 @@ from digiteyes.trackers.feature_tracker import (
 )
 from digiteyes.trackers.parameterisation import StateParameterisation
 from digiteyes.trackers.prediction import StatePredictor
+from digiteyes.trackers.registry import (
+    TrackerEntry,
+    TrackerError,
+    create_tracker,
+    register_tracker,
+    tracker_entry,
+    tracker_names,
+)
+
+DEFAULT_TRACKER = "features"
+
+register_tracker(DEFAULT_TRACKER, FeatureTracker, FeatureTrackerOptions,
+                 "DigitEyes: point and line features, stabilised Gauss-Newton "
+                 "(thesis Sec. 4.3)")
 
 __all__ = [
-    "THESIS_EXCLUDED_LINKS", "TIMING_STAGES", "CondensationTracker", "DivideConquerDetails",
-    "DivideConquerOptions", "DivideConquerTracker", "FeatureTracker", "FeatureTrackerOptions",
-    "RandomSearchTracker",
-    "StateParameterisation", "StatePredictor", "TrackResult", "Tracker",
-    "all_features", "thesis_whole_hand_links",
+    "DEFAULT_TRACKER", "THESIS_EXCLUDED_LINKS", "FeatureDetails", "FeatureTracker",
+    "FeatureTrackerOptions", "StateParameterisation", "StatePredictor", "TrackResult",
+    "Tracker", "TrackerEntry", "TrackerError", "all_features", "create_tracker",
+    "register_tracker", "thesis_whole_hand_links", "tracker_entry", "tracker_names",
 ]

@@ -1,17 +1,23 @@
-"""The interface every tracker shares (DESIGN.md Sec. 5): ``reset`` then ``step`` per frame."""
+"""The interface every tracker shares (DESIGN.md Sec. 5): ``reset`` then ``step`` per frame.
+
+Every tracker fills the core of :class:`TrackResult` (state, cost, residual RMS, track
+loss, iterations, prediction, frame index, timings) and puts what only it measured into
+``details``: one object of a type of its own (:class:`~digiteyes.trackers.feature_tracker.
+FeatureDetails` for the feature tracker). The run loop, the state log, ``summary.json``,
+``evaluate`` and ``bench`` read the core only; overlays dispatch on the type of
+``details`` (:mod:`digiteyes.viz.track_overlay`).
+"""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
-from digiteyes.solvers import SolverSummary
-
-TIMING_STAGES = ("prediction", "shading", "forward_kinematics", "feature_detection",
-                 "jacobian", "linear_solve", "total")
+from digiteyes.camera import Rig
+from digiteyes.kinematics import KinematicModel
 
 
 @dataclass
@@ -21,50 +27,54 @@ class TrackResult:
     Attributes
     ----------
     state : (n_q,) estimated state (mm, rad, unit quaternion).
-    residual_rms_px : root mean square of the final residual vector, pixels (NaN when no
-        feature was measured).
-    cost : final cost ``sum_i rho(r_i)`` of the solver, px^2.
+    cost : the tracker's final cost for the frame (for least-squares trackers
+        ``sum_i rho(r_i)``, px^2; NaN when it has none).
+    residual_rms_px : root mean square of the final residual vector, pixels (NaN when
+        nothing was measured).
     lost : the track-loss rules fired in this frame; tracking goes on regardless.
     loss_reason : why (``""`` when not lost; several reasons are joined by ``"; "``).
-    iterations : solver iterations spent on this frame.
-    summary : the solver's :class:`~digiteyes.solvers.SolverSummary`.
-    measurements : one measurement object per camera at the final state (for overlays).
-    residual_layouts : one residual layout per camera (which rows belong to which feature).
-    residuals : (M,) final stacked residual vector over all cameras, px.
-    n_valid_links, n_valid_tips : features measured at the final state, all cameras.
-    n_features : features asked for (links + tips, times cameras).
-    predicted_state : (n_q,) the prediction the solver started from.
+    iterations : solver iterations (or particle generations) spent on this frame.
+    predicted_state : (n_q,) the prediction the tracker started from.
     frame_index : frames stepped since the last :meth:`Tracker.reset` (0 for the first).
-    timings : seconds per stage for this frame, summed over iterations (thesis Table 4.1
-        rows): ``"prediction"``, ``"forward_kinematics"``, ``"feature_detection"``,
-        ``"jacobian"`` (residual and Jacobian assembly), ``"linear_solve"`` (normal
-        equations, solve, state update) and ``"total"`` (the whole ``step`` call).
+    timings : seconds per stage for this frame, keyed by the tracker's
+        :attr:`Tracker.stages` (plus ``"total"``, the whole ``step`` call).
+    finger_lost : finger name -> lost flag for trackers that judge fingers one by one
+        (divide and conquer); empty when the tracker judges the hand as a whole.
+    details : what this tracker type measured (its own dataclass; overlays dispatch on
+        its type). ``None`` when the tracker reports nothing more.
     """
 
     state: np.ndarray
-    residual_rms_px: float
     cost: float
+    residual_rms_px: float
     lost: bool
     loss_reason: str
     iterations: int
-    summary: SolverSummary
-    measurements: list[Any] = field(default_factory=list)
-    residual_layouts: list[Any] = field(default_factory=list)
-    residuals: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    n_valid_links: int = 0
-    n_valid_tips: int = 0
-    n_features: int = 0
     predicted_state: np.ndarray | None = None
     frame_index: int = 0
     timings: dict[str, float] = field(default_factory=dict)
+    finger_lost: Mapping[str, bool] = field(default_factory=dict)
+    details: Any = None
 
 
 @runtime_checkable
 class Tracker(Protocol):
     """One interface for every tracker. Trackers never read files; ``io/`` and the CLI do.
 
-    ``frames`` holds one image per camera of the tracker's rig, in rig order.
+    ``frames`` holds one image per camera of the tracker's rig, in rig order; ``step``
+    checks them against the rig (the one check per frame) and raises
+    :class:`~digiteyes.errors.CameraError` when they do not fit.
+
+    Attributes
+    ----------
+    stages : names of the timing stages the tracker reports in
+        :attr:`TrackResult.timings` (``"total"`` is always there too and not listed).
+    model, rig : the kinematic model and the cameras it tracks with.
     """
+
+    stages: ClassVar[tuple[str, ...]]
+    model: KinematicModel
+    rig: Rig
 
     def reset(self, initial_state: np.ndarray) -> None:
         """Start a new track from ``initial_state`` (n_q,)."""

@@ -36,7 +36,13 @@ from digiteyes.errors import StateError
 from digiteyes.features import FeatureOptions, feature_residuals, measure_features
 from digiteyes.features.appearance import EdgeBias, ShadingModel, edge_bias, fit_shading
 from digiteyes.features.slices import prepare_image
-from digiteyes.kinematics import KinematicModel, forward_kinematics, validate_state
+from digiteyes.kinematics import (
+    STEP_FORMS,
+    KinematicModel,
+    StepForm,
+    forward_kinematics,
+    validate_state,
+)
 from digiteyes.solvers import (
     GaussNewtonOptions,
     SolverSummary,
@@ -45,8 +51,8 @@ from digiteyes.solvers import (
 )
 from digiteyes.solvers.options import DAMPINGS, Damping
 from digiteyes.solvers.robust import ROBUST_LOSSES, RobustLoss
-from digiteyes.trackers.base import TIMING_STAGES, TrackResult
-from digiteyes.trackers.parameterisation import STEP_FORMS, StateParameterisation, StepForm
+from digiteyes.trackers.base import TrackResult
+from digiteyes.trackers.parameterisation import StateParameterisation
 from digiteyes.trackers.prediction import PREDICTIONS, PredictionKind, StatePredictor
 
 THESIS_EXCLUDED_LINKS = ("middle.proximal", "ring.proximal")
@@ -115,7 +121,9 @@ class FeatureTrackerOptions:
         because extrapolating amplifies drift along weakly observed directions, see
         docs/tracker.md) or ``"constant-velocity"`` (tangent-space extrapolation, which
         helps on fast motion).
-    form : ``"tangent"`` steps (n_v) or the thesis's ``"quaternion"`` form (n_q).
+    form : the :class:`~digiteyes.kinematics.StepForm`: tangent steps (n_v) or the
+        thesis's quaternion form (n_q); the spellings ``"tangent"``/``"quaternion"`` are
+        accepted and turned into the object.
     max_invalid_fraction : lost when more than this fraction of requested features is
         invalid.
     max_residual_rms_px : lost when the final residual RMS exceeds this; ``None`` means
@@ -143,7 +151,7 @@ class FeatureTrackerOptions:
     robust_scale_px: float = 5.0
     clip_to_limits: bool = True
     prediction: PredictionKind = "none"
-    form: StepForm = "tangent"
+    form: StepForm = StepForm.TANGENT
     max_invalid_fraction: float = 0.5
     max_residual_rms_px: float | None = None
     growth_frames: int = 5
@@ -173,7 +181,10 @@ class FeatureTrackerOptions:
                 f"joint), got {self.conditioning!r}"
             )
         object.__setattr__(self, "conditioning", weights)
-        choices = (("damping", DAMPINGS), ("prediction", PREDICTIONS), ("form", STEP_FORMS))
+        if self.form not in STEP_FORMS:
+            raise ValueError(f"form must be one of {', '.join(STEP_FORMS)}, got {self.form!r}")
+        object.__setattr__(self, "form", StepForm.parse(self.form))
+        choices = (("damping", DAMPINGS), ("prediction", PREDICTIONS))
         for name, allowed in choices:
             if getattr(self, name) not in allowed:
                 raise ValueError(
@@ -217,6 +228,32 @@ class FeatureTrackerOptions:
 
 
 @dataclass
+class FeatureDetails:
+    """What the feature tracker measured in one frame, at its final state (the
+    ``details`` of its :class:`~digiteyes.trackers.base.TrackResult`; the overlay draws
+    them, :func:`digiteyes.viz.track_overlay.draw_result`).
+
+    Attributes
+    ----------
+    measurements : one :class:`~digiteyes.features.measure.FeatureMeasurement` per camera.
+    residual_layouts : one :class:`~digiteyes.features.residuals.ResidualLayout` per camera
+        (which rows belong to which feature).
+    residuals : (M,) final stacked residual vector over all cameras, px.
+    n_valid_links, n_valid_tips : features measured at the final state, all cameras.
+    n_features : features asked for (links + tips, times cameras).
+    summary : the solver's :class:`~digiteyes.solvers.SolverSummary`.
+    """
+
+    measurements: list[Any]
+    residual_layouts: list[Any]
+    residuals: np.ndarray
+    n_valid_links: int
+    n_valid_tips: int
+    n_features: int
+    summary: SolverSummary
+
+
+@dataclass
 class _Evaluation:
     """One pass of measurement at a state: what the tracker reports for the final one."""
 
@@ -226,40 +263,59 @@ class _Evaluation:
     residuals: np.ndarray
 
 
-class _FeatureProblem:
+class FeatureProblem:
     """Feature alignment at one set of frames as a least-squares problem: residuals are
-    re-measured at every iterate (thesis Sec. 4.3.2 steps 1-5)."""
+    re-measured at every iterate (thesis Sec. 4.3.2 steps 1-5), in every camera, and
+    stacked (thesis Sec. 2.5.5).
 
-    def __init__(self, tracker: FeatureTracker, images: list[np.ndarray],
-                 timings: dict[str, float]) -> None:
-        self.tracker = tracker
+    Parameters
+    ----------
+    model, rig : the kinematic model and the cameras of ``images``.
+    images : one prepared grey image per camera (:func:`~digiteyes.features.slices.
+        prepare_image`), rig order.
+    link_names, tip_names : the links and tips to measure.
+    options : the tracker's settings (feature search, axis points, width residuals).
+    parameterisation : the step form, retraction and projection.
+    edge_bias : per camera, the predicted edge bias subtracted from the residuals (empty
+        for none; :mod:`digiteyes.features.appearance`).
+    timings : seconds per stage, added to in place.
+    """
+
+    def __init__(self, model: KinematicModel, rig: Rig, images: list[np.ndarray],
+                 link_names: Sequence[str], tip_names: Sequence[str],
+                 options: FeatureTrackerOptions, parameterisation: StateParameterisation,
+                 edge_bias: Sequence[EdgeBias], timings: dict[str, float]) -> None:
+        self.model = model
+        self.rig = rig
         self.images = images
+        self.link_names = list(link_names)
+        self.tip_names = list(tip_names)
+        self.options = options
+        self.param = parameterisation
+        self.edge_bias = list(edge_bias)
         self.timings = timings
-        self.param = tracker.parameterisation
         self.n_v = self.param.n_v
         self.evaluations: list[_Evaluation] = []
 
     def residuals(self, q: np.ndarray, jacobian: bool) -> tuple[np.ndarray, np.ndarray | None]:
-        tracker, timings = self.tracker, self.timings
+        opts, timings = self.options, self.timings
         start = time.perf_counter()
-        kin = forward_kinematics(tracker.model, q)
+        kin = forward_kinematics(self.model, q)
         timings["forward_kinematics"] += time.perf_counter() - start
         rs, Js, measurements, layouts = [], [], [], []
-        for index, (camera, image) in enumerate(zip(tracker.rig, self.images, strict=True)):
+        for index, (camera, image) in enumerate(zip(self.rig, self.images, strict=True)):
             start = time.perf_counter()
-            meas = measure_features(image, camera, tracker.model, kin,
-                                    tracker.options.features, tracker.link_names,
-                                    tracker.tip_names)
+            meas = measure_features(image, camera, self.model, kin, opts.features,
+                                    self.link_names, self.tip_names)
             timings["feature_detection"] += time.perf_counter() - start
             start = time.perf_counter()
             r, J, layout = feature_residuals(
                 meas, camera, kin, jacobian=jacobian, form=self.param.form,
-                axis_points=tracker.options.axis_points,
-                width_weight=tracker.options.width_weight,
-                max_width_error=tracker.options.max_width_error)
-            if tracker.edge_bias:
-                r -= tracker.edge_bias[index].of_rows(layout.kind_code, layout.link_index,
-                                                      layout.component)
+                axis_points=opts.axis_points, width_weight=opts.width_weight,
+                max_width_error=opts.max_width_error)
+            if self.edge_bias:
+                r -= self.edge_bias[index].of_rows(layout.kind_code, layout.link_index,
+                                                   layout.component)
             rs.append(r)
             Js.append(J)
             measurements.append(meas)
@@ -304,6 +360,12 @@ class FeatureTracker:
     ...     result = tracker.step(frames)
     ...     print(result.state, result.residual_rms_px, result.lost)
     """
+
+    stages = ("prediction", "shading", "forward_kinematics", "feature_detection",
+              "jacobian", "linear_solve")
+    """Timing stages of :attr:`TrackResult.timings` (thesis Table 4.1 rows, plus the
+    prediction and the shading prediction): ``"jacobian"`` is residual and Jacobian
+    assembly, ``"linear_solve"`` the normal equations, solve and state update."""
 
     def __init__(self, model: KinematicModel, rig: Rig,
                  options: FeatureTrackerOptions | None = None) -> None:
@@ -381,18 +443,22 @@ class FeatureTracker:
             raise StateError("the tracker has no state: call reset(initial_state) first")
         start_total = time.perf_counter()
         self.rig.check_images(frames)
-        timings = dict.fromkeys(TIMING_STAGES, 0.0)
+        timings = dict.fromkeys((*self.stages, "total"), 0.0)
         start = time.perf_counter()
         predicted = self.predictor.predict()
         timings["prediction"] = time.perf_counter() - start
         start = time.perf_counter()
-        images = [prepare_image(frame) for frame in frames]
+        # one image type for the frames and the shading prediction (float32): the
+        # feature kernels are then compiled once, not twice (uint8 and float32)
+        images = [prepare_image(frame).astype(np.float32, copy=False) for frame in frames]
         timings["feature_detection"] += time.perf_counter() - start
         if self.options.shading_correction:
             start = time.perf_counter()
             self._predict_edge_bias(images, predicted)
             timings["shading"] = time.perf_counter() - start
-        problem = _FeatureProblem(self, images, timings)
+        problem = FeatureProblem(self.model, self.rig, images, self.link_names,
+                                 self.tip_names, self.options, self.parameterisation,
+                                 self.edge_bias, timings)
         q, summary = gauss_newton(problem, predicted, self.solver_options)
         timings["linear_solve"] = summary.timings["linear_solve"]
         final = problem.evaluation_at(q)
@@ -433,12 +499,15 @@ class FeatureTracker:
             self._rms_history.append(rms)
         else:
             self._rms_history.clear()
-        return TrackResult(
-            state=q, residual_rms_px=rms, cost=summary.cost_final, lost=bool(reasons),
-            loss_reason="; ".join(reasons), iterations=summary.iterations, summary=summary,
+        details = FeatureDetails(
             measurements=final.measurements, residual_layouts=final.layouts, residuals=r,
             n_valid_links=n_links, n_valid_tips=n_tips, n_features=self.n_features,
-            predicted_state=predicted, frame_index=self._frame_index, timings=timings)
+            summary=summary)
+        return TrackResult(
+            state=q, cost=summary.cost_final, residual_rms_px=rms, lost=bool(reasons),
+            loss_reason="; ".join(reasons), iterations=summary.iterations,
+            predicted_state=predicted, frame_index=self._frame_index, timings=timings,
+            details=details)
 
 
 def track_loss_reasons(rms: float, n_valid: int, n_features: int, previous_rms: Sequence[float],

@@ -13,14 +13,10 @@
 
 from __future__ import annotations
 
-from typing import Literal
-
 import numpy as np
 
 from digiteyes.kinematics import KinematicModel, clip_to_limits, integrate
-
-StepForm = Literal["tangent", "quaternion"]
-STEP_FORMS = ("tangent", "quaternion")
+from digiteyes.kinematics.step_form import StepForm
 
 
 class StateParameterisation:
@@ -29,22 +25,20 @@ class StateParameterisation:
     Parameters
     ----------
     model : the kinematic model.
-    form : ``"tangent"`` or ``"quaternion"``.
+    form : the :class:`~digiteyes.kinematics.step_form.StepForm` (or its spelling).
     clip : whether :meth:`project` clips joint and translation states into their limits.
     """
 
-    def __init__(self, model: KinematicModel, form: StepForm = "tangent",
+    def __init__(self, model: KinematicModel, form: StepForm | str = StepForm.TANGENT,
                  clip: bool = True) -> None:
-        if form not in STEP_FORMS:
-            raise ValueError(f"form must be 'tangent' or 'quaternion', got {form!r}")
         self.model = model
-        self.form = form
+        self.form = StepForm.parse(form)
         self.clip = bool(clip)
-        self.n_v = model.n_v if form == "tangent" else model.n_q
+        self.n_v = self.form.n_columns(model)
 
     def retract(self, q: np.ndarray, dv: np.ndarray) -> np.ndarray:
         """State reached from ``q`` (n_q,) by the step ``dv`` (n_v,) of this form."""
-        if self.form == "tangent":
+        if self.form is StepForm.TANGENT:
             return integrate(self.model, q, dv)
         out = np.asarray(q, dtype=float) + dv
         k = self.model.base_state

@@ -27,8 +27,7 @@ import numpy as np
 from digiteyes.camera import Camera
 from digiteyes.errors import DigitEyesError
 from digiteyes.kinematics import KinematicModel, forward_kinematics
-from digiteyes.render._kernels import BALL, CAPSULE
-from digiteyes.render.scene import Scene, build_scene
+from digiteyes.render.scene import BALL, CAPSULE, Scene, build_scene
 from digiteyes.synth import RenderOptions, render_views
 
 NAMED_VIEWS = {
@@ -129,10 +128,16 @@ def write_model_png(model: KinematicModel, q: np.ndarray, path: str | Path, *,
     return path
 
 
-def draw_wireframe(model: KinematicModel, q: np.ndarray, cam: Camera) -> np.ndarray:
+def draw_wireframe(model: KinematicModel, q: np.ndarray, cam: Camera,
+                   image: np.ndarray | None = None) -> np.ndarray:
     """RGB uint8 line drawing of the posed model in ``cam``: capsule outlines with their
-    axes, tip circles and palm box edges (no hidden-line removal)."""
-    image = np.full((cam.height, cam.width, 3), int(255 * _BACKGROUND_LEVEL), dtype=np.uint8)
+    axes, tip circles and palm box edges (no hidden-line removal), drawn on a copy of
+    ``image`` ((H, W, 3) RGB uint8 of the camera's size) or on a plain grey ground."""
+    if image is None:
+        image = np.full((cam.height, cam.width, 3), int(255 * _BACKGROUND_LEVEL),
+                        dtype=np.uint8)
+    else:
+        image = np.array(image, dtype=np.uint8, copy=True)
     T_shape = forward_kinematics(model, q).T_world_shape[0]
     signs = np.array([[i, j, m] for i in (-1, 1) for j in (-1, 1) for m in (-1, 1)])
     for link in model.links:

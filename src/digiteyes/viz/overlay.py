@@ -29,7 +29,8 @@ SHIFT = 4
 _ONE = 1 << SHIFT
 
 
-def _to_rgb(image: np.ndarray) -> np.ndarray:
+def to_rgb(image: np.ndarray) -> np.ndarray:
+    """``image`` as (H, W, 3) RGB uint8: grey is repeated, floats up to 1.0 are scaled."""
     image = np.asarray(image)
     if image.ndim == 3 and image.shape[2] == 1:
         image = image[..., 0]
@@ -121,7 +122,7 @@ def draw_features(
     (H * scale, W * scale, 3) RGB uint8 image. Layers, bottom to top: slices, trackers,
     edge points, measured features, residuals.
     """
-    rgb = _to_rgb(image)
+    rgb = to_rgb(image)
     if camera is not None and rgb.shape[:2] != (camera.height, camera.width):
         raise CameraError(
             f"camera {camera.name!r} expects {camera.width}x{camera.height} images, got "

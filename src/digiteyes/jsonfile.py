@@ -1,4 +1,5 @@
-"""Small file helpers shared by the readers of states, rigs and datasets."""
+"""Reading JSON files that must hold an object, shared by the readers of states, rigs and
+datasets (a base module: it imports only :mod:`digiteyes.errors`)."""
 
 from __future__ import annotations
 
