@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import click
 import numpy as np
 
+from digiteyes._files import read_json_object
 from digiteyes.errors import DigitEyesError
 from digiteyes.synth.scenarios import SCENARIOS
 
@@ -49,8 +49,8 @@ def _check_resume(folder: Path, settings: dict) -> None:
     if not path.is_file():
         return
     try:
-        old = json.loads(path.read_text(encoding="utf-8")).get("scenario", {}).get("render")
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, AttributeError):
+        old = read_json_object(path, DigitEyesError, "file").get("scenario", {}).get("render")
+    except (DigitEyesError, AttributeError):
         return  # the writer reports unreadable folders itself
     if old is not None and old != settings:
         changed = sorted(k for k in set(old) | set(settings) if old.get(k) != settings.get(k))
@@ -137,8 +137,11 @@ def render_scenario(scenario, folder: Path, *, seed: int = 0, background: str = 
                 bar.update()
         except KeyboardInterrupt:
             bar.close()
+            how = ("video sequences cannot be resumed: run the same command with --force to "
+                   "start again" if video else
+                   "run the same command with --resume to continue")
             click.echo(f"digiteyes render: stopped after {writer.n_written} of {total} frames; "
-                       f"run the same command with --resume to continue", err=True)
+                       f"{how}", err=True)
             raise
         bar.close()
     if truth_info is not None:
