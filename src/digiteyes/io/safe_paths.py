@@ -153,3 +153,24 @@ def remove_listed(folder: Path, command: str) -> None:
         with contextlib.suppress(OSError):
             directory.rmdir()
     (folder / MANIFEST).unlink(missing_ok=True)
+
+
+def write_png(path: str | Path, image: object) -> Path:
+    """Write an RGB (H, W, 3) or grey (H, W) ``uint8`` image as a PNG at ``path``,
+    atomically. ``path`` must end in ``.png`` and must not be a device or a folder."""
+    import cv2
+    import numpy as np
+
+    path = Path(path)
+    if path.suffix.lower() != ".png":
+        raise DatasetError(f"{path}: the image is written as PNG; give a name ending in .png")
+    if path.exists() and not path.is_file():
+        raise DatasetError(f"{path}: exists and is not a regular file")
+    array = np.asarray(image)
+    if array.ndim == 3:
+        array = cv2.cvtColor(array, cv2.COLOR_RGB2BGR)
+    ok, buffer = cv2.imencode(".png", array)
+    if not ok:
+        raise DatasetError(f"{path}: PNG encoding failed")
+    atomic_write_bytes(path, buffer.tobytes())
+    return path
