@@ -247,7 +247,7 @@ def read_ground_truth(folder: str | Path, spec: dict | None, model: KinematicMod
         path = inside(folder, spec["keypoints"], "truth keypoints file",
                       str(folder / SEQUENCE_FILE))
         try:
-            with np.load(path, allow_pickle=False) as data:
+            with open(path, "rb") as handle, np.load(handle, allow_pickle=False) as data:
                 arrays = {k: data[k] for k in ("names", "keypoints_3d", "keypoints_2d",
                                                 "visible")}
         except FileNotFoundError:
