@@ -105,8 +105,9 @@ def _read_opencv(path: Path) -> dict:
         detail = getattr(cause, "err", None) or str(exc)
         raise CameraError(f"{path}: not an OpenCV calibration file ({detail})") from None
     try:
-        if not storage.isOpened():
-            raise CameraError(f"{path}: not an OpenCV calibration file")
+        if not storage.isOpened() or not storage.root().isMap():
+            raise CameraError(f"{path}: not an OpenCV calibration file (expected a map of "
+                              "camera_matrix, image_width, ...)")
         out: dict = {}
         for key in ("camera_matrix", "distortion_coefficients", "rvec", "tvec", "R", "T"):
             node = storage.getNode(key)
@@ -116,6 +117,8 @@ def _read_opencv(path: Path) -> dict:
             node = storage.getNode(key)
             if not node.empty():
                 out[key] = _opencv_size(node, key, path)
+    except (cv2.error, SystemError) as exc:
+        raise CameraError(f"{path}: not an OpenCV calibration file ({exc})") from None
     finally:
         storage.release()
     for key in ("camera_matrix", "image_width", "image_height"):

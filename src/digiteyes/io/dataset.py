@@ -187,6 +187,18 @@ def _same_rig(a: Rig, b: Rig) -> bool:
 
 
 # --------------------------------------------------------------------------- truth files
+def _frame_numbers(cells: list[str]) -> list[int | None]:
+    """The cells of a ``frame`` column as integers (None where a cell is not one)."""
+    out: list[int | None] = []
+    for cell in cells:
+        try:
+            out.append(int(cell))
+        except ValueError:
+            out.append(None)
+    return out
+
+
+
 def _write_truth(folder: Path, model: KinematicModel, truths: list[FrameTruth]) -> None:
     (folder / "truth").mkdir(exist_ok=True)
     states = np.array([t.state for t in truths])
@@ -236,7 +248,7 @@ def read_ground_truth(folder: str | Path, spec: dict | None, model: KinematicMod
         except StateError as exc:
             raise DatasetError(str(exc)) from None
         check_length(path, len(states))
-        if "frame" in extra and [int(f) for f in extra["frame"]] != list(range(len(states))):
+        if "frame" in extra and _frame_numbers(extra["frame"]) != list(range(len(states))):
             raise DatasetError(f"{path}: column 'frame' must count 0, 1, 2, ...")
         states = states[:n_frames]
     names: tuple[str, ...] = ()
