@@ -1,9 +1,9 @@
 """The output folder of ``digiteyes demo``: replaced only as far as the demo wrote it.
 
-The demo owns three sub-folders of its output folder (:data:`PARTS`). Before a run it
-deletes the files its manifest (:mod:`digiteyes.io.safe_paths`) lists from an earlier demo
-and refuses a folder whose parts hold anything else; after a run, interrupted or not, it
-lists what it wrote.
+The demo owns three sub-folders of its output folder (:data:`PARTS`). It writes into a
+new or empty folder, or into one holding its own manifest (:mod:`digiteyes.io.safe_paths`):
+then it deletes the files an earlier demo listed there and refuses if its sub-folders still
+hold anything else. After a run, interrupted or not, it lists what it wrote.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from digiteyes.errors import DatasetError
-from digiteyes.io.safe_paths import remove_listed, write_manifest
+from digiteyes.io.safe_paths import read_manifest, remove_listed, write_manifest
 
 COMMAND = "digiteyes demo"
 PARTS = ["sequence", "track", "evaluation"]
@@ -23,6 +23,9 @@ def prepare(out: Path) -> None:
         raise DatasetError(f"{out}: exists and is not a folder")
     if not out.exists():
         return
+    if read_manifest(out, COMMAND) is None and any(out.iterdir()):
+        raise DatasetError(f"{out}: holds files the demo did not write (no demo manifest); "
+                           "choose a new or empty --output folder")
     remove_listed(out, COMMAND)
     for part in PARTS:
         path = out / part
