@@ -7,7 +7,9 @@ import json
 import os
 import runpy
 import signal
+import subprocess
 import sys
+import time
 import types
 from pathlib import Path
 
@@ -306,3 +308,29 @@ def test_interrupted_video_render_says_what_works(tmp_path, monkeypatch, capsys)
 
 def test_errors_are_digiteyes_errors():
     assert issubclass(DatasetError, DigitEyesError) and io is not None
+
+
+def test_importing_the_package_loads_no_numeric_code():
+    """The command's start (where Ctrl-C must give one line) is inside its guard."""
+    code = ("import sys, digiteyes; "
+            "assert not {'numpy', 'numba', 'cv2'} & set(sys.modules), sys.modules.keys(); "
+            "from digiteyes import forward_kinematics, load_model")
+    subprocess.run([sys.executable, "-c", code], check=True,
+                   env={**os.environ, "PYTHONPATH": str(Path(digiteyes.__file__).parents[1])})
+
+
+@pytest.mark.parametrize("delay", [0.5, 1.5])
+def test_ctrl_c_in_the_first_seconds_of_track_has_no_traceback(tmp_path, delay):
+    env = {**os.environ, "PYTHONPATH": str(Path(digiteyes.__file__).parents[1])}
+    process = subprocess.Popen(
+        [sys.executable, "-m", "digiteyes.cli", "track", str(tmp_path / "nope.mkv"),
+         "--model", "hand", "--rig", str(tmp_path / "r.json"), "--init",
+         str(tmp_path / "s.json"), "-o", str(tmp_path / "out")],
+        stderr=subprocess.PIPE, env=env)
+    time.sleep(delay)
+    process.send_signal(signal.SIGINT)
+    _, err = process.communicate(timeout=120)
+    text = err.decode()
+    assert "Traceback" not in text, text
+    assert process.returncode in (130, 2, -signal.SIGINT), (process.returncode, text)
+    assert len(text.strip().splitlines()) <= 1, text
