@@ -664,10 +664,9 @@ class Sequence:
                     raise DatasetError(f"{where}: frames.pattern {self._pattern[:60]!r} must "
                                        "use only {camera} and {index}") from None
                 inside(self.folder, relative, "frames.pattern", str(where))
-                if "{camera}" not in self._pattern or "{index" not in self._pattern \
-                        or ".." in self._pattern:
-                    raise DatasetError(f"{where}: frames.pattern must hold {{camera}} and "
-                                       "{index} and no '..'")
+                if "{index" not in self._pattern or ".." in self._pattern:
+                    raise DatasetError(f"{where}: frames.pattern must hold {{index}} and "
+                                       "no '..'")
             for i in range(self.n_frames):
                 for cam in self.camera_names:
                     path = self.image_path(cam, i)
