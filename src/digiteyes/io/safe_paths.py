@@ -48,8 +48,10 @@ def inside(folder: Path, relative: object, what: str, where: str,
     """``folder / relative`` if that path stays inside ``folder`` (after resolving ``..``
     and symbolic links), else raise ``error`` naming ``where`` and ``what``."""
     if not isinstance(relative, str) or not relative or "\0" in relative \
-            or len(relative) > 4 * MAX_NAME or os.path.isabs(relative):
-        raise error(f"{where}: {what} must be a relative path inside {folder}")
+            or len(relative) > 4 * MAX_NAME or os.path.isabs(relative) \
+            or any(len(part) > MAX_NAME for part in Path(relative).parts):
+        raise error(f"{where}: {what} must be a relative path inside {folder}, each name at "
+                    f"most {MAX_NAME} characters")
     path = folder / relative
     try:
         base = folder.resolve()
