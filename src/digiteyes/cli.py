@@ -1,27 +1,33 @@
 """The ``digiteyes`` command. Each sub-command lives in :mod:`digiteyes.commands`.
 
-Errors of digiteyes (bad files, bad states, bad cameras) print as one line and exit 2;
-Ctrl-C exits 130 after the command has flushed what it had.
+Errors of digiteyes (bad files, bad states, bad cameras) and of the command line print as
+one line ``digiteyes: error: ...`` and exit 2; Ctrl-C and SIGTERM exit 130 after the
+command has flushed what it had, even during the first seconds spent importing.
 """
 
 from __future__ import annotations
 
 import sys
 
-import click
+try:
+    import click
 
-from digiteyes import __version__
-from digiteyes.commands.bench import bench
-from digiteyes.commands.calibrate_camera import calibrate_camera
-from digiteyes.commands.calibrate_hand import calibrate_hand
-from digiteyes.commands.demo import demo
-from digiteyes.commands.evaluate import evaluate
-from digiteyes.commands.model import model
-from digiteyes.commands.pose import pose
-from digiteyes.commands.prior import prior
-from digiteyes.commands.render import render
-from digiteyes.commands.track import track
-from digiteyes.errors import DigitEyesError
+    from digiteyes import __version__
+    from digiteyes._signals import sigterm_as_interrupt
+    from digiteyes.commands.bench import bench
+    from digiteyes.commands.calibrate_camera import calibrate_camera
+    from digiteyes.commands.calibrate_hand import calibrate_hand
+    from digiteyes.commands.demo import demo
+    from digiteyes.commands.evaluate import evaluate
+    from digiteyes.commands.model import model
+    from digiteyes.commands.pose import pose
+    from digiteyes.commands.prior import prior
+    from digiteyes.commands.render import render
+    from digiteyes.commands.track import track
+    from digiteyes.errors import DigitEyesError
+except KeyboardInterrupt:  # Ctrl-C while the libraries load: one line, no traceback
+    sys.stderr.write("digiteyes: interrupted\n")
+    sys.exit(130)
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -35,26 +41,30 @@ for command in (demo, model, render, track, evaluate, bench, prior, pose, calibr
     cli.add_command(command)
 
 
+def _error(message: str) -> int:
+    click.echo(f"digiteyes: error: {message}", err=True)
+    return 2
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point: run the CLI, turning digiteyes errors into one clear line."""
     try:
-        cli.main(args=argv, prog_name="digiteyes", standalone_mode=False)
+        with sigterm_as_interrupt():
+            code = cli.main(args=argv, prog_name="digiteyes", standalone_mode=False)
     except DigitEyesError as exc:
-        click.echo(f"digiteyes: error: {exc}", err=True)
-        return 2
-    except click.exceptions.Abort:
-        click.echo("digiteyes: interrupted", err=True)
-        return 130
-    except KeyboardInterrupt:
+        return _error(str(exc))
+    except (click.exceptions.Abort, KeyboardInterrupt):
         click.echo("digiteyes: interrupted", err=True)
         return 130
     except click.ClickException as exc:
-        exc.show()
-        return exc.exit_code
+        context = getattr(exc, "ctx", None)
+        hint = f" (see '{context.command_path} --help')" if context is not None else ""
+        return _error(f"{exc.format_message()}{hint}")
     except OSError as exc:
-        click.echo(f"digiteyes: error: {exc}", err=True)
-        return 2
-    return 0
+        return _error(str(exc))
+    except MemoryError:
+        return _error("out of memory: the inputs ask for more than this computer has")
+    return code if isinstance(code, int) else 0
 
 
 if __name__ == "__main__":

@@ -26,7 +26,6 @@ other outputs are written before the interruption is reported (``interrupted=Tru
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
@@ -38,6 +37,7 @@ from tqdm import tqdm
 
 from digiteyes.camera import Rig
 from digiteyes.io import StateLogWriter, VideoWriter
+from digiteyes.io.safe_paths import atomic_write_json
 from digiteyes.kinematics import KinematicModel
 from digiteyes.trackers import Tracker, TrackResult
 from digiteyes.viz.model_view import write_model_png
@@ -208,7 +208,7 @@ def run_tracker(
         run.files.update(write_trajectory_plots(model, np.array(states), out))
     run.wall_seconds = time.perf_counter() - started
     summary = out / "summary.json"
-    summary.write_text(json.dumps(run.to_json(), indent=2) + "\n", encoding="utf-8")
+    atomic_write_json(summary, run.to_json())
     run.files["summary"] = summary
     return run
 

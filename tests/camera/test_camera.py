@@ -362,10 +362,13 @@ def bad_bottom_row() -> np.ndarray:
     ({"dist": [0.1, 0, 0, 0], "projection": "orthographic"}, "perspective cameras only"),
     ({"dist": [0.1, 0, 0, 0], "projection": "scaled-orthographic"}, "perspective cameras only"),
     ({"projection": "fisheye"}, "projection must be one of .*'fisheye'"),
-    ({"width": 0}, "image size must be positive integers, got 0x480"),
-    ({"height": -480}, "image size must be positive integers"),
-    ({"width": 640.5}, "image size must be positive integers"),
-    ({"depth_mm": 0.0}, "depth_mm must be positive"),
+    ({"width": 0}, "width must be an integer from 1 to 65536 pixels, got 0"),
+    ({"height": -480}, "height must be an integer from 1 to 65536 pixels"),
+    ({"width": 640.5}, "width must be an integer"),
+    ({"width": float("nan")}, "width must be an integer"),
+    ({"height": float("inf")}, "height must be an integer"),
+    ({"width": None}, "width must be an integer"),
+    ({"depth_mm": 0.0}, "depth_mm must be a finite positive number"),
 ])
 def test_create_rejects_bad_parameters(changes, match):
     with pytest.raises(CameraError, match=f"camera 'bad': .*{match}"):

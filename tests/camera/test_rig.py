@@ -248,7 +248,7 @@ def test_json_without_camera_list(tmp_path, text):
     ({**GOOD, "T_cam_world": [[1, 0], [0]]}, "camera 'c'"),
     ({**GOOD, "K": [[0, 0, 0], [0, 1, 0], [0, 0, 1]]}, "focal lengths must be positive"),
     ({**GOOD, "width": "wide"}, "camera 'c'"),
-    ({**GOOD, "width": -1}, "image size"),
+    ({**GOOD, "width": -1}, "width must be an integer"),
     ({**GOOD, "dist": [0.1, 0.2]}, "4, 5, 8, 12 or 14 OpenCV coefficients"),
     ({**GOOD, "projection": "fisheye"}, "projection must be one of"),
     ({**GOOD, "projection": "orthographic", "dist": [0.1, 0, 0, 0]}, "perspective cameras only"),

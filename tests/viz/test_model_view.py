@@ -93,7 +93,7 @@ def test_write_model_png_errors(hand, tmp_path):
         write_model_png(hand, hand.neutral(), tmp_path / "x.png", style="cartoon")
     with pytest.raises(ViewError, match="view"):
         write_model_png(hand, hand.neutral(), tmp_path / "x.png", view="behind")
-    with pytest.raises(DigitEyesError, match="could not write"):
+    with pytest.raises(DigitEyesError, match="cannot write"):
         write_model_png(hand, hand.neutral(), tmp_path / "missing" / "x.png")
 
 

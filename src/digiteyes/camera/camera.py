@@ -89,6 +89,35 @@ def project_kernel(params, points, w, J, jacobian):  # pragma: no cover - compil
             J[i, 1, k] = c10 * params[k] + c11 * params[3 + k] + c12 * params[6 + k]
 
 
+
+MAX_IMAGE_SIDE = 65_536
+"""Largest image width or height a camera may have (pixels)."""
+
+
+def _float_array(value: object, what: str, name: str) -> np.ndarray:
+    try:
+        return np.array(value, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise CameraError(f"camera {name!r}: {what} must be an array of numbers") from None
+
+
+def _side(value: object, what: str, name: str) -> int:
+    """An image side in pixels: an integer from 1 to :data:`MAX_IMAGE_SIDE`."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not np.isfinite(value) or not float(value).is_integer() \
+            or not 1 <= value <= MAX_IMAGE_SIDE:
+        raise CameraError(f"camera {name!r}: {what} must be an integer from 1 to "
+                          f"{MAX_IMAGE_SIDE} pixels, got {value!r}")
+    return int(value)
+
+
+def _positive(value: object, what: str, name: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not np.isfinite(value) or not value > 0:
+        raise CameraError(f"camera {name!r}: {what} must be a finite positive number, "
+                          f"got {value!r}")
+    return float(value)
+
 @dataclass(frozen=True, eq=False)
 class Camera:
     """One calibrated camera. Build with :meth:`create` (validates) or :meth:`look_at`.
@@ -126,7 +155,15 @@ class Camera:
         depth_mm: float = 1000.0,
     ) -> Camera:
         """Validated constructor; raises :class:`CameraError` naming the bad parameter."""
-        K = np.array(K, dtype=float)
+        if not isinstance(name, str):
+            raise CameraError(f"camera name must be a str, got {type(name).__name__}")
+        K = _float_array(K, "K", name)
+        width, height = _side(width, "width", name), _side(height, "height", name)
+        depth_mm = _positive(depth_mm, "depth_mm", name)
+        if T_cam_world is not None:
+            T_cam_world = _float_array(T_cam_world, "T_cam_world", name)
+        if dist is not None:
+            dist = _float_array(dist, "dist", name)
         if K.shape != (3, 3) or not np.isfinite(K).all():
             raise CameraError(f"camera {name!r}: K must be a finite 3x3 matrix, got {K.shape}")
         if not (K[0, 0] > 0 and K[1, 1] > 0):
@@ -136,10 +173,6 @@ class Camera:
             )
         if not np.allclose(K[2], [0.0, 0.0, 1.0]) or K[1, 0] != 0.0:
             raise CameraError(f"camera {name!r}: K must be upper triangular with K[2] = [0 0 1]")
-        if int(width) != width or int(height) != height or width <= 0 or height <= 0:
-            raise CameraError(
-                f"camera {name!r}: image size must be positive integers, got {width}x{height}"
-            )
         T = np.eye(4) if T_cam_world is None else np.array(T_cam_world, dtype=float)
         if T.shape != (4, 4) or not np.isfinite(T).all():
             raise CameraError(f"camera {name!r}: T_cam_world must be a finite 4x4 matrix")
@@ -168,8 +201,6 @@ class Camera:
             )
         if projection != "perspective" and np.any(d):
             raise CameraError(f"camera {name!r}: distortion applies to perspective cameras only")
-        if not depth_mm > 0:
-            raise CameraError(f"camera {name!r}: depth_mm must be positive, got {depth_mm}")
         for array in (K, T, d):
             array.setflags(write=False)
         return cls(name, K, int(width), int(height), T, d, projection, float(depth_mm))

@@ -105,23 +105,75 @@ def _read_opencv(path: Path) -> dict:
         detail = getattr(cause, "err", None) or str(exc)
         raise CameraError(f"{path}: not an OpenCV calibration file ({detail})") from None
     try:
-        if not storage.isOpened():
-            raise CameraError(f"{path}: not an OpenCV calibration file")
-        out = {}
+        if not storage.isOpened() or not storage.root().isMap():
+            raise CameraError(f"{path}: not an OpenCV calibration file (expected a map of "
+                              "camera_matrix, image_width, ...)")
+        out: dict = {}
         for key in ("camera_matrix", "distortion_coefficients", "rvec", "tvec", "R", "T"):
             node = storage.getNode(key)
             if not node.empty():
-                out[key] = node.mat()
+                out[key] = _opencv_matrix(node, key, path)
         for key in ("image_width", "image_height"):
             node = storage.getNode(key)
             if not node.empty():
-                out[key] = int(node.real())
+                out[key] = _opencv_size(node, key, path)
+    except (cv2.error, SystemError) as exc:
+        raise CameraError(f"{path}: not an OpenCV calibration file ({exc})") from None
     finally:
         storage.release()
     for key in ("camera_matrix", "image_width", "image_height"):
         if key not in out:
             raise CameraError(f"{path}: OpenCV calibration lacks '{key}'")
     return out
+
+
+MAX_OPENCV_ELEMENTS = 64
+"""Most numbers an OpenCV calibration matrix may hold (a 3x3 K has 9)."""
+MAX_IMAGE_SIDE = 65_536
+"""Largest image width or height accepted (pixels)."""
+
+
+def _opencv_number(node: cv2.FileNode, what: str, path: Path) -> float:
+    if not (node.isInt() or node.isReal()):
+        raise CameraError(f"{path}: {what} must be a number")
+    value = node.real()
+    if not np.isfinite(value) or abs(value) >= 1e300:
+        raise CameraError(f"{path}: {what} must be a finite number")
+    return value
+
+
+def _opencv_matrix(node: cv2.FileNode, key: str, path: Path) -> np.ndarray:
+    """A ``!!opencv-matrix`` node read element by element, its ``rows``, ``cols``, ``dt``
+    and ``data`` checked first (``FileNode.mat()`` trusts them and can corrupt memory)."""
+    if not node.isMap():
+        raise CameraError(f"{path}: '{key}' must be an opencv-matrix with rows, cols, dt "
+                          "and data")
+    parts = {name: node.getNode(name) for name in ("rows", "cols", "dt", "data")}
+    missing = [name for name, part in parts.items() if part.empty()]
+    if missing:
+        raise CameraError(f"{path}: '{key}' lacks {', '.join(missing)}")
+    if not parts["dt"].isString():
+        raise CameraError(f"{path}: '{key}': dt must be a type letter such as d")
+    shape = []
+    for name in ("rows", "cols"):
+        value = _opencv_number(parts[name], f"'{key}' {name}", path)
+        if not parts[name].isInt() or not 1 <= value <= MAX_OPENCV_ELEMENTS:
+            raise CameraError(f"{path}: '{key}' {name} must be an integer from 1 to "
+                              f"{MAX_OPENCV_ELEMENTS}")
+        shape.append(int(value))
+    data = parts["data"]
+    count = shape[0] * shape[1]
+    if not data.isSeq() or data.size() != count:
+        raise CameraError(f"{path}: '{key}' data must list rows x cols = {count} numbers")
+    values = [_opencv_number(data.at(i), f"'{key}' data", path) for i in range(count)]
+    return np.array(values, dtype=float).reshape(shape)
+
+
+def _opencv_size(node: cv2.FileNode, key: str, path: Path) -> int:
+    value = _opencv_number(node, f"'{key}'", path)
+    if not float(value).is_integer() or not 1 <= value <= MAX_IMAGE_SIDE:
+        raise CameraError(f"{path}: '{key}' must be an integer from 1 to {MAX_IMAGE_SIDE}")
+    return int(value)
 
 
 def _extrinsics(entry: dict, where: str) -> np.ndarray:

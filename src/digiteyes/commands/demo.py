@@ -8,11 +8,11 @@ where the overlay video, the plots and the report are, with the headline figures
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import click
 
+from digiteyes.commands import _demo_folder
 from digiteyes.commands.track import print_run, tracker_options
 from digiteyes.evaluate import evaluate_run, headline_rows, write_report
 from digiteyes.io import open_sequence, read_state_log
@@ -25,7 +25,9 @@ from digiteyes.warmup import COMPILE_MESSAGE, compile_in_background
 
 @click.command()
 @click.option("-o", "--output", type=click.Path(file_okay=False), default="digiteyes-demo",
-              show_default=True, help="Folder for everything the demo writes (replaced).")
+              show_default=True,
+              help="Folder for everything the demo writes (an earlier demo's files are "
+                   "replaced, nothing else).")
 @click.option("--scenario", "scenario_name", default="whole-hand", show_default=True,
               help="Scenario to render and track (docs/scenarios.md).")
 @click.option("--frames", type=click.IntRange(min=2), default=None,
@@ -38,9 +40,15 @@ def demo(output: str, scenario_name: str, frames: int | None, iterations: int, s
          quiet: bool) -> None:
     """Render a synthetic sequence, track it, evaluate against ground truth."""
     out = Path(output)
-    if out.exists():
-        shutil.rmtree(out)
     scenario = build_scenario(scenario_name, seed=seed, n_frames=frames)
+    _demo_folder.prepare(out)
+    try:
+        _run_demo(out, scenario, iterations, seed, quiet)
+    finally:
+        _demo_folder.record(out)
+
+
+def _run_demo(out: Path, scenario, iterations: int, seed: int, quiet: bool) -> None:
     compiling = compile_in_background(scenario.name)
     if compiling is not None:
         click.echo(COMPILE_MESSAGE)

@@ -6,7 +6,11 @@ from pathlib import Path
 
 import click
 
+from digiteyes.errors import ModelFileError
 from digiteyes.kinematics import load_model
+
+MAX_SIDE = 8192
+"""Largest image side ``model render`` draws (pixels)."""
 
 
 @click.group()
@@ -54,6 +58,12 @@ def render_model(model_name: str, state_file: str | None, view: str, style: str,
         width, height = (int(v) for v in size.lower().split("x"))
     except ValueError:
         raise click.BadParameter(f"expected WxH such as 640x480, got {size!r}") from None
+    if not (1 <= width <= MAX_SIDE and 1 <= height <= MAX_SIDE):
+        raise click.BadParameter(f"width and height must be 1 to {MAX_SIDE} pixels, got "
+                                 f"{size!r}")
+    if not any(link.kind in ("link", "palm", "tip") for link in m.links):
+        raise ModelFileError(m.path or m.name, None, "the model has no geometry (no link, "
+                             "palm or tip shapes) to draw")
     path = write_model_png(m, state.q, Path(output), view=view, style=style,
                            width=width, height=height)
     click.echo(f"wrote {path}")

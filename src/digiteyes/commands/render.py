@@ -55,8 +55,10 @@ def render(scenario_name: str, output: str, background: str, color: bool, noise:
                                color=color, noise=noise, blur=blur, perturb=perturb,
                                video=video, force=force, resume=resume)
     except KeyboardInterrupt:
+        how = ("video sequences cannot be resumed: run the same command with --force to "
+               "start again" if video else "run the same command with --resume to continue")
         click.echo(f"digiteyes render: stopped before the end of {scenario.n_frames} frames; "
-                   "run the same command with --resume to continue", err=True)
+                   f"{how}", err=True)
         raise
     click.echo(f"wrote {done.n_written} frame(s) x {len(scenario.rig)} camera(s) of "
                f"{scenario.name} (seed {seed}) to {done.folder}")

@@ -11,6 +11,7 @@ import click
 import numpy as np
 
 from digiteyes.camera import load_rig
+from digiteyes.commands._video_lengths import check_lengths, record_missing
 from digiteyes.errors import CameraError, DatasetError
 from digiteyes.features import FeatureOptions
 from digiteyes.io import open_sequence, open_video_frames
@@ -158,12 +159,15 @@ def print_run(run: TrackingRun) -> None:
               help="Frame rate of the overlay video (default: the dataset's, or 10).")
 @click.option("--no-overlay", is_flag=True, help="Skip the overlay video.")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
+@click.option("--strict", is_flag=True,
+              help="Refuse videos of different lengths instead of tracking the shortest.")
 def track(inputs: tuple[str, ...], model_name: str | None, rig_path: str | None,
           init_path: str | None, output: str, tracker_name: str,
           option_pairs: tuple[str, ...], iterations: int, window: float, links: str,
           robust: str | None, prediction: str, shading: bool, max_frames: int | None,
-          fps: float | None, no_overlay: bool, quiet: bool) -> None:
+          fps: float | None, no_overlay: bool, quiet: bool, strict: bool = False) -> None:
     dataset = None
+    lengths = None
     if len(inputs) == 1 and Path(inputs[0]).is_dir():
         dataset = open_sequence(inputs[0])
     elif any(Path(p).is_dir() for p in inputs):
@@ -184,6 +188,7 @@ def track(inputs: tuple[str, ...], model_name: str | None, rig_path: str | None,
         if len(inputs) != len(rig):
             raise CameraError(f"the rig has {len(rig)} camera(s) ({', '.join(rig.names)}) but "
                               f"{len(inputs)} video(s) were given")
+        lengths = check_lengths(list(inputs), strict)
         frames = open_video_frames(list(inputs))
         total = None
         rate = fps or 10.0
@@ -203,6 +208,8 @@ def track(inputs: tuple[str, ...], model_name: str | None, rig_path: str | None,
     run = run_tracker(tracker, model, rig, chain([first], frames), np.asarray(initial),
                       output, fps=rate, total=total, overlay=not no_overlay,
                       progress=not quiet, tracker_name=tracker_name)
+    if lengths is not None and not run.interrupted and max_frames is None:
+        record_missing(run.files["summary"], lengths[0], run.n_frames, lengths[1])
     print_run(run)
     if run.interrupted:
         raise KeyboardInterrupt

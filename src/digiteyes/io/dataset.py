@@ -22,6 +22,8 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import zipfile
+import zlib
 from collections.abc import Callable, Iterator
 from collections.abc import Sequence as SequenceABC
 from dataclasses import dataclass
@@ -32,6 +34,7 @@ import numpy as np
 
 from digiteyes.camera import Rig, load_rig, save_rig
 from digiteyes.errors import DatasetError, StateError
+from digiteyes.io.safe_paths import check_name, inside
 from digiteyes.io.video import (
     DEFAULT_H264_CRF,
     VIDEO_CODECS,
@@ -164,6 +167,8 @@ def _atomic_save(path: Path, save: Callable[[Path], None]) -> None:
         save(tmp)
         os.replace(tmp, path)
     except OSError as exc:
+        with contextlib.suppress(OSError):
+            tmp.unlink(missing_ok=True)
         raise DatasetError(f"{path}: cannot write ({exc.strerror or exc})") from None
 
 
@@ -182,6 +187,18 @@ def _same_rig(a: Rig, b: Rig) -> bool:
 
 
 # --------------------------------------------------------------------------- truth files
+def _frame_numbers(cells: list[str]) -> list[int | None]:
+    """The cells of a ``frame`` column as integers (None where a cell is not one)."""
+    out: list[int | None] = []
+    for cell in cells:
+        try:
+            out.append(int(cell))
+        except ValueError:
+            out.append(None)
+    return out
+
+
+
 def _write_truth(folder: Path, model: KinematicModel, truths: list[FrameTruth]) -> None:
     (folder / "truth").mkdir(exist_ok=True)
     states = np.array([t.state for t in truths])
@@ -223,7 +240,7 @@ def read_ground_truth(folder: str | Path, spec: dict | None, model: KinematicMod
 
     states = None
     if spec.get("states"):
-        path = folder / spec["states"]
+        path = inside(folder, spec["states"], "truth states file", str(folder / SEQUENCE_FILE))
         if not path.is_file():
             raise DatasetError(f"{path}: missing ground-truth states file")
         try:
@@ -231,7 +248,7 @@ def read_ground_truth(folder: str | Path, spec: dict | None, model: KinematicMod
         except StateError as exc:
             raise DatasetError(str(exc)) from None
         check_length(path, len(states))
-        if "frame" in extra and [int(f) for f in extra["frame"]] != list(range(len(states))):
+        if "frame" in extra and _frame_numbers(extra["frame"]) != list(range(len(states))):
             raise DatasetError(f"{path}: column 'frame' must count 0, 1, 2, ...")
         states = states[:n_frames]
     names: tuple[str, ...] = ()
@@ -239,16 +256,17 @@ def read_ground_truth(folder: str | Path, spec: dict | None, model: KinematicMod
     kp2 = np.zeros((n_frames, n_cameras, 0, 2))
     vis = np.zeros((n_frames, n_cameras, 0), dtype=bool)
     if spec.get("keypoints"):
-        path = folder / spec["keypoints"]
+        path = inside(folder, spec["keypoints"], "truth keypoints file",
+                      str(folder / SEQUENCE_FILE))
         try:
-            with np.load(path, allow_pickle=False) as data:
+            with open(path, "rb") as handle, np.load(handle, allow_pickle=False) as data:
                 arrays = {k: data[k] for k in ("names", "keypoints_3d", "keypoints_2d",
                                                 "visible")}
         except FileNotFoundError:
             raise DatasetError(f"{path}: missing ground-truth keypoints file") from None
         except KeyError as exc:
             raise DatasetError(f"{path}: lacks array {exc.args[0]}") from None
-        except (OSError, ValueError) as exc:
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
             raise DatasetError(f"{path}: not a readable .npz file ({exc})") from None
         names = tuple(str(n) for n in arrays["names"])
         k = len(names)
@@ -305,6 +323,8 @@ class SequenceWriter:
         self.folder = Path(folder)
         self.model = model
         self.rig = rig
+        for cam in rig.cameras:
+            check_name(cam.name, "camera name", str(self.folder))
         self.fps = float(fps)
         if not np.isfinite(self.fps) or self.fps <= 0:
             raise DatasetError(f"{self.folder}: fps must be positive, got {fps}")
@@ -389,15 +409,26 @@ class SequenceWriter:
         self._write_sequence_json(0, complete=False)
 
     def _remove_old(self, existing: dict) -> None:
-        """Delete the frames and truth files of the sequence being overwritten."""
-        frames = existing.get("frames") or {}
+        """Delete the frames and truth files of the sequence being overwritten: only
+        plain names inside the folder (docs/safety.md); anything else is refused."""
+        where = str(self.folder / SEQUENCE_FILE)
+        frames = existing.get("frames")
+        frames = frames if isinstance(frames, dict) else {}
+        files = frames.get("files") if isinstance(frames, dict) else None
+        cameras = existing.get("cameras") or []
+        if not isinstance(files or {}, dict) or not isinstance(cameras, list):
+            raise DatasetError(f"{where}: 'frames.files' and 'cameras' are malformed; remove "
+                               "the old sequence yourself")
         old = [self.folder / TRUTH_STATES, self.folder / TRUTH_KEYPOINTS]
-        old += [self.folder / str(f) for f in (frames.get("files") or {}).values()]
-        for cam in existing.get("cameras") or []:
-            cam_dir = self.folder / str(cam)
-            if frames.get("kind") == "png" and cam_dir.is_dir():
-                old += [*cam_dir.glob("*.png"), *cam_dir.glob(".*.tmp")]
+        old += [self.folder / check_name(f, "video file", where)
+                for f in (files or {}).values()]
+        for cam in cameras:
+            cam_dir = self.folder / check_name(cam, "camera", where)
+            if frames.get("kind") == "png" and cam_dir.is_dir() and not cam_dir.is_symlink():
+                old += [*cam_dir.glob("[0-9]*.png"), *cam_dir.glob(".*.tmp")]
         for path in old:
+            if path.is_symlink() or path.is_dir():
+                continue
             try:
                 path.unlink(missing_ok=True)
             except OSError as exc:
@@ -410,7 +441,8 @@ class SequenceWriter:
         if existing.get("complete"):
             raise DatasetError(f"{folder}: the sequence is already complete; nothing to resume "
                                "(pass overwrite=True (--force) to write it again)")
-        if self.codec is not None or existing.get("frames", {}).get("kind") != "png":
+        frames = existing.get("frames")
+        if self.codec is not None or not isinstance(frames, dict) or frames.get("kind") != "png":
             raise DatasetError(f"{folder}: only PNG sequences can be resumed; pass "
                                "overwrite=True (--force) to start again")
         old_text = (folder / MODEL_FILE).read_text(encoding="utf-8") \
@@ -424,7 +456,9 @@ class SequenceWriter:
         if existing.get("fps") != self.fps:
             raise DatasetError(f"{where}: fps {existing.get('fps')} differs from {self.fps}; "
                                "cannot resume")
-        n = int(existing.get("n_frames", 0))
+        n = existing.get("n_frames", 0)
+        if not isinstance(n, int) or n < 0:
+            raise DatasetError(f"{where}: n_frames must be an integer >= 0, got {n!r}")
         truth = read_ground_truth(folder, existing.get("truth"), self.model, len(self.rig),
                                   n, complete=False)
         if truth is not None and n > 0:
@@ -582,19 +616,26 @@ class Sequence:
             if key not in payload:
                 raise DatasetError(f"{where}: missing key {key!r}")
         self.name = str(payload.get("name") or folder.name)
-        self.fps = float(payload["fps"])
-        self.n_frames = int(payload["n_frames"])
-        if self.n_frames < 0 or not np.isfinite(self.fps) or self.fps <= 0:
-            raise DatasetError(f"{where}: n_frames must be >= 0 and fps > 0")
+        fps, n_frames = payload["fps"], payload["n_frames"]
+        if isinstance(fps, bool) or not isinstance(fps, (int, float)) \
+                or isinstance(n_frames, bool) or not isinstance(n_frames, int) \
+                or n_frames < 0 or not np.isfinite(fps) or fps <= 0:
+            raise DatasetError(f"{where}: n_frames must be an integer >= 0 and fps a number "
+                               f"> 0, got {n_frames!r} and {fps!r}")
+        self.fps = float(fps)
+        self.n_frames = n_frames
         self.complete = bool(payload.get("complete", True))
         self.scenario = payload.get("scenario") or {}
-        self.model = load_model(folder / payload["model"])
-        self.rig = load_rig(folder / payload["rig"])
-        self.camera_names = [str(c) for c in payload["cameras"]]
+        self.model = load_model(inside(folder, payload["model"], "model", str(where)))
+        self.rig = load_rig(inside(folder, payload["rig"], "rig", str(where)))
+        if not isinstance(payload["cameras"], list):
+            raise DatasetError(f"{where}: 'cameras' must be a list of names")
+        self.camera_names = [check_name(c, "camera", str(where)) for c in payload["cameras"]]
         if self.camera_names != self.rig.names:
             raise DatasetError(f"{where}: cameras {self.camera_names} do not match the rig "
                                f"file's cameras {self.rig.names}")
-        self.initial_state = State.load_json(self.model, folder / payload["initial_state"]).q
+        self.initial_state = State.load_json(
+            self.model, inside(folder, payload["initial_state"], "initial state", str(where))).q
         self.frames_spec = payload["frames"]
         self._readers: list[VideoReader] | None = None
         self._check_frames()
@@ -607,7 +648,20 @@ class Sequence:
         kind = spec.get("kind") if isinstance(spec, dict) else None
         if kind == "png":
             self._pattern = str(spec.get("pattern", PNG_PATTERN))
-            self._first = int(spec.get("first_index", 0))
+            self._first = spec.get("first_index", 0)
+            if isinstance(self._first, bool) or not isinstance(self._first, int) \
+                    or not 0 <= self._first < 10**12:
+                raise DatasetError(f"{where}: frames.first_index must be an integer >= 0")
+            for cam in self.camera_names:
+                try:
+                    relative = self._pattern.format(camera=cam, index=self._first)
+                except (KeyError, IndexError, ValueError, AttributeError, TypeError):
+                    raise DatasetError(f"{where}: frames.pattern {self._pattern[:60]!r} must "
+                                       "use only {camera} and {index}") from None
+                inside(self.folder, relative, "frames.pattern", str(where))
+                if "{index" not in self._pattern or ".." in self._pattern:
+                    raise DatasetError(f"{where}: frames.pattern must hold {{index}} and "
+                                       "no '..'")
             for i in range(self.n_frames):
                 for cam in self.camera_names:
                     path = self.image_path(cam, i)
@@ -621,7 +675,8 @@ class Sequence:
             if not isinstance(files, dict) or set(files) != set(self.camera_names):
                 raise DatasetError(f"{where}: frames.files must map every camera "
                                    f"({', '.join(self.camera_names)}) to a video file")
-            self._videos = [self.folder / str(files[c]) for c in self.camera_names]
+            self._videos = [self.folder / check_name(files[c], "video file", str(where))
+                            for c in self.camera_names]
             for path in self._videos:
                 if not path.is_file():
                     raise DatasetError(f"{path}: missing video file")

@@ -16,6 +16,7 @@ is flushed as soon as it is written, so an interrupted run keeps every frame it 
 from __future__ import annotations
 
 import csv
+import io
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -65,12 +66,16 @@ class StateLogWriter:
         except OSError as exc:
             raise DatasetError(f"{self.path}: cannot create state log ({exc.strerror or exc})"
                                ) from None
-        self._writer = csv.writer(self._handle)
+        self._buffer = io.StringIO()
+        self._writer = csv.writer(self._buffer)
         self._write([*LOG_COLUMNS, *model.state_names])
 
     def _write(self, row: list[str]) -> None:
         try:
+            self._buffer.seek(0)
+            self._buffer.truncate()
             self._writer.writerow(row)
+            self._handle.write(self._buffer.getvalue())
             self._handle.flush()
         except OSError as exc:
             raise DatasetError(f"{self.path}: cannot write state log ({exc.strerror or exc})"
@@ -120,7 +125,9 @@ def _number(text: str, path: Path, line: int, column: str, integer: bool = False
 def read_state_log(path: str | Path, model: KinematicModel) -> StateLog:
     """Read a state log written by :class:`StateLogWriter` for ``model``.
 
-    A last row cut short by an interruption (no newline, too few cells) is dropped.
+    Every complete row ends with a line break (the writer writes each row in one piece);
+    a last row without one was cut short (interruption, full disk) and is dropped, even
+    when its cells look whole (``0.1304010223817`` cut from ``0.13040102238174398``).
     Raises :class:`DatasetError` naming the file (and line) for a missing file, a header
     without the log columns or without the model's state names (a log of another model),
     or unreadable values.
@@ -145,8 +152,8 @@ def read_state_log(path: str | Path, model: KinematicModel) -> StateLog:
         raise DatasetError(f"{path}: not a log of model {model.name!r}: header lacks states "
                            f"{', '.join(missing)}")
     body = rows[1:]
-    if body and not text.endswith("\n") and len(body[-1]) != len(header):
-        body = body[:-1]
+    if body and not text.endswith("\n"):
+        body = body[:-1]  # unterminated: cut by an interruption or a full disk
     col = {name: header.index(name) for name in (*LOG_COLUMNS, *model.state_names)}
     n = len(body)
     frames = np.empty(n, dtype=int)

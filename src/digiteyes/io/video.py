@@ -14,6 +14,7 @@ Two codecs are offered for writing (docs/dataset.md explains the choice):
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator, Sequence
 from fractions import Fraction
 from pathlib import Path
@@ -35,6 +36,12 @@ VIDEO_CODECS: dict[str, tuple[str, str, bool]] = {
     "ffv1": (".mkv", "ffv1", True),
     "h264": (".mp4", "libx264", False),
 }
+
+
+def _container_format(path: Path) -> str | None:
+    """FFmpeg muxer for a file name (the temporary name hides nothing: same suffix)."""
+    return {".mp4": "mp4", ".mkv": "matroska", ".avi": "avi", ".mov": "mov"}.get(
+        path.suffix.lower())
 
 
 def _rate(fps: float) -> Fraction:
@@ -84,8 +91,11 @@ class VideoWriter:
         self.n_written = 0
         self._shape: tuple[int, ...] | None = None
         self._stream = None
+        # Written under a temporary name, renamed on close: the final name never holds a
+        # video without its index (unplayable), whatever stops the process.
+        self._tmp = self.path.with_name(f".{self.path.stem}.part{self.path.suffix}")
         try:
-            self._container = av.open(str(self.path), "w")
+            self._container = av.open(str(self._tmp), "w", format=_container_format(self.path))
         except (OSError, av.FFmpegError) as exc:
             raise DatasetError(f"{self.path}: cannot create video file ({exc})") from None
 
@@ -132,11 +142,15 @@ class VideoWriter:
             return
         container, self._container = self._container, None
         try:
-            if self._stream is not None:
-                for packet in self._stream.encode():
-                    container.mux(packet)
-            container.close()
+            try:
+                if self._stream is not None:
+                    for packet in self._stream.encode():
+                        container.mux(packet)
+            finally:
+                container.close()
+            os.replace(self._tmp, self.path)
         except (OSError, av.FFmpegError) as exc:
+            self._tmp.unlink(missing_ok=True)
             raise DatasetError(f"{self.path}: cannot finalise video file ({exc})") from None
 
     def __enter__(self) -> VideoWriter:

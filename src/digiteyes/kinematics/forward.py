@@ -102,7 +102,13 @@ def as_state_batch(model: KinematicModel, q: np.ndarray) -> tuple[np.ndarray, bo
 
     Raises :class:`StateError` for a wrong size or non-finite values.
     """
-    q = np.asarray(q, dtype=float)
+    if not isinstance(model, KinematicModel):
+        raise StateError(f"model must be a KinematicModel, got {type(model).__name__}")
+    try:
+        q = np.asarray(q, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise StateError(f"state q must be an array of numbers, got {type(q).__name__}"
+                         ) from None
     batched = q.ndim == 2
     if q.ndim not in (1, 2) or q.shape[-1] != model.n_q:
         raise StateError(
@@ -125,6 +131,11 @@ def forward_kinematics(model: KinematicModel, q: np.ndarray) -> Kinematics:
     :class:`~digiteyes.errors.StateError` for a wrong size or non-finite values.
     """
     Q, batched = as_state_batch(model, q)
+    if model.base_state is not None:
+        k = model.base_state
+        if not np.all(np.abs(Q[:, k:k + 4]).max(axis=1) > 1e-150):
+            raise StateError(f"the base quaternion q{k}..q{k + 3} is zero: it gives no "
+                             "rotation")
     shape = np.empty((len(Q), model.n_frames, 4, 4))
     fk_kernel(Q, model.theta, model.d, model.a, model.cos_alpha, model.sin_alpha,
               model.theta_state, model.d_state, model.order, model.parent,

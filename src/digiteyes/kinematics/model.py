@@ -27,6 +27,9 @@ from digiteyes.errors import ModelFileError
 from digiteyes.kinematics.model_file import FrameSpec, ModelSpec, StateSpec, read_model_file
 from digiteyes.models import model_path
 
+DESCRIBE_INDENT = 12
+"""Deepest level :meth:`KinematicModel.describe` indents; deeper rows print their depth."""
+
 
 @dataclass(frozen=True)
 class Link:
@@ -315,9 +318,14 @@ class KinematicModel:
                  f"{sum(link.kind == 'tip' for link in self.links)} tips, "
                  f"{self.n_q} states (tangent size {self.n_v})", "", "frame tree:"]
 
-        stack = [(self.root, "  ")]
+        stack = [(self.root, 0)]
         while stack:
-            r, indent = stack.pop()
+            r, depth = stack.pop()
+            # Indentation stops growing at DESCRIBE_INDENT levels (deeper rows say their
+            # depth), so deep chains print in linear, not quadratic, size.
+            indent = "  " * (1 + min(depth, DESCRIBE_INDENT))
+            if depth > DESCRIBE_INDENT:
+                indent += f"[depth {depth}] "
             row = self.rows[r]
             joint = ""
             if row.pose_state is not None:
@@ -331,7 +339,7 @@ class KinematicModel:
                 shape = f"{row.shape.kind}({', '.join(f'{p:g}' for p in row.shape.params)})"
             label = row.geometry or ""
             lines.append(f"{indent}{r:>3} {label:<18} {joint:<32} {shape}".rstrip())
-            stack.extend((child, indent + "  ") for child in reversed(row.next))
+            stack.extend((child, depth + 1) for child in reversed(row.next))
         lines += ["", "state layout:"]
         for i, (name, kind) in enumerate(zip(self.state_names, self.state_kinds, strict=True)):
             lim = ""
@@ -363,6 +371,7 @@ def load_model(name_or_path: str | Path) -> KinematicModel:
     path = model_path(name_or_path)
     try:
         mtime = path.stat().st_mtime
-    except OSError:
-        raise ModelFileError(str(path), None, "no such model file") from None
-    return _load_cached(str(path.resolve()), mtime)
+        resolved = str(path.resolve())
+    except OSError as exc:
+        raise ModelFileError(str(path), None, f"no such model file ({exc.strerror})") from None
+    return _load_cached(resolved, mtime)

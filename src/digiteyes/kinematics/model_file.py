@@ -126,8 +126,29 @@ def read_model_file(path: str | Path) -> ModelSpec:
     return parse_model_text(text, str(path))
 
 
+MAX_MODEL_CHARS = 1_000_000
+"""Longest model file read (characters); the shipped hand model is 4 kB."""
+MAX_MODEL_FRAMES = 2_000
+"""Most ``[frames]`` rows a model may have (the hand has 60)."""
+
+
+def _shown(text: str, limit: int = 40) -> str:
+    """``text`` quoted for an error message, cut to ``limit`` characters."""
+    return repr(text) if len(text) <= limit else repr(text[:limit]) + "..."
+
+
 def parse_model_text(text: str, path: str = "<string>") -> ModelSpec:
-    """Parse model-file text; ``path`` is used in error messages only."""
+    """Parse model-file text; ``path`` is used in error messages only.
+
+    Files longer than :data:`MAX_MODEL_CHARS` or with more than :data:`MAX_MODEL_FRAMES`
+    frame rows are refused (:class:`~digiteyes.errors.ModelFileError`).
+    """
+    if not isinstance(text, str):
+        raise ModelFileError(str(path), None, f"model text must be a str, got "
+                                              f"{type(text).__name__}")
+    if len(text) > MAX_MODEL_CHARS:
+        raise ModelFileError(path, None, f"model file is longer than {MAX_MODEL_CHARS} "
+                                         "characters")
     name: str | None = None
     description = ""
     section: str | None = None
@@ -154,12 +175,14 @@ def parse_model_text(text: str, path: str = "<string>") -> ModelSpec:
                 raise ModelFileError(
                     path,
                     number,
-                    f"expected 'model NAME', 'description TEXT' or a section, got {line!r}",
+                    f"expected 'model NAME', 'description TEXT' or a section, got {_shown(line)}",
                 )
         elif section == "states":
             states.append(_parse_state_row(line.split(), path, number))
         else:
             frames.append(_parse_frame_row(line.split(), path, number))
+            if len(frames) > MAX_MODEL_FRAMES:
+                raise ModelFileError(path, number, f"more than {MAX_MODEL_FRAMES} frame rows")
     if name is None:
         raise ModelFileError(path, None, "missing header line 'model NAME'")
     if not frames:
@@ -174,11 +197,11 @@ def _parse_state_row(cells: list[str], path: str, line: int) -> StateSpec:
         )
     match = _STATE_RE.match(cells[0])
     if match is None:
-        raise ModelFileError(path, line, f"state index must look like q7, got {cells[0]!r}")
+        raise ModelFileError(path, line, f"state index must look like q7, got {_shown(cells[0])}")
     kind = cells[2]
     if kind not in STATE_KINDS:
         raise ModelFileError(
-            path, line, f"state kind must be one of {', '.join(STATE_KINDS)}, got {kind!r}"
+            path, line, f"state kind must be one of {', '.join(STATE_KINDS)}, got {_shown(kind)}"
         )
     lower, upper = -math.inf, math.inf
     if len(cells) == 5:
@@ -200,7 +223,7 @@ def _parse_frame_row(cells: list[str], path: str, line: int) -> FrameSpec:
             f"got {len(cells)}",
         )
     if not _INDEX_RE.match(cells[0]):
-        raise ModelFileError(path, line, f"frame number must be an integer, got {cells[0]!r}")
+        raise ModelFileError(path, line, f"frame number must be an integer, got {_shown(cells[0])}")
     geometry = None if cells[1] == "-" else cells[1]
     pose_state = theta_state = d_state = None
     theta = d = 0.0
@@ -224,7 +247,7 @@ def _parse_frame_row(cells: list[str], path: str, line: int) -> FrameSpec:
         for cell in cells[7:]:
             if not _INDEX_RE.match(cell):
                 raise ModelFileError(
-                    path, line, f"'next' must list frame numbers or '-', got {cell!r}"
+                    path, line, f"'next' must list frame numbers or '-', got {_shown(cell)}"
                 )
             nexts.append(int(cell))
     return FrameSpec(
@@ -238,18 +261,18 @@ def _parse_shape(cell: str, path: str, line: int) -> ShapeSpec:
     expected = ("shape must be '-', box(sx,sy,sz[,cx,cy,cz]), cyl(radius), tip(radius) or "
                 "edge(radius)")
     if match is None:
-        raise ModelFileError(path, line, f"{expected}; got {cell!r}")
+        raise ModelFileError(path, line, f"{expected}; got {_shown(cell)}")
     kind = match["kind"]
     args = match["args"].split(",")
     low, high = _SHAPE_ARITY[kind]
     if len(args) not in (low, high):
-        raise ModelFileError(path, line, f"{expected}; got {cell!r}")
+        raise ModelFileError(path, line, f"{expected}; got {_shown(cell)}")
     params = tuple(_value(arg, f"{kind} parameter", path, line) for arg in args)
     if kind == "box" and len(params) == 3:
         params = (*params, 0.0, 0.0, 0.0)
     sizes = params[:3] if kind == "box" else params
     if any(not size > 0.0 for size in sizes):
-        raise ModelFileError(path, line, f"shape sizes must be positive, got {cell!r}")
+        raise ModelFileError(path, line, f"shape sizes must be positive, got {_shown(cell)}")
     return ShapeSpec(kind, params)
 
 
@@ -258,17 +281,17 @@ def _value(token: str, what: str, path: str, line: int) -> float:
         value = parse_value(token)
     except ValueError:
         raise ModelFileError(
-            path, line, f"{what} must be a number, pi expression or NNdeg, got {token!r}"
+            path, line, f"{what} must be a number, pi expression or NNdeg, got {_shown(token)}"
         ) from None
     if not math.isfinite(value):
-        raise ModelFileError(path, line, f"{what} must be finite, got {token!r}")
+        raise ModelFileError(path, line, f"{what} must be finite, got {_shown(token)}")
     return value
 
 
 def _state_ref(token: str, what: str, path: str, line: int) -> int:
     match = _STATE_RE.match(token)
     if match is None:
-        raise ModelFileError(path, line, f"{what} must name a state like q7, got {token!r}")
+        raise ModelFileError(path, line, f"{what} must name a state like q7, got {_shown(token)}")
     return int(match[1])
 
 

@@ -9,7 +9,6 @@ interrupted render continues where it stopped.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,6 +20,7 @@ from tqdm import tqdm
 from digiteyes.camera import Rig
 from digiteyes.errors import DigitEyesError
 from digiteyes.io.dataset import FrameTruth, SequenceWriter
+from digiteyes.jsonfile import read_json_object
 from digiteyes.kinematics import KinematicModel, format_model_text
 from digiteyes.synth.options import RenderOptions
 from digiteyes.synth.perturb import perturb_model
@@ -80,8 +80,8 @@ def _check_resume(folder: Path, settings: dict) -> None:
     if not path.is_file():
         return
     try:
-        old = json.loads(path.read_text(encoding="utf-8")).get("scenario", {}).get("render")
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, AttributeError):
+        old = read_json_object(path, DigitEyesError, "file").get("scenario", {}).get("render")
+    except (DigitEyesError, AttributeError):
         return  # the writer reports unreadable folders itself
     if old is not None and old != settings:
         changed = sorted(k for k in set(old) | set(settings) if old.get(k) != settings.get(k))

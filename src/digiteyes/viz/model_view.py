@@ -122,10 +122,9 @@ def write_model_png(model: KinematicModel, q: np.ndarray, path: str | Path, *,
         image = render_views(model, q, [cam], options, rng=0)[0].image
     else:
         image = draw_wireframe(model, q, cam)
-    path = Path(path)
-    if not cv2.imwrite(str(path), cv2.cvtColor(image, cv2.COLOR_RGB2BGR)):
-        raise DigitEyesError(f"{path}: could not write the PNG (check the folder and suffix)")
-    return path
+    from digiteyes.io.safe_paths import write_png
+
+    return write_png(path, image)
 
 
 def draw_wireframe(model: KinematicModel, q: np.ndarray, cam: Camera,

@@ -31,8 +31,11 @@ def new_figure(width_in: float = 8.0, height_in: float = 4.5) -> Figure:
 
 def save_figure(fig: Figure, path: str | Path, dpi: int = 100) -> Path:
     """Write ``fig`` as PNG and return the path."""
+    from digiteyes.io.safe_paths import atomic_path
+
     path = Path(path)
-    fig.savefig(path, dpi=dpi)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=dpi, format="png")
     return path
 
 
