@@ -26,8 +26,8 @@ from digiteyes.cli import main
 from digiteyes.errors import DigitEyesError
 from digiteyes.io import StateLogWriter, open_sequence, read_state_log
 from digiteyes.io.dataset import read_ground_truth
-from digiteyes.kinematics import State, parse_model_text, read_states_csv
-from digiteyes.models import load_model, model_path
+from digiteyes.kinematics import State, load_model, parse_model_text, read_states_csv
+from digiteyes.models import model_path
 
 FAST = 150
 SLOW = 10_000

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import digiteyes.synth
+import digiteyes.synth.sequence
 from digiteyes import forward_kinematics, load_model
 from digiteyes._signals import sigterm_as_interrupt
 from digiteyes.camera import Camera, load_rig
@@ -270,7 +270,7 @@ def test_failed_write_leaves_no_temporary_file(tmp_path):
 
 def test_sigterm_during_a_command_exits_130_in_one_line(tmp_path, monkeypatch, capsys):
     calls = {"n": 0}
-    real = digiteyes.synth.render_views
+    real = digiteyes.synth.sequence.render_views
 
     def terminated(*a, **k):
         calls["n"] += 1
@@ -278,7 +278,7 @@ def test_sigterm_during_a_command_exits_130_in_one_line(tmp_path, monkeypatch, c
             os.kill(os.getpid(), signal.SIGTERM)
         return real(*a, **k)
 
-    monkeypatch.setattr(digiteyes.synth, "render_views", terminated)
+    monkeypatch.setattr(digiteyes.synth.sequence, "render_views", terminated)
     assert main(["render", "mouse", "-o", str(tmp_path / "s"), "--frames", "4"]) == 130
     assert capsys.readouterr().err.strip().endswith("digiteyes: interrupted")
     assert open_sequence(tmp_path / "s").n_frames >= 1
@@ -286,7 +286,7 @@ def test_sigterm_during_a_command_exits_130_in_one_line(tmp_path, monkeypatch, c
 
 # ----------------------------------------------------------------- 12: render --video
 def test_interrupted_video_render_says_what_works(tmp_path, monkeypatch, capsys):
-    real = digiteyes.synth.render_views
+    real = digiteyes.synth.sequence.render_views
     calls = {"n": 0}
 
     def interrupted(*a, **k):
@@ -296,11 +296,11 @@ def test_interrupted_video_render_says_what_works(tmp_path, monkeypatch, capsys)
         return real(*a, **k)
 
     out = tmp_path / "v"
-    monkeypatch.setattr(digiteyes.synth, "render_views", interrupted)
+    monkeypatch.setattr(digiteyes.synth.sequence, "render_views", interrupted)
     assert main(["render", "mouse", "-o", str(out), "--frames", "3", "--video"]) == 130
     err = capsys.readouterr().err
     assert "--force" in err and "--resume to continue" not in err
-    monkeypatch.setattr(digiteyes.synth, "render_views", real)
+    monkeypatch.setattr(digiteyes.synth.sequence, "render_views", real)
     assert main(["render", "mouse", "-o", str(out), "--frames", "3", "--video",
                  "--force"]) == 0
     assert open_sequence(out).n_frames == 3

@@ -35,7 +35,7 @@ def calibrate_hand(images: tuple[Path, ...], output: Path, rig: Path | None,
     )
     from digiteyes.detect.pose import estimate_pose, make_detector
     from digiteyes.errors import DigitEyesError
-    from digiteyes.models import load_model
+    from digiteyes.kinematics import load_model
 
     model = load_model(model_name)
     if hand_length_mm is not None:

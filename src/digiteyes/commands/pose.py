@@ -41,7 +41,7 @@ def pose(images: tuple[Path, ...], output: Path, rig: Path | None, detector: str
         write_pose_json,
     )
     from digiteyes.errors import DigitEyesError
-    from digiteyes.models import load_model
+    from digiteyes.kinematics import load_model
 
     model = load_model(model_name)
     the_rig = load_rig(rig) if rig is not None else None

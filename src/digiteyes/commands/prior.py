@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from digiteyes.models import load_model
+from digiteyes.kinematics import load_model
 
 
 @click.group()

@@ -102,18 +102,25 @@ def basis_configurations() -> list[str]:
     return names
 
 
+def digit_joint_angles(digit: str, extended: bool) -> dict[str, float]:
+    """Joint angles (rad) of one digit fully extended or fully curled, by state name; an
+    extended finger keeps its spread abduction :data:`SPREAD_DEG`."""
+    if digit == "thumb":
+        table = EXTENDED_THUMB_DEG if extended else CURLED_THUMB_DEG
+        return {name: value * _DEG for name, value in table.items()}
+    values = dict(EXTENDED_FINGER_DEG if extended else CURLED_FINGER_DEG)
+    if values["abd"] is None:
+        values["abd"] = SPREAD_DEG[digit]
+    return {f"{digit}.{joint}": value * _DEG for joint, value in values.items()}
+
+
 def basis_joint_angles(model: KinematicModel, name: str) -> np.ndarray:
-    """The joint part of a basis configuration as a full state (n_q,) with a zero base."""
+    """The joint part of a basis configuration as a full state (n_q,) with a zero base
+    (joints the model lacks, such as the cardboard hand's ``thumb.mp_abd``, are skipped)."""
     q = np.zeros(model.n_q)
+    names = set(model.state_names)
     for digit, letter in zip(DIGITS, name, strict=True):
-        if digit == "thumb":
-            values = EXTENDED_THUMB_DEG if letter == "E" else CURLED_THUMB_DEG
-            for joint, value in values.items():
-                q[model.state_index(joint)] = value * _DEG
-            continue
-        values = dict(EXTENDED_FINGER_DEG if letter == "E" else CURLED_FINGER_DEG)
-        if values["abd"] is None:
-            values["abd"] = SPREAD_DEG[digit]
-        for joint, value in values.items():
-            q[model.state_index(f"{digit}.{joint}")] = value * _DEG
+        for joint, value in digit_joint_angles(digit, letter == "E").items():
+            if joint in names:
+                q[model.state_index(joint)] = value
     return q

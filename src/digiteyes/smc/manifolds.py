@@ -9,44 +9,22 @@ at ``b_i``). The paper's formula for ``s`` (Sec. 5.1) divides the dot product by
 from __future__ import annotations
 
 from dataclasses import dataclass
-from itertools import product
 
 import numpy as np
 
 from digiteyes.kinematics import KinematicModel
+from digiteyes.kinematics.anatomy import DIGITS, basis_configurations, digit_joint_angles
 from digiteyes.smc._kernels import nearest_segment_kernel
-from digiteyes.synth.scenarios import (
-    CURLED_FINGER,
-    CURLED_THUMB,
-    DIGITS,
-    EXTENDED,
-    EXTENDED_THUMB,
-    SPREAD,
-)
 
 DEG = np.pi / 180.0
 
 
 def basis_names() -> tuple[str, ...]:
-    """The 28 basis configurations: each digit (thumb, index, middle, ring, little) ``E``
-    (fully extended) or ``C`` (fully curled). The four of the 32 combinations left out hold
-    the ring finger extended while both its neighbours (middle and little) are curled: the
-    shared extensor tendons and the connections between them stop a hand from holding that
-    pose (same rule as the ``natural`` scenario, :func:`digiteyes.synth.scenarios.
-    basis_configurations`)."""
-    return tuple("".join(c) for c in product("EC", repeat=5)
-                 if not (c[3] == "E" and c[2] == "C" and c[4] == "C"))
-
-
-def digit_joint_angles(digit: str, extended: bool) -> dict[str, float]:
-    """Joint angles (rad) of one digit fully extended or fully curled, by state name."""
-    if digit == "thumb":
-        table = EXTENDED_THUMB if extended else CURLED_THUMB
-        return {name: value * DEG for name, value in table.items()}
-    values = dict(EXTENDED if extended else CURLED_FINGER)
-    if values["abd"] is None:
-        values["abd"] = SPREAD[digit]
-    return {f"{digit}.{joint}": value * DEG for joint, value in values.items()}
+    """The 28 basis configurations (:func:`digiteyes.kinematics.anatomy.
+    basis_configurations`): each digit (thumb, index, middle, ring, little) ``E`` (fully
+    extended) or ``C`` (fully curled), without the four that hold the ring finger extended
+    between two curled neighbours."""
+    return tuple(basis_configurations())
 
 
 def basis_joint_angles(joint_names: tuple[str, ...]) -> np.ndarray:

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from digiteyes.kinematics import KinematicModel
+from digiteyes.kinematics.anatomy import digit_joint_angles
 from digiteyes.smc.configuration import (
     ConfigurationSpace,
     PriorError,
@@ -31,7 +32,6 @@ from digiteyes.smc.manifolds import (
     DEG,
     basis_joint_angles,
     basis_names,
-    digit_joint_angles,
     manifold_pairs,
     model_joint_names,
 )

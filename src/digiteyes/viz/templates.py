@@ -9,7 +9,7 @@ import numpy as np
 
 from digiteyes.occlusion.visibility import VisibilityOrder
 from digiteyes.occlusion.windows import CAPSULE, ImageWindows
-from digiteyes.viz.overlay import _to_rgb
+from digiteyes.viz.overlay import to_rgb
 
 PALETTE = np.array([[230, 25, 75], [60, 180, 75], [255, 225, 25], [0, 130, 200],
                     [245, 130, 48], [145, 30, 180], [70, 240, 240], [240, 50, 230],
@@ -53,7 +53,7 @@ def draw_templates(image: np.ndarray, windows: ImageWindows, order: VisibilityOr
     -------
     (H, W, 3) uint8 RGB image.
     """
-    out = _to_rgb(image).copy()
+    out = to_rgb(image).copy()
     colours = PALETTE[np.arange(len(windows.kind)) % len(PALETTE)]
     if segmentation is not None:
         mask = segmentation >= 0
