@@ -38,7 +38,7 @@ class FleshMaterial:
     shininess: float = 24.0
     nail_specular: float = 0.45
     nail_shininess: float = 60.0
-    texture: float = 0.12
+    texture: float = 0.08
     seed: int = 0
     shadows: bool = False
 

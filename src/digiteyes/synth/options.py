@@ -90,7 +90,7 @@ class RenderOptions:
     skin_tone: str | None = None
     specular: float = 0.12
     shininess: float = 24.0
-    texture: float = 0.12
+    texture: float = 0.08
     skin_seed: int = 0
     shadows: bool = False
 
