@@ -70,7 +70,7 @@ _PLACES = {
 
 def setup_rig(setup: str, n_cameras: int = 1) -> Rig:
     """The cameras of a setup (one or two, 640 x 480, 800 px focal length)."""
-    rest, centre, distance, elevation, azimuth, pair, _ = _place(setup)
+    _, centre, distance, elevation, azimuth, pair, _ = _place(setup)
     if n_cameras not in (1, 2):
         raise DigitEyesError(f"a setup has 1 or 2 cameras, got {n_cameras}")
     azimuths = (azimuth,) if n_cameras == 1 else pair
