@@ -171,6 +171,37 @@ def _builder(setup: str, n_cameras: int):
     return build
 
 
-SETUP_SCENARIOS = {f"{setup}-{n}cam": _builder(setup, n) for setup in SETUPS for n in (1, 2)}
-"""``desk-1cam``, ``desk-2cam``, ``webcam-1cam``, ... : builders with the scenario
-registry's signature ``(seed, n_frames)``."""
+def glove_scenario(setup: str, n_cameras: int = 1, subject: int = 0, trial: int = 0,
+                   task: str = "R2G", hand_scale: float = 1.0, seed: int = 0,
+                   n_frames: int | None = None, fps: float = 30.0,
+                   path: str | None = None) -> Scenario:
+    """A camera setup driven by a real CyberGlove recording (:mod:`digiteyes.synth.glove`)
+    resampled to ``fps``; the palm drifts and turns as in :func:`setup_scenario`. Raises
+    :class:`DigitEyesError` when the glove data are not found."""
+    from digiteyes.synth.glove import glove_to_states, load_glove, resample
+
+    times, angles = load_glove(subject, trial, task, path)
+    joints = glove_to_states(load_model("hand"), resample(times, angles, fps))
+    return setup_scenario(setup, n_cameras, hand_scale, seed, n_frames, joints, fps,
+                          name=f"glove-{setup}-{n_cameras}cam",
+                          source=f"CyberGlove {task} subject {subject} trial {trial}")
+
+
+def _builder(setup: str, n_cameras: int, glove: bool = False):
+    def build(seed: int = 0, n_frames: int | None = None) -> Scenario:
+        if glove:  # the seed picks the recording: subject seed % 7, trial (seed // 7) % 5
+            return glove_scenario(setup, n_cameras, subject=seed % 7, trial=(seed // 7) % 5,
+                                  seed=seed, n_frames=n_frames)
+        return setup_scenario(setup, n_cameras, seed=seed, n_frames=n_frames)
+
+    build.__doc__ = (f"The {setup} camera setup with {n_cameras} camera(s), "
+                     + ("CyberGlove motion (:func:`glove_scenario`)." if glove else
+                        "fingers curling in turn (:func:`setup_scenario`)."))
+    return build
+
+
+SETUP_SCENARIOS = {f"{prefix}{setup}-{n}cam": _builder(setup, n, glove=bool(prefix))
+                   for prefix in ("", "glove-") for setup in SETUPS for n in (1, 2)}
+"""``desk-1cam``, ``desk-2cam``, ``webcam-1cam``, ..., ``glove-desk-1cam``, ... :
+builders with the scenario registry's signature ``(seed, n_frames)``; the ``glove-``
+family needs the CyberGlove data (:func:`digiteyes.synth.glove.glove_dir`)."""
