@@ -20,11 +20,13 @@ same dataset, so an interrupted render (Ctrl-C) continues with --resume.
 """
 
 
-def _options(background: str, color: bool, noise: float, blur: float, seed: int):
+def _options(background: str, color: bool, noise: float, blur: float, seed: int,
+             appearance: str = "model", skin_tone: str | None = None, shadows: bool = False):
     from digiteyes.synth import RenderOptions
 
     return RenderOptions(color=color, background=background, noise_sigma=noise,
-                         blur_sigma=blur, background_seed=seed)
+                         blur_sigma=blur, background_seed=seed, appearance=appearance,
+                         skin_tone=skin_tone, shadows=shadows, skin_seed=seed)
 
 
 def _truth_model(model, perturb: float, seed: int) -> tuple[object, dict | None]:
@@ -74,6 +76,16 @@ def _check_resume(folder: Path, settings: dict) -> None:
               show_default=True, metavar="FRACTION",
               help="Render a 'true' hand whose link lengths differ from the model by up to "
                    "this fraction; model.dh stays the nominal tracking model.")
+@click.option("--appearance", type=click.Choice(["model", "flesh"]), default="model",
+              show_default=True, help="model: the tracking model's own solids; flesh: an "
+              "independent hand surface (tapered, blended fingers, fleshy palm, textured "
+              "skin, highlights; docs/appearance.md).")
+@click.option("--skin-tone", type=click.Choice(["light", "medium", "olive", "brown", "dark"]),
+              default=None, help="Named skin tone (default: the standard skin colour).")
+@click.option("--shadows", is_flag=True, help="The hand casts shadows on itself (flesh).")
+@click.option("--hand-scale", type=click.FloatRange(0.8, 1.15), default=1.0, show_default=True,
+              metavar="F", help="Draw a hand F times the size of the tracking model "
+              "(0.8-1.15 of Appendix A); model.dh stays the tracking model.")
 @click.option("--frames", type=click.IntRange(min=1), default=None, metavar="N",
               help="Number of frames (default: the scenario's own length).")
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, metavar="S",
@@ -82,7 +94,8 @@ def _check_resume(folder: Path, settings: dict) -> None:
 @click.option("--force", is_flag=True, help="Replace whatever DIR holds.")
 @click.option("--resume", is_flag=True, help="Continue an interrupted render of DIR.")
 def render(scenario_name: str, output: str, background: str, color: bool, noise: float,
-           blur: float, perturb: float, frames: int | None, seed: int, video: bool,
+           blur: float, perturb: float, appearance: str, skin_tone: str | None,
+           shadows: bool, hand_scale: float, frames: int | None, seed: int, video: bool,
            force: bool, resume: bool) -> None:
     if force and resume:
         raise DigitEyesError("--force and --resume exclude each other: --force starts again, "
@@ -90,27 +103,43 @@ def render(scenario_name: str, output: str, background: str, color: bool, noise:
     from digiteyes.synth.scenarios import build_scenario
 
     scenario = build_scenario(scenario_name, seed=seed, n_frames=frames)
+    if hand_scale != 1.0:
+        import dataclasses
+
+        scenario = dataclasses.replace(scenario, metadata={**scenario.metadata,
+                                                           "hand_scale": hand_scale})
     render_scenario(scenario, Path(output), seed=seed, background=background, color=color,
                     noise=noise, blur=blur, perturb=perturb, video=video, force=force,
-                    resume=resume)
+                    resume=resume, appearance=appearance, skin_tone=skin_tone,
+                    shadows=shadows)
 
 
 def render_scenario(scenario, folder: Path, *, seed: int = 0, background: str = "black",
                     color: bool = False, noise: float = 0.0, blur: float = 0.0,
                     perturb: float = 0.0, video: bool = False, force: bool = False,
-                    resume: bool = False, progress: bool | None = None) -> Path:
+                    resume: bool = False, progress: bool | None = None,
+                    appearance: str = "model", skin_tone: str | None = None,
+                    shadows: bool = False) -> Path:
     """Render every frame of ``scenario`` through its rig into the sequence ``folder``
-    (shared by ``digiteyes render`` and ``digiteyes demo``); returns the folder."""
+    (shared by ``digiteyes render`` and ``digiteyes demo``); returns the folder. A
+    scenario with ``metadata["hand_scale"]`` is drawn from its model scaled by it."""
     from tqdm import tqdm
 
     from digiteyes.io.dataset import FrameTruth, SequenceWriter
     from digiteyes.synth import render_views
+    from digiteyes.synth.setups import truth_model as scaled_truth
 
-    options = _options(background, color, noise, blur, seed)
-    truth_model, truth_info = _truth_model(scenario.model, perturb, seed)
+    options = _options(background, color, noise, blur, seed, appearance, skin_tone, shadows)
+    truth_model, truth_info = _truth_model(scaled_truth(scenario), perturb, seed)
+    scale = float(scenario.metadata.get("hand_scale", 1.0))
+    if scale != 1.0:
+        truth_info = {**(truth_info or {}), "hand_scale": scale, "file": "truth/model.dh"}
     settings = {"scenario": scenario.name, "seed": seed, "frames": scenario.n_frames,
                 "background": background, "color": color, "noise_sigma": noise,
                 "blur_sigma": blur, "perturb": perturb}
+    extra = {"appearance": appearance, "skin_tone": skin_tone, "shadows": shadows,
+             "hand_scale": scale if scale != 1.0 else None}
+    settings |= {k: v for k, v in extra.items() if v not in ("model", None, False)}
     if resume:
         _check_resume(folder, settings)
     metadata = {"name": scenario.name, "description": scenario.description, "seed": seed,
