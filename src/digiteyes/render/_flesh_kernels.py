@@ -38,9 +38,11 @@ N_PARAMS = 17
 _EPS = 0.02  # mm: a ray has hit when the field is below this
 _MAX_STEPS = 160
 _GRAD_H = 0.05  # mm: step of the finite-difference normal
+_RELAX = 1.5  # over-relaxation of the sphere-tracing steps
+_FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}  # fast maths that keeps inf and NaN
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, fastmath=_FAST, error_model="numpy", inline="always")
 def _round_cone(px, py, pz, P):  # pragma: no cover - compiled
     """Exact signed distance to the convex hull of the balls (a, ra) and (b, rb)."""
     bax, bay, baz = P[3] - P[0], P[4] - P[1], P[5] - P[2]
@@ -62,7 +64,7 @@ def _round_cone(px, py, pz, P):  # pragma: no cover - compiled
     return (math.sqrt(x2 * a2 / l2) + y * dr) / l2 - P[6]
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, fastmath=_FAST, error_model="numpy", inline="always")
 def _round_box(px, py, pz, P):  # pragma: no cover - compiled
     """Exact signed distance to a box of inner half extents P[12:15] grown by P[15]."""
     rx, ry, rz = px - P[0], py - P[1], pz - P[2]
@@ -73,14 +75,14 @@ def _round_box(px, py, pz, P):  # pragma: no cover - compiled
     return math.sqrt(m0 * m0 + m1 * m1 + m2 * m2) + min(max(q0, max(q1, q2)), 0.0) - P[15]
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, fastmath=_FAST, error_model="numpy", inline="always")
 def _distance(kind, px, py, pz, P):  # pragma: no cover - compiled
     if kind == ROUND_CONE:
         return _round_cone(px, py, pz, P)
     return _round_box(px, py, pz, P)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, fastmath=_FAST, error_model="numpy", inline="always")
 def _smin(a, b, k):  # pragma: no cover - compiled
     if k <= 0.0:
         return min(a, b)
@@ -88,7 +90,7 @@ def _smin(a, b, k):  # pragma: no cover - compiled
     return min(a, b) - 0.25 * k * h * h
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, fastmath=_FAST, error_model="numpy")
 def _field(px, py, pz, kinds, params, blend, cand, n_cand):  # pragma: no cover - compiled
     """The blended field at p over the candidate primitives ``cand[:n_cand]``."""
     f = np.inf
@@ -98,7 +100,7 @@ def _field(px, py, pz, kinds, params, blend, cand, n_cand):  # pragma: no cover 
     return f
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, fastmath=_FAST, error_model="numpy")
 def field_at(points, kinds, params, blend):  # pragma: no cover - compiled
     """(M,) blended field and (M,) nearest primitive at points (M, 3), all primitives."""
     n = kinds.shape[0]
@@ -117,7 +119,18 @@ def field_at(points, kinds, params, blend):  # pragma: no cover - compiled
     return out, nearest
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, fastmath=_FAST, error_model="numpy")
+def distances_at(points, kinds, params):  # pragma: no cover - compiled
+    """(M, P) signed distance from each point (M, 3) to each primitive, unblended."""
+    out = np.empty((points.shape[0], kinds.shape[0]))
+    for m in range(points.shape[0]):
+        for k in range(kinds.shape[0]):
+            out[m, k] = _distance(kinds[k], points[m, 0], points[m, 1], points[m, 2],
+                                  params[k])
+    return out
+
+
+@njit(cache=True, fastmath=_FAST, error_model="numpy", inline="always")
 def _sphere_span(ox, oy, oz, dx, dy, dz, S):  # pragma: no cover - compiled
     """Ray parameters where the ray is inside the bounding sphere S = (c, R), or (1, 0)."""
     px, py, pz = ox - S[0], oy - S[1], oz - S[2]
@@ -130,7 +143,7 @@ def _sphere_span(ox, oy, oz, dx, dy, dz, S):  # pragma: no cover - compiled
     return (-b - root) / dd, (-b + root) / dd
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, fastmath=_FAST, error_model="numpy", inline="always")
 def _near_core(ox, oy, oz, dx, dy, dz, C):  # pragma: no cover - compiled
     """Whether the ray's line passes within C[6] of the segment C[0:3]-C[3:6]: the
     squared distance from a point of the segment to the line is convex in its position,
@@ -152,7 +165,7 @@ def _near_core(ox, oy, oz, dx, dy, dz, C):  # pragma: no cover - compiled
     return rx * rx + ry * ry + rz * rz <= C[6] * C[6]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, fastmath=_FAST, error_model="numpy")
 def _gather(ox, oy, oz, dx, dy, dz, spheres, cores, pool, n_pool, cand,
             t_near):  # pragma: no cover - compiled
     """Candidates of ``pool[:n_pool]`` whose bounding sphere and core capsule the ray
@@ -172,23 +185,37 @@ def _gather(ox, oy, oz, dx, dy, dz, spheres, cores, pool, n_pool, cand,
     return n_cand, max(t0, t_near), t1
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, fastmath=_FAST, error_model="numpy")
 def _march(ox, oy, oz, dx, dy, dz, t0, t1, kinds, params, blend, cand,
            n_cand):  # pragma: no cover - compiled
-    """First t in [t0, t1] where the field drops below the hit threshold, or inf."""
+    """First t in [t0, t1] where the field drops below the hit threshold, or inf.
+
+    Over-relaxed sphere tracing (Keinert et al. 2014): steps are ``_RELAX`` times the
+    field; when the spheres of two successive points do not overlap the step may have
+    passed the surface, so it is taken back to the plain step and relaxation stops."""
     norm = math.sqrt(dx * dx + dy * dy + dz * dz)
     t = t0
+    omega = _RELAX
+    step = 0.0
+    previous = 0.0
     for _ in range(_MAX_STEPS):
         if t > t1:
             return np.inf
-        f = _field(ox + t * dx, oy + t * dy, oz + t * dz, kinds, params, blend, cand, n_cand)
-        if f < _EPS:
-            return t
-        t += f / norm
+        f = _field(ox + t * dx, oy + t * dy, oz + t * dz, kinds, params, blend, cand,
+                   n_cand) / norm
+        if omega > 1.0 and abs(f) + abs(previous) < step:
+            step -= omega * step  # back to the end of the plain step
+            omega = 1.0
+        else:
+            if f < _EPS / norm:
+                return t
+            step = omega * f
+            previous = f
+        t += step
     return np.inf
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, fastmath=_FAST, error_model="numpy")
 def first_hits(origins, directions, t_near, kinds, params, blend, spheres,
                cores):  # pragma: no cover - compiled
     """(M,) ray parameter of the first surface along rays o + t d, t > t_near, or inf."""
@@ -206,7 +233,7 @@ def first_hits(origins, directions, t_near, kinds, params, blend, spheres,
     return out
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, fastmath=_FAST, error_model="numpy", inline="always")
 def _hash(ix, iy, iz, seed):  # pragma: no cover - compiled
     """A value in [0, 1) from integer lattice coordinates and a seed."""
     h = (ix * 374761393 + iy * 668265263 + iz * 2147483647 + seed * 144665) & 0xFFFFFFFF
@@ -215,7 +242,7 @@ def _hash(ix, iy, iz, seed):  # pragma: no cover - compiled
     return (h & 0xFFFFFF) / 16777216.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, fastmath=_FAST, error_model="numpy")
 def value_noise(x, y, z, seed):  # pragma: no cover - compiled
     """Trilinear value noise in [0, 1) with smoothstep weights, lattice spacing 1."""
     fx, fy, fz = math.floor(x), math.floor(y), math.floor(z)
@@ -230,7 +257,7 @@ def value_noise(x, y, z, seed):  # pragma: no cover - compiled
     return total
 
 
-@njit(cache=True, error_model="numpy", parallel=True)
+@njit(cache=True, fastmath=_FAST, error_model="numpy", parallel=True)
 def flesh_kernel(kinds, params, blend, labels, far_labels, spheres, cores, blocks, frames,
                  nails, intrinsics, perspective, scale, light, material, albedo, nail_albedo, seed,
                  shadows, depth, label_image, rgb):  # pragma: no cover - compiled
@@ -294,11 +321,21 @@ def flesh_kernel(kinds, params, blend, labels, far_labels, spheres, cores, block
             px, py, pz = ox + t * dx, oy + t * dy, t * dz
             # label: the nearest primitive; a round cone's cap beyond b takes far_labels
             best, arg = np.inf, -1
+            n_near = 0
+            widest = 0.0
+            for j in range(n_cand):
+                widest = max(widest, blend[cand[j]])
             for j in range(n_cand):
                 k = cand[j]
                 d = _distance(kinds[k], px, py, pz, params[k])
                 if d < best:
                     best, arg = d, k
+                # terms further than twice the widest blend are plain minima with larger
+                # values around this point: the normal needs only the others
+                if d < 2.0 * widest + 4.0 * _GRAD_H + _EPS:
+                    cand[n_near] = k  # (in order: n_near <= j)
+                    n_near += 1
+            n_cand = n_near
             P = params[arg]
             along = 0.0
             if kinds[arg] == ROUND_CONE:

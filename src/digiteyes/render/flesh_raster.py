@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from digiteyes.render._flesh_kernels import first_hits, flesh_kernel
+from digiteyes.render._flesh_kernels import ROUND_CONE, distances_at, first_hits, flesh_kernel
 from digiteyes.render.flesh import FleshScene
 from digiteyes.render.pixels import PixelGrid
 
@@ -118,34 +118,54 @@ def rasterise_flesh(scene: FleshScene, grid: PixelGrid, light_cam: np.ndarray,
     return FleshRaster(depth, labels, rgb)
 
 
-def keypoint_visibility(scene: FleshScene, points_cam: np.ndarray, perspective: bool,
-                        tol_mm: float = 0.1) -> np.ndarray:
-    """(K,) bool: nothing lies in front of each camera-frame point but the flesh it sits
-    in. Along the camera ray through the point, the first surface (sphere traced) must be
-    where the ray enters the flesh around the point (found by stepping back from the point
-    by the field's magnitude until it leaves the flesh), within ``tol_mm``. A point
-    behind a perspective camera is not visible."""
+def keypoint_visibility(scene: FleshScene, points_cam: np.ndarray, links: np.ndarray,
+                        perspective: bool, tol_mm: float = 5.0) -> np.ndarray:
+    """(K,) bool: nothing but the keypoint's own flesh lies in front of each camera-frame
+    point ``points_cam`` (K, 3) of link ``links`` (K,) (a depth test).
+
+    The keypoint's own flesh is the union of the primitives that contain it and either
+    carry its link's label (or far label) or end at it (the two phalanges of a joint).
+    Along the camera ray through the point, the point is stepped back towards the camera
+    by that union's distance until it leaves it (sphere tracing from inside); the first
+    surface of the whole hand along the ray (sphere traced) must not lie more than
+    ``tol_mm`` in front of that exit. The blended field alone would not do: a fingertip
+    curled against the palm is one solid with it. A point behind a perspective camera is
+    not visible."""
     p = np.asarray(points_cam, dtype=float)
     if perspective:
-        z = p[:, 2]
-        ok = z > 1e-6
-        dirs = p / np.where(ok, z, 1.0)[:, None]
+        ok = p[:, 2] > 1e-6
+        dirs = p / np.where(ok, p[:, 2], 1.0)[:, None]
         origins = np.zeros_like(p)
-        t_point = np.where(ok, z, 0.0)
+        t_point = np.where(ok, p[:, 2], 0.0)
     else:
         ok = np.ones(len(p), dtype=bool)
         dirs = np.tile([0.0, 0.0, 1.0], (len(p), 1))
         origins = p * np.array([1.0, 1.0, 0.0])
         t_point = p[:, 2]
+    own = _own_primitives(scene, p, np.asarray(links))
     norms = np.linalg.norm(dirs, axis=1)
-    t_entry = t_point.copy()
-    for _ in range(200):
-        f, _ = scene.field(origins + t_entry[:, None] * dirs)
-        inside = f < -0.01
-        if not inside.any():
+    t_exit = t_point.copy()
+    for _ in range(100):
+        d = distances_at(origins + t_exit[:, None] * dirs, scene.kinds, scene.params)
+        inside = np.where(own, d, np.inf).min(axis=1)
+        step = inside < -0.01
+        if not step.any():
             break
-        t_entry = np.where(inside, t_entry + f / norms, t_entry)
+        t_exit = np.where(step, t_exit + inside / norms, t_exit)
     first = first_hits(np.ascontiguousarray(origins), np.ascontiguousarray(dirs),
                        np.full(len(p), 1e-6), scene.kinds, scene.params, scene.blend,
                        scene.bounding_spheres(), scene.bounding_cores())
-    return ok & (first >= t_entry - tol_mm / np.maximum(norms, 1e-12))
+    return ok & (first >= t_exit - tol_mm / np.maximum(norms, 1e-12))
+
+
+def _own_primitives(scene: FleshScene, points: np.ndarray, links: np.ndarray) -> np.ndarray:
+    """(K, P) bool: primitive p contains point k and belongs to its link or ends at it."""
+    inside = distances_at(np.ascontiguousarray(points), scene.kinds, scene.params) < 0.0
+    mine = (scene.labels[None, :] == links[:, None]) | \
+        (scene.far_labels[None, :] == links[:, None])
+    cone = scene.kinds == ROUND_CONE
+    ends = np.zeros_like(mine)
+    for j in (0, 3):
+        near = np.linalg.norm(points[:, None, :] - scene.params[None, :, j:j + 3], axis=2)
+        ends |= cone[None, :] & (near < 1e-6)
+    return inside & (mine | ends)

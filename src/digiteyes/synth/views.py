@@ -55,7 +55,8 @@ class RenderedView:
         and nothing hides it: for the model appearance, the surface seen at its (rounded)
         pixel belongs to a link whose solid contains the keypoint (its own link, or a
         neighbour sharing the joint); for the flesh appearance, the first surface along
-        its ray is where that ray enters the flesh around the keypoint (a depth test).
+        its ray lies no more than 5 mm in front of where the ray leaves the keypoint's own
+        flesh (a depth test, :func:`~digiteyes.render.flesh_raster.keypoint_visibility`).
     keypoint_names : (K,) names.
     """
 
@@ -103,7 +104,8 @@ def render_views(
     points = points[0]
     if options.appearance == "flesh":
         flesh = build_flesh(model, kin)
-        return [_render_flesh(flesh, points, names, cam, index, options, rng)
+        links = _keypoint_links(model, names)
+        return [_render_flesh(flesh, points, names, links, cam, index, options, rng)
                 for index, cam in enumerate(cameras)]
     world = build_scene(model, kin)
     owners = _owners(world, points, len(model.links))
@@ -139,8 +141,18 @@ def _light_cam(cam: Camera, options: RenderOptions) -> np.ndarray:
     return cam.T_cam_world[:3, :3] @ (light / np.linalg.norm(light))
 
 
+def _keypoint_links(model: KinematicModel, names: tuple[str, ...]) -> np.ndarray:
+    """(K,) index into ``model.links`` of each keypoint's link: keypoints are one per link
+    but the tracked edges, in model order (:mod:`digiteyes.kinematics.keypoints`)."""
+    links = np.array([i for i, link in enumerate(model.links) if link.kind != "edge"])
+    if len(links) != len(names):
+        raise StateError(f"expected {len(links)} keypoints for model {model.name!r}, got "
+                         f"{len(names)}")
+    return links
+
+
 def _render_flesh(world: FleshScene, points: np.ndarray, names: tuple[str, ...],
-                  cam: Camera, index: int, options: RenderOptions,
+                  links: np.ndarray, cam: Camera, index: int, options: RenderOptions,
                   rng: np.random.Generator) -> RenderedView:
     scene = world.transformed(cam.T_cam_world)
     light_cam = _light_cam(cam, options)
@@ -175,7 +187,7 @@ def _render_flesh(world: FleshScene, points: np.ndarray, names: tuple[str, ...],
     pixels, inside = _project(cam, points)
     points_cam = points @ cam.T_cam_world[:3, :3].T + cam.T_cam_world[:3, 3]
     grid0 = PixelGrid.from_camera(cam)
-    visible = inside & keypoint_visibility(scene, points_cam, grid0.perspective)
+    visible = inside & keypoint_visibility(scene, points_cam, links, grid0.perspective)
     return RenderedView(image, depth, labels, points.copy(), pixels, visible, names)
 
 
