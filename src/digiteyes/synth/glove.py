@@ -69,7 +69,8 @@ def glove_dir(path: str | os.PathLike | None = None) -> Path:
 
 def load_glove(subject: int, trial: int, task: str = "R2G",
                path: str | os.PathLike | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Times (n,) s from the start and raw glove angles (n, 23) rad of one recording:
+    """Times (n,) s from the start, strictly increasing (of samples with the same time
+    stamp the first is kept), and raw glove angles (n, 23) rad of one recording:
     ``subject`` 0-6, ``trial`` 0-4 (object or step), ``task`` ``R2G`` or ``Manipulation``."""
     if task not in TASKS:
         raise DigitEyesError(f"glove task must be one of {', '.join(TASKS)}, got {task!r}")
@@ -86,7 +87,8 @@ def load_glove(subject: int, trial: int, task: str = "R2G",
     if angles.ndim != 2 or angles.shape[1] != 23 or len(times) != len(angles):
         raise DigitEyesError(f"{folder}: recording ({subject}, {trial}) has angles of shape "
                              f"{angles.shape} and {len(times)} times; expected n x 23 and n")
-    return times - times[0], angles
+    times, first = np.unique(times, return_index=True)  # a few stamps repeat
+    return times - times[0], angles[first]
 
 
 def _cell(mat: dict, subject: int, trial: int) -> np.ndarray:
