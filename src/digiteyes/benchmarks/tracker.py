@@ -94,6 +94,7 @@ from digiteyes.kinematics import KinematicModel, forward_kinematics
 from digiteyes.pipeline import TrackingRun, run_tracker
 from digiteyes.synth import RenderOptions, perturb_model, render_views
 from digiteyes.synth.scenarios import Scenario, build_scenario
+from digiteyes.synth.setups import truth_model as truth_model_of
 from digiteyes.trackers import FeatureTracker, FeatureTrackerOptions, thesis_whole_hand_links
 
 SEED = 0
@@ -207,17 +208,19 @@ class RenderedSequence:
 
 def render_sequence(scenario: Scenario, background: str = "black", perturbed: bool = False,
                     seed: int = SEED, progress: bool = False, flat: bool = False,
-                    cameras: Sequence[int] | None = None) -> RenderedSequence:
+                    cameras: Sequence[int] | None = None,
+                    appearance: str = "model") -> RenderedSequence:
     """Render every frame of ``scenario`` through its rig (grey, noise
-    :data:`NOISE_SIGMA`), from a hand perturbed by :data:`PERTURB_LINK_LENGTH` if asked;
-    seeds as ``digiteyes render --seed``. ``flat`` lights the skin evenly (ambient light
-    only: no shading towards the silhouette); ``cameras`` renders only those cameras of
-    the rig (None: all)."""
-    model = scenario.model
+    :data:`NOISE_SIGMA`), from a hand perturbed by :data:`PERTURB_LINK_LENGTH` if asked
+    and scaled by the scenario's ``hand_scale`` if it has one; seeds as ``digiteyes render
+    --seed``. ``flat`` lights the skin evenly (ambient light only: no shading towards the
+    silhouette); ``cameras`` renders only those cameras of the rig (None: all);
+    ``appearance`` ``"model"`` or ``"flesh"`` (docs/appearance.md)."""
+    model = truth_model_of(scenario)
     truth_model = perturb_model(model, link_length=PERTURB_LINK_LENGTH, rng=seed) \
         if perturbed else model
     options = RenderOptions(background=background, noise_sigma=NOISE_SIGMA,
-                            background_seed=seed)
+                            background_seed=seed, appearance=appearance)
     if flat:
         options = replace(options, ambient=1.0)
     rig = scenario.rig if cameras is None else Rig(tuple(scenario.rig.cameras[i]
@@ -225,7 +228,7 @@ def render_sequence(scenario: Scenario, background: str = "black", perturbed: bo
     images, kp3, kp2, visible = [], [], [], []
     names: tuple[str, ...] = ()
     label = (f"render {scenario.name} {background} {'perturbed' if perturbed else 'exact'}"
-             f"{' flat' if flat else ''}")
+             f"{' flat' if flat else ''} {appearance}")
     for t in tqdm(range(scenario.n_frames), desc=label, unit="frame", leave=False,
                   disable=not progress):
         views = render_views(truth_model, scenario.states[t], rig, options,
