@@ -28,8 +28,8 @@ EXPECTED = {  # name: (frames, fps, cameras)
 
 @pytest.fixture(scope="module")
 def built():
-    """Every scenario at seed 0, built once."""
-    return {name: build_scenario(name, seed=0) for name in SCENARIOS}
+    """Every thesis scenario at seed 0, built once (the camera setups: test_setups.py)."""
+    return {name: build_scenario(name, seed=0) for name in EXPECTED}
 
 
 def projected_keypoints(scenario):
@@ -43,8 +43,10 @@ def joints(scenario, names):
 
 
 # ------------------------------------------------------------------ common properties
-def test_registry_lists_the_five_scenarios():
-    assert set(SCENARIOS) == set(EXPECTED)
+def test_registry_lists_the_five_scenarios_and_the_setups():
+    from digiteyes.synth.setups import SETUP_SCENARIOS
+
+    assert set(SCENARIOS) == set(EXPECTED) | set(SETUP_SCENARIOS)
 
 
 @pytest.mark.parametrize("name", list(EXPECTED))

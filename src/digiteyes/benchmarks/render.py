@@ -8,7 +8,15 @@ a third of the image, one frame = all images of the rig plus their ground truth:
 * ``render_fps_color_clutter_640x480``: one colour camera, clutter backdrop;
 * ``render_fps_gray_rig2_640x480``: a two-camera rig (thesis Sec. 4.3.3 style), grey;
 * ``render_fps_color_clutter_ss2_noise_640x480``: colour clutter with 2x2 supersampling,
-  a 0.8 px blur and noise of 3 grey levels (the most expensive options together).
+  a 0.8 px blur and noise of 3 grey levels (the most expensive options together);
+* ``render_fps_flesh_*``: the same hand drawn with the independent flesh appearance
+  (:mod:`digiteyes.render.flesh`, sphere traced): grey; colour; colour with cast
+  shadows; the two-camera rig. ``flesh_over_model`` is the grey flesh rate over the grey
+  model rate of the same run.
+
+``silhouette_mismatch_ms_640x480`` times
+:func:`digiteyes.features.silhouette.silhouette_mismatch` on the model's label image and
+the flesh image's foreground (milliseconds per call, best of the repeats).
 
 OpenCV is held to one thread, and numba code is not parallel, so the figures are for one
 core. Each figure is the best of several repeats (the least disturbed by other processes);
@@ -24,6 +32,7 @@ import numpy as np
 
 from digiteyes.benchmarks._machine import emit, kernel_threads, machine_info, seconds_per_call
 from digiteyes.camera import Camera
+from digiteyes.features.silhouette import silhouette_mismatch
 from digiteyes.kinematics import KinematicModel, load_model
 from digiteyes.synth import RenderOptions, render_views
 
@@ -65,6 +74,15 @@ CASES = {
         "colour, clutter, 2x2 AA, blur, noise, 1 camera", 1,
         RenderOptions(color=True, background="clutter", supersample=2, blur_sigma=0.8,
                       noise_sigma=3.0)),
+    "render_fps_flesh_gray_640x480": ("flesh, grey, black cloth, 1 camera", 1,
+                                      RenderOptions(appearance="flesh")),
+    "render_fps_flesh_color_640x480": ("flesh, colour, black cloth, 1 camera", 1,
+                                       RenderOptions(appearance="flesh", color=True)),
+    "render_fps_flesh_color_shadows_640x480": (
+        "flesh, colour, cast shadows, 1 camera", 1,
+        RenderOptions(appearance="flesh", color=True, shadows=True)),
+    "render_fps_flesh_gray_rig2_640x480": ("flesh, grey, 2-camera rig", 2,
+                                           RenderOptions(appearance="flesh")),
 }
 
 
@@ -86,7 +104,13 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
             rates[key] = _frames_per_second(
                 lambda o=options, n=n_cameras, r=rng: render_views(model, q, cameras[:n], o, r),
                 repeat, min_time)
-    covered = int((render_views(model, q, cameras[:1])[0].labels >= 0).sum())
+        model_view = render_views(model, q, cameras[:1])[0]
+        flesh_view = render_views(model, q, cameras[:1], RenderOptions(appearance="flesh"))[0]
+        foreground = flesh_view.labels >= 0
+        silhouette_ms = 1e3 * min(seconds_per_call(
+            lambda: silhouette_mismatch(foreground, model_view.labels, len(model.links)),
+            repeat, min_time))
+    covered = int((model_view.labels >= 0).sum())
     result = {
         "benchmark": "render",
         "model": model.name,
@@ -96,6 +120,10 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
         "repeats": repeat,
         **{key: best for key, (best, _) in rates.items()},
         "median": {key: med for key, (_, med) in rates.items()},
+        "flesh_over_model": rates["render_fps_flesh_gray_640x480"][0]
+        / rates["render_fps_gray_640x480"][0],
+        "flesh_pixels": int(foreground.sum()),
+        "silhouette_mismatch_ms_640x480": silhouette_ms,
         "machine": machine_info(),
     }
     return emit(result, format_table(result), json_path)
@@ -116,4 +144,9 @@ def format_table(result: dict) -> str:
     ]
     for key, (label, _, _) in CASES.items():
         lines.append(f"{label:<48} {result[key]:>8.1f} ({result['median'][key]:>6.1f})")
+    if "flesh_over_model" in result:
+        lines += ["", f"flesh / model (grey, 1 camera): {result['flesh_over_model']:.2f}; "
+                  f"flesh covers {result['flesh_pixels']} pixels",
+                  f"silhouette_mismatch at 640x480: "
+                  f"{result['silhouette_mismatch_ms_640x480']:.3f} ms"]
     return "\n".join(lines)

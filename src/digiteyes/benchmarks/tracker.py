@@ -95,6 +95,7 @@ from digiteyes.pipeline import TrackingRun, run_tracker, step_frames
 from digiteyes.synth import RenderOptions
 from digiteyes.synth.scenarios import Scenario, build_scenario
 from digiteyes.synth.sequence import perturbed_truth, render_frames
+from digiteyes.synth.setups import truth_model as truth_model_of
 from digiteyes.trackers import (
     DEFAULT_TRACKER,
     FeatureTracker,
@@ -216,22 +217,24 @@ class RenderedSequence:
 
 def render_sequence(scenario: Scenario, background: str = "black", perturbed: bool = False,
                     seed: int = SEED, progress: bool = False, flat: bool = False,
-                    cameras: Sequence[int] | None = None) -> RenderedSequence:
+                    cameras: Sequence[int] | None = None,
+                    appearance: str = "model") -> RenderedSequence:
     """Render every frame of ``scenario`` through its rig (grey, noise
-    :data:`NOISE_SIGMA`), from a hand perturbed by :data:`PERTURB_LINK_LENGTH` if asked;
-    seeds as ``digiteyes render --seed``. ``flat`` lights the skin evenly (ambient light
-    only: no shading towards the silhouette); ``cameras`` renders only those cameras of
-    the rig (None: all)."""
-    truth_model, _ = perturbed_truth(scenario.model, PERTURB_LINK_LENGTH if perturbed else 0.0,
-                                     seed)
+    :data:`NOISE_SIGMA`), from a hand perturbed by :data:`PERTURB_LINK_LENGTH` if asked
+    and scaled by the scenario's ``hand_scale`` if it has one; seeds as ``digiteyes render
+    --seed``. ``flat`` lights the skin evenly (ambient light only: no shading towards the
+    silhouette); ``cameras`` renders only those cameras of the rig (None: all);
+    ``appearance`` ``"model"`` or ``"flesh"`` (docs/appearance.md)."""
+    truth_model, _ = perturbed_truth(truth_model_of(scenario),
+                                     PERTURB_LINK_LENGTH if perturbed else 0.0, seed)
     options = RenderOptions(background=background, noise_sigma=NOISE_SIGMA,
-                            background_seed=seed)
+                            background_seed=seed, appearance=appearance)
     if flat:
         options = replace(options, ambient=1.0)
     rig = scenario.rig if cameras is None else Rig(tuple(scenario.rig.cameras[i]
                                                           for i in cameras))
     label = (f"render {scenario.name} {background} {'perturbed' if perturbed else 'exact'}"
-             f"{' flat' if flat else ''}")
+             f"{' flat' if flat else ''} {appearance}")
     frames = list(render_frames(scenario, options, seed=seed, truth_model=truth_model,
                                 rig=rig, progress=progress, label=label))
     truth = GroundTruth(np.array(scenario.states, dtype=float), frames[0][1].keypoint_names,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import click
@@ -33,6 +34,16 @@ same dataset, so an interrupted render (Ctrl-C) continues with --resume.
               show_default=True, metavar="FRACTION",
               help="Render a 'true' hand whose link lengths differ from the model by up to "
                    "this fraction; model.dh stays the nominal tracking model.")
+@click.option("--appearance", type=click.Choice(["model", "flesh"]), default="model",
+              show_default=True, help="model: the tracking model's own solids; flesh: an "
+              "independent hand surface (tapered, blended fingers, fleshy palm, textured "
+              "skin, highlights; docs/appearance.md).")
+@click.option("--skin-tone", type=click.Choice(["light", "medium", "olive", "brown", "dark"]),
+              default=None, help="Named skin tone (default: the standard skin colour).")
+@click.option("--shadows", is_flag=True, help="The hand casts shadows on itself (flesh).")
+@click.option("--hand-scale", type=click.FloatRange(0.8, 1.15), default=1.0, show_default=True,
+              metavar="F", help="Draw a hand F times the size of the tracking model "
+              "(0.8-1.15 of Appendix A); model.dh stays the tracking model.")
 @click.option("--frames", type=click.IntRange(min=1), default=None, metavar="N",
               help="Number of frames (default: the scenario's own length).")
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, metavar="S",
@@ -41,7 +52,8 @@ same dataset, so an interrupted render (Ctrl-C) continues with --resume.
 @click.option("--force", is_flag=True, help="Replace whatever DIR holds.")
 @click.option("--resume", is_flag=True, help="Continue an interrupted render of DIR.")
 def render(scenario_name: str, output: str, background: str, color: bool, noise: float,
-           blur: float, perturb: float, frames: int | None, seed: int, video: bool,
+           blur: float, perturb: float, appearance: str, skin_tone: str | None,
+           shadows: bool, hand_scale: float, frames: int | None, seed: int, video: bool,
            force: bool, resume: bool) -> None:
     if force and resume:
         raise DigitEyesError("--force and --resume exclude each other: --force starts again, "
@@ -50,10 +62,14 @@ def render(scenario_name: str, output: str, background: str, color: bool, noise:
     from digiteyes.synth.sequence import render_scenario
 
     scenario = build_scenario(scenario_name, seed=seed, n_frames=frames)
+    if hand_scale != 1.0:
+        scenario = dataclasses.replace(scenario, metadata={**scenario.metadata,
+                                                           "hand_scale": hand_scale})
     try:
         done = render_scenario(scenario, Path(output), seed=seed, background=background,
                                color=color, noise=noise, blur=blur, perturb=perturb,
-                               video=video, force=force, resume=resume)
+                               video=video, force=force, resume=resume,
+                               appearance=appearance, skin_tone=skin_tone, shadows=shadows)
     except KeyboardInterrupt:
         how = ("video sequences cannot be resumed: run the same command with --force to "
                "start again" if video else "run the same command with --resume to continue")

@@ -17,6 +17,22 @@ from digiteyes.errors import DigitEyesError
 BACKGROUNDS = ("black", "uniform", "clutter")
 """Named backgrounds; any other value of ``RenderOptions.background`` is an image path."""
 
+APPEARANCES = ("model", "flesh")
+"""How the hand is drawn: ``model`` from the tracking model's own solids (capsules, balls,
+rounded slab; Lambert shading), ``flesh`` as an independent surface (docs/appearance.md)."""
+
+SKIN_TONES = {
+    "light": (0.93, 0.76, 0.66),
+    "medium": (0.86, 0.64, 0.50),
+    "olive": (0.74, 0.55, 0.39),
+    "brown": (0.56, 0.39, 0.28),
+    "dark": (0.36, 0.24, 0.18),
+}
+"""RGB diffuse albedo of named skin tones, light to dark (rounded values in the range of
+measured skin reflectance at the red, green and blue bands)."""
+
+_LUMA = (0.299, 0.587, 0.114)
+
 
 class RenderError(DigitEyesError, ValueError):
     """Bad render options or inputs (names the option and what was expected)."""
@@ -47,6 +63,16 @@ class RenderOptions:
     blur_sigma : standard deviation of a Gaussian blur (optics), pixels; 0 for none.
     supersample : samples per pixel along each image axis for anti-aliasing (1 = off);
         depth and labels are always sampled once, at the pixel centres.
+    appearance : ``"model"`` (the tracking model's solids, Lambert) or ``"flesh"`` (an
+        independent surface: tapered, blended phalanges, a fleshy palm and wrist, nails,
+        textured skin, Blinn-Phong highlights; docs/appearance.md).
+    skin_tone : None, or a name of :data:`SKIN_TONES`; replaces ``skin_rgb`` and
+        ``skin_albedo`` (the tone's luma) in either appearance.
+    specular, shininess : Blinn-Phong weight (of full white) and exponent of the skin
+        highlights (flesh only).
+    texture : relative depth of the skin's procedural albedo texture (flesh only).
+    skin_seed : seed of that texture.
+    shadows : the hand casts shadows on itself (flesh only).
     """
 
     color: bool = False
@@ -60,6 +86,27 @@ class RenderOptions:
     noise_sigma: float = 0.0
     blur_sigma: float = 0.0
     supersample: int = 1
+    appearance: str = "model"
+    skin_tone: str | None = None
+    specular: float = 0.12
+    shininess: float = 24.0
+    texture: float = 0.08
+    skin_seed: int = 0
+    shadows: bool = False
+
+    @property
+    def skin_colour(self) -> tuple[float, float, float]:
+        """RGB albedo of the skin: the named tone if any, else ``skin_rgb``."""
+        return SKIN_TONES[self.skin_tone] if self.skin_tone else tuple(self.skin_rgb)
+
+    @property
+    def skin_grey(self) -> float:
+        """Grey albedo of the skin: the tone's luma if a tone is named, else
+        ``skin_albedo``."""
+        if self.skin_tone:
+            return float(sum(w * c for w, c in zip(_LUMA, SKIN_TONES[self.skin_tone],
+                                                   strict=True)))
+        return self.skin_albedo
 
     def __post_init__(self) -> None:
         if self.background not in BACKGROUNDS and not Path(self.background).is_file():
@@ -81,6 +128,17 @@ class RenderOptions:
             raise RenderError(f"skin_rgb must be three values in [0, 1], got {skin}")
         if int(self.supersample) != self.supersample or not 1 <= self.supersample <= 8:
             raise RenderError(f"supersample must be an integer in 1..8, got {self.supersample}")
+        if self.appearance not in APPEARANCES:
+            raise RenderError(f"appearance must be one of {', '.join(APPEARANCES)}, got "
+                              f"{self.appearance!r}")
+        if self.skin_tone is not None and self.skin_tone not in SKIN_TONES:
+            raise RenderError(f"skin_tone must be None or one of {', '.join(SKIN_TONES)}, "
+                              f"got {self.skin_tone!r}")
+        _check_range("specular", self.specular, 0.0, 1.0)
+        _check_range("texture", self.texture, 0.0, 1.0)
+        _check_range("shininess", self.shininess, 1.0, 1000.0)
+        if int(self.skin_seed) != self.skin_seed or self.skin_seed < 0:
+            raise RenderError(f"skin_seed must be a non-negative integer, got {self.skin_seed}")
         if int(self.background_seed) != self.background_seed or self.background_seed < 0:
             raise RenderError(
                 f"background_seed must be a non-negative integer, got {self.background_seed}"

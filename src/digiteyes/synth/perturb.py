@@ -136,3 +136,24 @@ def _shift_anchor(rows: dict[int, FrameSpec], chain: tuple[int, ...],
         row = rows[index]
         rows[index] = dataclasses.replace(row, d=row.d + change[2 * k],
                                           a=row.a + change[2 * k + 1])
+
+
+def scale_model(model: KinematicModel, factor: float) -> KinematicModel:
+    """A copy of ``model`` scaled by ``factor`` about its root: every constant ``d`` and
+    ``a``, radius, palm box size and centre times ``factor`` (a larger or smaller hand of
+    the same proportions; hand sizes of adults span about 0.8 to 1.15 of Appendix A).
+    Joint angles, states and limits are unchanged; prismatic states keep their values.
+    Raises :class:`~digiteyes.synth.options.RenderError` for a factor outside (0.1, 10).
+    """
+    if not (isinstance(factor, (int, float)) and 0.1 < factor < 10.0):
+        raise RenderError(f"scale_model: factor must be a number in (0.1, 10), got {factor!r}")
+    frames = []
+    for row in model.spec.frames:
+        shape = row.shape
+        if shape is not None:
+            shape = ShapeSpec(shape.kind, tuple(v * factor for v in shape.params))
+        frames.append(dataclasses.replace(row, d=row.d * factor, a=row.a * factor,
+                                          shape=shape))
+    return KinematicModel(dataclasses.replace(
+        model.spec, frames=tuple(frames),
+        description=f"{model.description} (scaled by {factor:g})"))

@@ -25,6 +25,7 @@ from digiteyes.kinematics import KinematicModel, format_model_text
 from digiteyes.synth.options import RenderOptions
 from digiteyes.synth.perturb import perturb_model
 from digiteyes.synth.scenarios import Scenario
+from digiteyes.synth.setups import truth_model as scaled_truth_model
 from digiteyes.synth.views import render_views
 
 
@@ -94,18 +95,29 @@ def render_scenario(scenario: Scenario, folder: str | Path, *, seed: int = 0,
                     background: str = "black", color: bool = False, noise: float = 0.0,
                     blur: float = 0.0, perturb: float = 0.0, video: bool = False,
                     force: bool = False, resume: bool = False,
-                    progress: bool | None = None) -> RenderedScenario:
+                    progress: bool | None = None, appearance: str = "model",
+                    skin_tone: str | None = None, shadows: bool = False
+                    ) -> RenderedScenario:
     """Render every frame of ``scenario`` through its rig into the sequence ``folder``
     (docs/dataset.md), with its truth; ``resume`` continues an interrupted render made
     with the same settings, ``force`` lets the writer replace the folder. A Ctrl-C leaves
-    the frames written so far (the folder can be resumed)."""
+    the frames written so far (the folder can be resumed). ``appearance`` is ``"model"``
+    or ``"flesh"`` (docs/appearance.md); a scenario with ``metadata["hand_scale"]`` is
+    drawn from its model scaled by it (the tracking model in the folder stays as it is)."""
     folder = Path(folder)
     options = RenderOptions(color=color, background=background, noise_sigma=noise,
-                            blur_sigma=blur, background_seed=seed)
-    truth_model, truth_info = perturbed_truth(scenario.model, perturb, seed)
+                            blur_sigma=blur, background_seed=seed, appearance=appearance,
+                            skin_tone=skin_tone, shadows=shadows, skin_seed=seed)
+    truth_model, truth_info = perturbed_truth(scaled_truth_model(scenario), perturb, seed)
+    scale = float(scenario.metadata.get("hand_scale", 1.0))
+    if scale != 1.0:
+        truth_info = {**(truth_info or {}), "hand_scale": scale, "file": "truth/model.dh"}
     settings = {"scenario": scenario.name, "seed": seed, "frames": scenario.n_frames,
                 "background": background, "color": color, "noise_sigma": noise,
                 "blur_sigma": blur, "perturb": perturb}
+    extra = {"appearance": appearance, "skin_tone": skin_tone, "shadows": shadows,
+             "hand_scale": scale if scale != 1.0 else None}
+    settings |= {k: v for k, v in extra.items() if v not in ("model", None, False)}
     if resume:
         _check_resume(folder, settings)
     metadata = {"name": scenario.name, "description": scenario.description, "seed": seed,

@@ -6,7 +6,10 @@ Lambert shaded, laid over the backdrop (:mod:`digiteyes.synth.backgrounds`), war
 the lens distortion if any (:mod:`digiteyes.render.distortion`), then blurred, made
 noisy and quantised (:mod:`digiteyes.synth.sensor`). Each view carries the depth image,
 the label image and the keypoints (:mod:`digiteyes.kinematics.keypoints`) with their
-projections and visibility.
+projections and visibility. With ``RenderOptions(appearance="flesh")`` the hand is drawn
+as the independent flesh surface instead (:mod:`digiteyes.render.flesh`), sphere traced
+(:mod:`digiteyes.render.flesh_raster`); keypoints stay the kinematic joint and tip
+centres.
 """
 
 from __future__ import annotations
@@ -22,6 +25,9 @@ from digiteyes.errors import CameraError, StateError
 from digiteyes.kinematics import KinematicModel, forward_kinematics
 from digiteyes.kinematics.keypoints import keypoints
 from digiteyes.render.distortion import camera_canvas
+from digiteyes.render.flesh import FleshScene, build_flesh
+from digiteyes.render.flesh_raster import FleshMaterial, keypoint_visibility, rasterise_flesh
+from digiteyes.render.pixels import PixelGrid
 from digiteyes.render.raster import rasterise
 from digiteyes.render.scene import Scene, build_scene
 from digiteyes.synth.backgrounds import background
@@ -46,9 +52,11 @@ class RenderedView:
     keypoints_2d : (K, 2) pixels, ``camera.project`` of ``keypoints_3d`` (NaN for points
         behind a perspective camera).
     visible : (K,) bool: the keypoint projects inside the image, in front of the camera,
-        and the surface seen at its (rounded) pixel belongs to a link whose solid contains
-        the keypoint (its own link, or a neighbour sharing the joint), i.e. nothing else
-        hides it.
+        and nothing hides it: for the model appearance, the surface seen at its (rounded)
+        pixel belongs to a link whose solid contains the keypoint (its own link, or a
+        neighbour sharing the joint); for the flesh appearance, the first surface along
+        its ray lies no more than 5 mm in front of where the ray leaves the keypoint's own
+        flesh (a depth test, :func:`~digiteyes.render.flesh_raster.keypoint_visibility`).
     keypoint_names : (K,) names.
     """
 
@@ -92,9 +100,14 @@ def render_views(
     cameras = _cameras(rig_or_cameras)
     rng = np.random.default_rng(rng)
     kin = forward_kinematics(model, q)
-    world = build_scene(model, kin)
     names, points = keypoints(model, kin)
     points = points[0]
+    if options.appearance == "flesh":
+        flesh = build_flesh(model, kin)
+        links = _keypoint_links(model, names)
+        return [_render_flesh(flesh, points, names, links, cam, index, options, rng)
+                for index, cam in enumerate(cameras)]
+    world = build_scene(model, kin)
     owners = _owners(world, points, len(model.links))
     return [_render_camera(world, points, names, owners, cam, index, options, rng)
             for index, cam in enumerate(cameras)]
@@ -120,15 +133,91 @@ def _owners(world: Scene, points: np.ndarray, n_links: int) -> np.ndarray:
     return owners
 
 
+def _light_cam(cam: Camera, options: RenderOptions) -> np.ndarray:
+    """Unit direction towards the light in the camera frame (headlight: the camera)."""
+    if options.light_dir is None:
+        return np.array([0.0, 0.0, -1.0])
+    light = np.asarray(options.light_dir, dtype=float)
+    return cam.T_cam_world[:3, :3] @ (light / np.linalg.norm(light))
+
+
+def _keypoint_links(model: KinematicModel, names: tuple[str, ...]) -> np.ndarray:
+    """(K,) index into ``model.links`` of each keypoint's link: keypoints are one per link
+    but the tracked edges, in model order (:mod:`digiteyes.kinematics.keypoints`)."""
+    links = np.array([i for i, link in enumerate(model.links) if link.kind != "edge"])
+    if len(links) != len(names):
+        raise StateError(f"expected {len(links)} keypoints for model {model.name!r}, got "
+                         f"{len(names)}")
+    return links
+
+
+def _render_flesh(world: FleshScene, points: np.ndarray, names: tuple[str, ...],
+                  links: np.ndarray, cam: Camera, index: int, options: RenderOptions,
+                  rng: np.random.Generator) -> RenderedView:
+    scene = world.transformed(cam.T_cam_world)
+    light_cam = _light_cam(cam, options)
+    material = FleshMaterial(albedo=options.skin_colour, ambient=options.ambient,
+                             specular=options.specular, shininess=options.shininess,
+                             texture=options.texture, seed=options.skin_seed,
+                             shadows=options.shadows)
+    grid, warp = camera_canvas(cam)
+    raster = rasterise_flesh(scene, grid, light_cam, material)
+    if options.supersample > 1:
+        ss = options.supersample
+        fine = rasterise_flesh(scene, grid.supersampled(ss), light_cam, material)
+        alpha = _block_mean(fine.hit.astype(np.float32), ss)
+        rgb = _block_mean(fine.rgb, ss)
+    else:
+        alpha = raster.hit.astype(np.float32)
+        rgb = raster.rgb
+    depth, labels = raster.depth, raster.labels
+    if warp is not None:
+        alpha = warp.warp(alpha, nearest=False, fill=0.0)
+        rgb = warp.warp(rgb, nearest=False, fill=0.0)
+        depth = warp.warp(depth, nearest=True, fill=np.inf)
+        labels = warp.warp(labels, nearest=True, fill=-1)
+    if options.color:
+        paint = np.float32(255.0) * rgb
+    else:
+        paint = np.float32(255.0) * (rgb @ np.array([0.299, 0.587, 0.114], dtype=np.float32))
+        if options.skin_tone is None:  # grey images keep the grey albedo's brightness
+            luma = float(np.dot([0.299, 0.587, 0.114], options.skin_colour))
+            paint *= np.float32(options.skin_grey / luma)
+    image = _compose(paint, alpha, options, cam, index, rng)
+    pixels, inside = _project(cam, points)
+    points_cam = points @ cam.T_cam_world[:3, :3].T + cam.T_cam_world[:3, 3]
+    grid0 = PixelGrid.from_camera(cam)
+    visible = inside & keypoint_visibility(scene, points_cam, links, grid0.perspective)
+    return RenderedView(image, depth, labels, points.copy(), pixels, visible, names)
+
+
+def _compose(paint: np.ndarray, alpha: np.ndarray, options: RenderOptions, cam: Camera,
+             index: int, rng: np.random.Generator) -> np.ndarray:
+    """Skin radiance (already times 255 and coverage) over the backdrop, then the sensor."""
+    back = background(options, cam.width, cam.height, index)
+    if options.color:
+        composed = paint + (1.0 - alpha)[..., None] * back
+    else:
+        composed = paint + (1.0 - alpha) * back
+    return expose(composed, options.blur_sigma, options.noise_sigma, rng)
+
+
+def _project(cam: Camera, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pixels (K, 2) of world points (NaN behind a perspective camera) and whether each
+    lies in front of the camera and inside the image."""
+    in_front = cam.depth(points) > 0 if cam.projection == "perspective" else \
+        np.ones(len(points), dtype=bool)
+    pixels = np.full((len(points), 2), np.nan)
+    pixels[in_front] = cam.project(points[in_front])
+    inside = cam.in_image(np.nan_to_num(pixels, nan=-1.0)) & in_front
+    return pixels, inside
+
+
 def _render_camera(world: Scene, points: np.ndarray, names: tuple[str, ...],
                    owners: np.ndarray, cam: Camera, index: int, options: RenderOptions,
                    rng: np.random.Generator) -> RenderedView:
     scene = world.transformed(cam.T_cam_world)
-    if options.light_dir is None:
-        light_cam = np.array([0.0, 0.0, -1.0])  # headlight: towards the camera
-    else:
-        light = np.asarray(options.light_dir, dtype=float)
-        light_cam = cam.T_cam_world[:3, :3] @ (light / np.linalg.norm(light))
+    light_cam = _light_cam(cam, options)
     grid, warp = camera_canvas(cam)
     raster = rasterise(scene, grid, light_cam, options.ambient)
     if options.supersample > 1:
@@ -145,19 +234,13 @@ def _render_camera(world: Scene, points: np.ndarray, names: tuple[str, ...],
         lit = warp.warp(lit, nearest=False, fill=0.0)
         depth = warp.warp(depth, nearest=True, fill=np.inf)
         labels = warp.warp(labels, nearest=True, fill=-1)
-    back = background(options, cam.width, cam.height, index)
     if options.color:
-        skin = np.float32(255.0) * np.asarray(options.skin_rgb, dtype=np.float32)
-        composed = lit[..., None] * skin + (1.0 - alpha)[..., None] * back
+        paint = lit[..., None] * (np.float32(255.0)
+                                  * np.asarray(options.skin_colour, dtype=np.float32))
     else:
-        composed = lit * np.float32(255.0 * options.skin_albedo) + (1.0 - alpha) * back
-    image = expose(composed, options.blur_sigma, options.noise_sigma, rng)
-
-    in_front = cam.depth(points) > 0 if cam.projection == "perspective" else \
-        np.ones(len(points), dtype=bool)
-    pixels = np.full((len(points), 2), np.nan)
-    pixels[in_front] = cam.project(points[in_front])
-    inside = cam.in_image(np.nan_to_num(pixels, nan=-1.0)) & in_front
+        paint = lit * np.float32(255.0 * options.skin_grey)
+    image = _compose(paint, alpha, options, cam, index, rng)
+    pixels, inside = _project(cam, points)
     safe = np.nan_to_num(pixels, nan=0.0)
     u = np.clip(np.rint(safe[:, 0]), 0, cam.width - 1).astype(int)
     v = np.clip(np.rint(safe[:, 1]), 0, cam.height - 1).astype(int)
