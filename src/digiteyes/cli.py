@@ -14,6 +14,7 @@ from digiteyes import __version__
 from digiteyes.commands.bench import bench
 from digiteyes.commands.demo import demo
 from digiteyes.commands.evaluate import evaluate
+from digiteyes.commands.export import export
 from digiteyes.commands.model import model
 from digiteyes.commands.render import render
 from digiteyes.commands.track import track
@@ -26,7 +27,7 @@ def cli() -> None:
     """Model-based 3D tracking of articulated objects (the hand first) from video."""
 
 
-for command in (demo, model, render, track, evaluate, bench):
+for command in (demo, model, render, track, evaluate, export, bench):
     cli.add_command(command)
 
 

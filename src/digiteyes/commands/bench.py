@@ -9,6 +9,7 @@ import click
 SUITES = {
     "kinematics": "digiteyes.benchmarks.kinematics",
     "render": "digiteyes.benchmarks.render",
+    "smoothing": "digiteyes.benchmarks.smoothing",
     "tracker": "digiteyes.benchmarks.tracker",
 }
 
@@ -20,7 +21,7 @@ SUITES = {
                    "suffixed by the suite name).")
 @click.option("--quick", is_flag=True, help="Fewer repeats and frames (for a smoke run).")
 def bench(suite: str, json_path: str | None, quick: bool) -> None:
-    """Run benchmark SUITE: kinematics, render, tracker or all."""
+    """Run benchmark SUITE: kinematics, render, smoothing, tracker or all."""
     names = list(SUITES) if suite == "all" else [suite]
     for name in names:
         path = json_path

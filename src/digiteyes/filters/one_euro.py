@@ -41,13 +41,16 @@ class OneEuroOptions:
     d_cutoff_hz : cutoff of the speed estimate, Hz.
 
     The defaults were tuned by ``digiteyes bench smoothing`` on the ``whole-hand``
-    scenario at 10 frames/s (docs/output.md).
+    scenario at 10 frames/s (docs/output.md): the smallest lag among the grid's settings
+    that cut the still hand's jitter 5x. A slow ``d_cutoff_hz`` keeps the speed of a still
+    hand's noise from opening the filter. At other frame rates or speeds, rerun the
+    benchmark.
     """
 
-    min_cutoff_hz: float = 0.5
-    beta_per_rad: float = 2.0
-    beta_per_mm: float = 0.02
-    d_cutoff_hz: float = 1.0
+    min_cutoff_hz: float = 0.1
+    beta_per_rad: float = 5.0
+    beta_per_mm: float = 0.1
+    d_cutoff_hz: float = 0.2
 
     def __post_init__(self) -> None:
         for name in ("min_cutoff_hz", "d_cutoff_hz"):
