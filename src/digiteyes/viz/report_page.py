@@ -5,7 +5,7 @@ links the overlay video by a relative path in a ``<video>`` element, and lists t
 of ``summary.json`` (the run) and ``metrics.json`` (the accuracy, when the folder was
 evaluated) in tables. It loads nothing from the internet and needs no server: open the file
 in a browser. An evaluation folder (``RESULT_DIR/evaluation``) also shows the run's
-overlay and summary from its parent folder.
+overlay, summary and 3D views from its parent folder.
 """
 
 from __future__ import annotations
@@ -21,7 +21,8 @@ from digiteyes.errors import DatasetError
 
 PAGE_NAME = "report.html"
 STYLE = """
-body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 1100px; color: #222; }
+body { font-family: system-ui, sans-serif; margin: 2em auto; padding: 0 1em; max-width: 1100px;
+       color: #222; }
 h1 { font-size: 1.5em; } h2 { font-size: 1.2em; margin-top: 1.6em; }
 table { border-collapse: collapse; margin: 0.5em 0; }
 td, th { border: 1px solid #ccc; padding: 0.25em 0.6em; text-align: left; }
@@ -112,7 +113,8 @@ def write_report_page(folder: str | Path, title: str | None = None) -> Path:
         parts.append("<h2>Plots</h2>")
         parts += [f"<figure>{_image(p, p.stem)}<figcaption>{html.escape(p.stem)}"
                   "</figcaption></figure>" for p in plots]
-    views = sorted((folder / "views").glob("*.png")) if (folder / "views").is_dir() else []
+    views_dir = next((d for d in (folder / "views", folder.parent / "views") if d.is_dir()), None)
+    views = sorted(views_dir.glob("*.png")) if views_dir is not None else []
     if views:
         parts.append('<h2>3D views of the estimate</h2><div class="views">')
         parts += [f"<figure>{_image(p, p.stem)}<figcaption>{html.escape(p.stem)}"
