@@ -5,6 +5,11 @@ files (our own composition of offsets and rotations) must match forward kinemati
 from __future__ import annotations
 
 import csv
+import json
+import os
+import shutil
+import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -114,13 +119,15 @@ def test_gltf_node_animation_matches_model(track, tmp_path):
             return world[i]
 
         got = np.array([pose(by_name[n])[1] for n in skeleton.names]) * 1000.0
-        np.testing.assert_allclose(got, expected[t], atol=0.02)  # float32 in metres
+        got_zup = got @ np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]]).T  # (x, y, z) <- (x, -z, y)
+        np.testing.assert_allclose(got_zup, expected[t], atol=0.02)  # float32 in metres
     skin = gltf.skins[0]
     assert len(skin.joints) == len(skeleton)
     inverse_bind = _accessor(gltf, skin.inverseBindMatrices).reshape(-1, 4, 4).transpose(0, 2, 1)
     bind_positions = -np.einsum("jik,jk->ji", inverse_bind[:, :3, :3].transpose(0, 2, 1),
                                 inverse_bind[:, :3, 3]) * 1000.0
-    np.testing.assert_allclose(bind_positions, expected[0], atol=0.02)
+    np.testing.assert_allclose(bind_positions @ np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]]).T,
+                               expected[0], atol=0.02)
     positions = _accessor(gltf, gltf.meshes[0].primitives[0].attributes.POSITION)
     assert len(positions) > 0
 
@@ -155,3 +162,25 @@ def test_models_with_prismatic_states_are_refused(tmp_path):
     model = load_model("mouse-hand")
     with pytest.raises(StateError, match="prismatic"):
         export_track(model, [0], model.neutral()[None], [False], FPS, tmp_path, "bvh")
+
+
+def test_gltf_passes_the_khronos_validator(track, tmp_path):
+    """Optional: the Khronos glTF-Validator (npm ``gltf-validator``) when
+    DIGITEYES_GLTF_VALIDATOR names a folder holding node_modules/gltf-validator
+    (``npm install --prefix DIR gltf-validator``)."""
+    folder = os.environ.get("DIGITEYES_GLTF_VALIDATOR")
+    if not folder or not shutil.which("node"):
+        pytest.skip("set DIGITEYES_GLTF_VALIDATOR to a folder with the npm gltf-validator")
+    model, states = track
+    path = export_track(model, np.arange(len(states)), states, np.zeros(len(states)), FPS,
+                        tmp_path, "gltf")
+    package = json.dumps(str(Path(folder) / "node_modules" / "gltf-validator"))
+    script = (f"const v = require({package});"
+              "const fs = require('fs');"
+              f"v.validateBytes(new Uint8Array(fs.readFileSync({json.dumps(str(path))})))"
+              ".then(r => console.log(JSON.stringify(r.issues)))"
+              ".catch(e => { console.error(e); process.exit(1); });")
+    done = subprocess.run(["node", "-e", script], capture_output=True, text=True, timeout=60,
+                          check=True)
+    issues = json.loads(done.stdout)
+    assert issues["numErrors"] == 0 and issues["numWarnings"] == 0, issues["messages"]

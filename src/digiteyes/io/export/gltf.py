@@ -5,7 +5,9 @@ the constant offset, rotation = the local rotation, children = the child joints)
 animation with a rotation channel per joint and a translation channel for the root, a
 skin binding every joint, and a mesh of thin boxes along the bones (each box weighted
 fully to the joint it hangs from) posed at the first frame (the bind pose). glTF's units
-are metres: millimetres are divided by 1000. Quaternions are glTF's (x, y, z, w).
+are metres: millimetres are divided by 1000. glTF's world has +y up: the model's world
+(z up on the tabletop) is turned by :data:`R_GLTF_WORLD` (-90 degrees about x), so the hand
+stands as in the sequence. Quaternions are glTF's (x, y, z, w).
 Written by hand after the specification (Khronos glTF 2.0, sections 3.6-3.11: buffers,
 accessors, skins, animations, GLB container); read back with pygltflib in the tests.
 """
@@ -24,6 +26,8 @@ from digiteyes.io.export.skeleton import Skeleton, build_skeleton, skeleton_moti
 from digiteyes.kinematics import KinematicModel
 
 METRES_PER_MM = 1e-3
+R_GLTF_WORLD = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+"""Rotation from the model's world (z up) to glTF's (y up): (x, y, z) -> (x, z, -y)."""
 BONE_HALF_WIDTH_MM = 3.0
 """Half the side of the square boxes drawn along the bones, mm."""
 
@@ -90,6 +94,9 @@ def write_gltf(path: str | Path, model: KinematicModel, states: np.ndarray, fps:
     return its path."""
     skeleton = build_skeleton(model)
     root, local, positions = skeleton_motion(model, skeleton, states)
+    root = root @ R_GLTF_WORLD.T
+    positions = positions @ R_GLTF_WORLD.T
+    local[:, 0] = R_GLTF_WORLD @ local[:, 0]
     n_frames, n_joints = local.shape[:2]
     quats = Rotation.from_matrix(local.reshape(-1, 3, 3)).as_quat().reshape(n_frames, n_joints, 4)
     # consecutive quaternions on the same hemisphere, so that interpolation takes the short way
