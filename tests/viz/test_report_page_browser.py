@@ -5,6 +5,7 @@ the summary table shows the numbers of summary.json."""
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import time
 from pathlib import Path
@@ -97,4 +98,6 @@ def test_evaluation_folder_links_the_parent_video(track_folder):
     evaluation = track_folder / "evaluation"
     evaluation.mkdir()
     text = write_report_page(evaluation).read_text()
-    assert 'src="../overlay.mp4"' in text and "http" not in text.replace("http-equiv", "")
+    assert 'src="../overlay.mp4"' in text
+    assert not re.search(r'(src|href)="(https?:)?//', text)  # nothing from the internet
+    assert text.count("<img ") == 1  # the parent's 3D view

@@ -107,11 +107,13 @@ def assess(model: KinematicModel, still: np.ndarray, still_truth_kp: np.ndarray,
 
 def tracked_pair(seed: int, n_still: int, n_moving: int, progress: bool) -> dict[str, Any]:
     """Render and track the still and moving hands of ``whole-hand`` with ``seed``: the
-    model, fps, the estimated states and the true keypoints of both."""
+    model, fps, the estimated states and the true keypoints of both, and the moving
+    hand's true states."""
     moving = build_scenario("whole-hand", seed=seed, n_frames=n_moving)
     moving = replace(moving, states=moving.states[:n_moving])
     still = replace(moving, name="still", states=np.repeat(moving.states[:1], n_still, axis=0))
-    pair: dict[str, Any] = {"model": moving.model, "fps": moving.fps}
+    pair: dict[str, Any] = {"model": moving.model, "fps": moving.fps,
+                            "moving_truth_states": moving.states}
     for name, scenario in (("still", still), ("moving", moving)):
         sequence = render_sequence(scenario, seed=seed, progress=progress)
         pair[name] = track_sequence(sequence, FeatureTrackerOptions(), label=name,
