@@ -19,6 +19,7 @@ try:
     from digiteyes.commands.calibrate_hand import calibrate_hand
     from digiteyes.commands.demo import demo
     from digiteyes.commands.evaluate import evaluate
+    from digiteyes.commands.export import export
     from digiteyes.commands.model import model
     from digiteyes.commands.pose import pose
     from digiteyes.commands.prior import prior
@@ -36,7 +37,7 @@ def cli() -> None:
     """Model-based 3D tracking of articulated objects (the hand first) from video."""
 
 
-for command in (demo, model, render, track, evaluate, bench, prior, pose, calibrate_camera,
+for command in (demo, model, render, track, evaluate, export, bench, prior, pose, calibrate_camera,
                 calibrate_hand):
     cli.add_command(command)
 

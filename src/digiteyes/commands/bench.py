@@ -9,6 +9,7 @@ import click
 SUITES = {
     "kinematics": "digiteyes.benchmarks.kinematics",
     "render": "digiteyes.benchmarks.render",
+    "smoothing": "digiteyes.benchmarks.smoothing",
     "tracker": "digiteyes.benchmarks.tracker",
     "smc": "digiteyes.benchmarks.smc",
     "templates": "digiteyes.benchmarks.templates",

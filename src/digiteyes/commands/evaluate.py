@@ -25,6 +25,7 @@ def evaluate(result: Path, gt_dir: Path, output: Path | None, loss_threshold_mm:
     from digiteyes.errors import DatasetError
     from digiteyes.evaluate import evaluate_run, headline_rows, write_report
     from digiteyes.io import open_sequence, read_state_log
+    from digiteyes.viz.report_page import write_report_page
 
     log_path = result if result.is_file() else result / "states.csv"
     with open_sequence(gt_dir) as seq:
@@ -37,9 +38,10 @@ def evaluate(result: Path, gt_dir: Path, output: Path | None, loss_threshold_mm:
         out = output or (log_path.parent / "evaluation")
         report = write_report(metrics, log, seq.truth, seq.model, out, fps=seq.fps,
                               title=f"Evaluation of {log_path} on {seq.name}")
+    page = write_report_page(out, title=f"Evaluation of {log_path} on {seq.name}")
     rows = headline_rows(metrics)
     width = max(len(label) for label, _ in rows)
     click.echo(f"{seq.name}: {metrics['run']['frames']} frames, model {seq.model.name}")
     for label, value in rows:
         click.echo(f"  {label:<{width}}  {value}")
-    click.echo(f"wrote {report} and {out / 'metrics.json'}")
+    click.echo(f"wrote {report}, {page} and {out / 'metrics.json'}")

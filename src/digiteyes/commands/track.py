@@ -4,6 +4,7 @@ on a dataset folder or videos."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from itertools import chain, islice
 from pathlib import Path
 
@@ -14,7 +15,9 @@ from digiteyes.camera import load_rig
 from digiteyes.commands._video_lengths import check_lengths, record_missing
 from digiteyes.errors import CameraError, DatasetError
 from digiteyes.features import FeatureOptions
+from digiteyes.filters import OneEuroOptions
 from digiteyes.io import open_sequence, open_video_frames
+from digiteyes.io.track_extras import write_track_extras
 from digiteyes.kinematics import State, load_model
 from digiteyes.pipeline import TrackingRun, run_tracker
 from digiteyes.trackers import (
@@ -26,6 +29,7 @@ from digiteyes.trackers import (
     tracker_entry,
     tracker_names,
 )
+from digiteyes.viz.report_page import write_report_page
 from digiteyes.warmup import COMPILE_MESSAGE, cold_kernels
 
 HELP = """Track INPUT with a registered tracker (--tracker; default: the DigitEyes feature
@@ -33,8 +37,8 @@ tracker, thesis Sec. 4.3).
 
 INPUT is a dataset folder (see docs/dataset.md; its model, rig and initial state are used
 unless overridden) or one video file per camera of the rig, in rig order (then --model,
---rig and --init are required). Writes states.csv, overlay.mp4, views/, trajectory plots
-and summary.json into OUT. Ctrl-C keeps every frame tracked so far.
+--rig and --init are required). Writes states.csv, joint_angles.csv, overlay.mp4, views/,
+trajectory plots, summary.json and report.html into OUT. Ctrl-C keeps every frame tracked so far.
 """
 
 
@@ -99,6 +103,23 @@ class TrackerOption(click.Option):
         return super().get_help_record(ctx)
 
 
+def smoothing_options(smooth: bool, min_cutoff: float | None,
+                      beta: float | None) -> OneEuroOptions | None:
+    """One Euro settings from the command line (shared with ``digiteyes export``): None
+    unless ``--smooth`` or a setting is given; ``beta`` sets ``beta_per_rad`` and, in the
+    defaults' proportion, ``beta_per_mm``."""
+    if not (smooth or min_cutoff is not None or beta is not None):
+        return None
+    defaults = OneEuroOptions()
+    changes: dict[str, float] = {}
+    if min_cutoff is not None:
+        changes["min_cutoff_hz"] = min_cutoff
+    if beta is not None:
+        changes["beta_per_rad"] = beta
+        changes["beta_per_mm"] = beta * defaults.beta_per_mm / defaults.beta_per_rad
+    return replace(defaults, **changes)
+
+
 def print_run(run: TrackingRun) -> None:
     """Headline figures of a run and where its files are."""
     per_iteration = (f", {run.ms_per_iteration:.2f} ms per iteration"
@@ -112,7 +133,8 @@ def print_run(run: TrackingRun) -> None:
     if run.n_lost:
         click.echo(f"track flagged lost in {run.n_lost} frame(s), first at frame "
                    f"{run.first_lost_frame}")
-    for key in ("states", "overlay", "trajectory-palm", "trajectory-joints", "summary"):
+    for key in ("states", "states-smoothed", "joint-angles", "overlay", "trajectory-palm",
+                "trajectory-joints", "summary", "report"):
         if key in run.files:
             click.echo(f"  {key:<18} {run.files[key]}")
     views = sorted(k for k in run.files if k.startswith("view-"))
@@ -158,6 +180,13 @@ def print_run(run: TrackingRun) -> None:
 @click.option("--fps", type=click.FloatRange(min=0.1), default=None,
               help="Frame rate of the overlay video (default: the dataset's, or 10).")
 @click.option("--no-overlay", is_flag=True, help="Skip the overlay video.")
+@click.option("--smooth", is_flag=True,
+              help="Also write states-smoothed.csv and joint_angles-smoothed.csv, One Euro "
+                   "filtered (docs/output.md).")
+@click.option("--min-cutoff", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="One Euro min_cutoff_hz (implies --smooth; default 0.1).")
+@click.option("--beta", type=click.FloatRange(min=0), default=None,
+              help="One Euro beta_per_rad (implies --smooth; default 5).")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 @click.option("--strict", is_flag=True,
               help="Refuse videos of different lengths instead of tracking the shortest.")
@@ -165,7 +194,8 @@ def track(inputs: tuple[str, ...], model_name: str | None, rig_path: str | None,
           init_path: str | None, output: str, tracker_name: str,
           option_pairs: tuple[str, ...], iterations: int, window: float, links: str,
           robust: str | None, prediction: str, shading: bool, max_frames: int | None,
-          fps: float | None, no_overlay: bool, quiet: bool, strict: bool = False) -> None:
+          fps: float | None, no_overlay: bool, smooth: bool, min_cutoff: float | None,
+          beta: float | None, quiet: bool, strict: bool = False) -> None:
     dataset = None
     lengths = None
     if len(inputs) == 1 and Path(inputs[0]).is_dir():
@@ -210,6 +240,9 @@ def track(inputs: tuple[str, ...], model_name: str | None, rig_path: str | None,
                       progress=not quiet, tracker_name=tracker_name)
     if lengths is not None and not run.interrupted and max_frames is None:
         record_missing(run.files["summary"], lengths[0], run.n_frames, lengths[1])
+    run.files.update(write_track_extras(output, model, rate,
+                                        smoothing_options(smooth, min_cutoff, beta)))
+    run.files["report"] = write_report_page(output)
     print_run(run)
     if run.interrupted:
         raise KeyboardInterrupt

@@ -1,0 +1,207 @@
+"""``digiteyes bench smoothing``: jitter and lag of the One Euro filter against truth.
+
+Two rendered sequences are tracked by the feature tracker (default options) from their
+true first state: a *still* hand (the first state of ``whole-hand`` held for every frame,
+so any motion of the estimate is tracker jitter from image noise) and the *moving*
+``whole-hand`` sequence itself (thesis Sec. 4.3.3 speeds). Figures, before and after
+:func:`~digiteyes.filters.one_euro_filter`:
+
+* jitter: RMS frame-to-frame displacement of the keypoints (joint centres, tips, palm
+  centre), mm, on the still hand after a warm-up of :data:`WARM_UP` frames (the truth does
+  not move, so all of it is noise); also the RMS frame-to-frame change of the joint
+  angles, degrees;
+* lag: the time shift ``s`` (frames) that minimises the RMS keypoint error between the
+  estimate at frame ``t`` and the truth at ``t - s`` (truth interpolated linearly),
+  searched on a grid of :data:`LAG_STEP` frames, on the moving hand; the filter's added lag
+  is the filtered lag minus the raw one;
+* error: mean keypoint error, mm, on both sequences.
+
+A grid of settings (``min_cutoff_hz`` x ``beta_per_rad`` x ``d_cutoff_hz``;
+``beta_per_mm`` = ``beta_per_rad`` / :data:`MM_PER_RAD`) is run on the same two tracks;
+the table marks the settings meeting the targets (jitter down 5x, at most one frame of
+added lag). The defaults are also checked on a second pair of sequences rendered with
+another seed (:data:`HELD_OUT_SEED`), which did not take part in choosing them.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from digiteyes.benchmarks._machine import emit, machine_info, machine_lines
+from digiteyes.benchmarks.tracker import SEED, render_sequence, track_sequence
+from digiteyes.filters import OneEuroOptions, one_euro_filter
+from digiteyes.kinematics import KinematicModel, forward_kinematics
+from digiteyes.kinematics.joint_angles import joint_angles_deg
+from digiteyes.kinematics.keypoints import keypoints
+from digiteyes.synth.scenarios import build_scenario
+from digiteyes.trackers import FeatureTrackerOptions
+
+WARM_UP = 5
+"""Frames left out at the start of each sequence (the tracker and filter settling)."""
+LAG_STEP = 0.05
+MAX_LAG = 4.0
+MM_PER_RAD = 50.0
+"""Ratio of ``beta_per_rad`` to ``beta_per_mm`` in the grid: a finger segment of about
+50 mm turning at 1 rad/s moves its end at about 50 mm/s."""
+MIN_CUTOFFS = (0.1, 0.2, 0.3, 0.5, 1.0)
+BETAS = (0.0, 1.0, 3.0, 5.0, 10.0)
+D_CUTOFFS = (0.2, 1.0)
+HELD_OUT_SEED = SEED + 1
+"""Seed of the second pair of sequences on which the defaults are checked (not tuned)."""
+TARGET_JITTER_RATIO = 5.0
+TARGET_ADDED_LAG = 1.0
+
+
+def keypoint_tracks(model: KinematicModel, states: np.ndarray) -> np.ndarray:
+    """Keypoints (T, K, 3), world mm, of states (T, n_q)."""
+    return keypoints(model, forward_kinematics(model, states))[1]
+
+
+def jitter(model: KinematicModel, states: np.ndarray) -> dict[str, float]:
+    """RMS frame-to-frame keypoint displacement (mm) and joint-angle change (degrees)."""
+    points = keypoint_tracks(model, states[WARM_UP:])
+    _, angles = joint_angles_deg(model, states[WARM_UP:])
+    step = np.linalg.norm(np.diff(points, axis=0), axis=-1)
+    return {"keypoint_mm": float(np.sqrt(np.mean(step ** 2))),
+            "joint_angle_deg": float(np.sqrt(np.mean(np.diff(angles, axis=0) ** 2)))}
+
+
+def lag_frames(estimate_kp: np.ndarray, truth_kp: np.ndarray) -> tuple[float, float]:
+    """The shift ``s`` in frames minimising the RMS of ``estimate[t] - truth(t - s)``, and
+    that RMS (mm); frames whose shifted truth falls outside the sequence are left out."""
+    n = len(truth_kp)
+    t = np.arange(WARM_UP + int(np.ceil(MAX_LAG)), n)
+    best = (0.0, np.inf)
+    for s in np.arange(0.0, MAX_LAG + 1e-9, LAG_STEP):
+        u = t - s
+        lo = np.floor(u).astype(int)
+        w = (u - lo)[:, None, None]
+        shifted = (1.0 - w) * truth_kp[lo] + w * truth_kp[np.minimum(lo + 1, n - 1)]
+        rms = float(np.sqrt(np.mean(np.sum((estimate_kp[t] - shifted) ** 2, axis=-1))))
+        if rms < best[1]:
+            best = (float(s), rms)
+    return best
+
+
+def mean_error_mm(estimate_kp: np.ndarray, truth_kp: np.ndarray) -> float:
+    """Mean keypoint error (mm) after the warm-up."""
+    return float(np.linalg.norm(estimate_kp[WARM_UP:] - truth_kp[WARM_UP:], axis=-1).mean())
+
+
+def assess(model: KinematicModel, still: np.ndarray, still_truth_kp: np.ndarray,
+           moving: np.ndarray, moving_truth_kp: np.ndarray) -> dict[str, Any]:
+    """Jitter, lag and error of one pair of estimated sequences (raw or filtered)."""
+    moving_kp = keypoint_tracks(model, moving)
+    lag, lag_rms = lag_frames(moving_kp, moving_truth_kp)
+    return {"jitter_still": jitter(model, still), "lag_frames": lag,
+            "rms_at_lag_mm": lag_rms,
+            "error_still_mm": mean_error_mm(keypoint_tracks(model, still), still_truth_kp),
+            "error_moving_mm": mean_error_mm(moving_kp, moving_truth_kp),
+            "jitter_moving": jitter(model, moving)}
+
+
+def tracked_pair(seed: int, n_still: int, n_moving: int, progress: bool) -> dict[str, Any]:
+    """Render and track the still and moving hands of ``whole-hand`` with ``seed``: the
+    model, fps, the estimated states and the true keypoints of both, and the moving
+    hand's true states."""
+    moving = build_scenario("whole-hand", seed=seed, n_frames=n_moving)
+    moving = replace(moving, states=moving.states[:n_moving])
+    still = replace(moving, name="still", states=np.repeat(moving.states[:1], n_still, axis=0))
+    pair: dict[str, Any] = {"model": moving.model, "fps": moving.fps,
+                            "moving_truth_states": moving.states}
+    for name, scenario in (("still", still), ("moving", moving)):
+        sequence = render_sequence(scenario, seed=seed, progress=progress)
+        pair[name] = track_sequence(sequence, FeatureTrackerOptions(), label=name,
+                                    progress=progress).log.states
+        pair[f"{name}_truth"] = keypoint_tracks(moving.model, scenario.states)
+    return pair
+
+
+def run(json_path: str | None = None, quick: bool = False, *, progress: bool = True) -> dict:
+    """Track the still and moving hands, filter with a grid of settings and with the
+    defaults, print the table and optionally write JSON (see the module docstring)."""
+    started = time.perf_counter()
+    n_still, n_moving = (30, 80) if quick else (80, 200)
+    pair = tracked_pair(SEED, n_still, n_moving, progress)
+    model, fps = pair["model"], pair["fps"]
+
+    def evaluate(options: OneEuroOptions | None, pair: dict[str, Any] = pair) -> dict[str, Any]:
+        still, moving = pair["still"], pair["moving"]
+        if options is not None:
+            still = one_euro_filter(model, still, fps, options)
+            moving = one_euro_filter(model, moving, fps, options)
+        return assess(model, still, pair["still_truth"], moving, pair["moving_truth"])
+
+    raw = evaluate(None)
+    grid = []
+    for cutoff, beta, d_cutoff in itertools.product(MIN_CUTOFFS, BETAS, D_CUTOFFS):
+        options = OneEuroOptions(min_cutoff_hz=cutoff, beta_per_rad=beta,
+                                 beta_per_mm=beta / MM_PER_RAD, d_cutoff_hz=d_cutoff)
+        grid.append({"min_cutoff_hz": cutoff, "beta_per_rad": beta,
+                     "beta_per_mm": beta / MM_PER_RAD, "d_cutoff_hz": d_cutoff,
+                     **_versus(raw, evaluate(options))})
+    defaults = OneEuroOptions()
+    held_out = tracked_pair(HELD_OUT_SEED, n_still, n_moving, progress)
+    held_out_raw = evaluate(None, held_out)
+    result: dict[str, Any] = {
+        "benchmark": "smoothing", "quick": quick, "machine": machine_info(),
+        "settings": {"seed": SEED, "held_out_seed": HELD_OUT_SEED, "fps": fps,
+                     "still_frames": n_still,
+                     "moving_frames": n_moving, "warm_up": WARM_UP, "lag_step": LAG_STEP,
+                     "targets": {"jitter_ratio": TARGET_JITTER_RATIO,
+                                 "added_lag_frames": TARGET_ADDED_LAG}},
+        "raw": raw,
+        "defaults": {"options": defaults.__dict__, **_versus(raw, evaluate(defaults))},
+        "held_out": {"seed": HELD_OUT_SEED, "raw": held_out_raw,
+                     **_versus(held_out_raw, evaluate(defaults, held_out))},
+        "grid": grid,
+    }
+    result["wall_seconds"] = time.perf_counter() - started
+    return emit(result, format_table(result), json_path)
+
+
+def _versus(raw: dict[str, Any], filtered: dict[str, Any]) -> dict[str, Any]:
+    ratio = raw["jitter_still"]["keypoint_mm"] / max(filtered["jitter_still"]["keypoint_mm"],
+                                                     1e-12)
+    added = filtered["lag_frames"] - raw["lag_frames"]
+    return {"filtered": filtered, "jitter_ratio": ratio, "added_lag_frames": added,
+            "meets_targets": bool(ratio >= TARGET_JITTER_RATIO
+                                  and added <= TARGET_ADDED_LAG + 1e-9)}
+
+
+def _row(label: str, entry: dict[str, Any]) -> str:
+    f = entry["filtered"]
+    mark = "yes" if entry["meets_targets"] else "no"
+    return (f"{label:<26} {f['jitter_still']['keypoint_mm']:>8.3f} {entry['jitter_ratio']:>6.1f}x"
+            f" {f['lag_frames']:>6.2f} {entry['added_lag_frames']:>+6.2f}"
+            f" {f['error_still_mm']:>7.2f} {f['error_moving_mm']:>7.2f}  {mark}")
+
+
+def format_table(result: dict[str, Any]) -> str:
+    """The table of :func:`run`: raw, the defaults, then the grid."""
+    raw = result["raw"]
+    s = result["settings"]
+    lines = [f"smoothing benchmark{' (quick)' if result['quick'] else ''}",
+             *machine_lines(result["machine"]),
+             f"still hand {s['still_frames']} frames, whole-hand {s['moving_frames']} frames at "
+             f"{s['fps']:g} frames/s; targets: jitter down {TARGET_JITTER_RATIO:g}x, added lag "
+             f"<= {TARGET_ADDED_LAG:g} frame", "",
+             f"{'settings':<26} {'jitter':>8} {'ratio':>7} {'lag':>6} {'added':>6}"
+             f" {'err st':>7} {'err mv':>7}  targets",
+             f"{'':<26} {'mm/frm':>8} {'':>7} {'frames':>6} {'frames':>6} {'mm':>7} {'mm':>7}",
+             f"{'raw tracker':<26} {raw['jitter_still']['keypoint_mm']:>8.3f} {'1.0x':>7}"
+             f" {raw['lag_frames']:>6.2f} {'':>6} {raw['error_still_mm']:>7.2f}"
+             f" {raw['error_moving_mm']:>7.2f}",
+             _row("defaults", result["defaults"]),
+             _row(f"defaults, seed {result['held_out']['seed']} (held out)",
+                  result["held_out"])]
+    for entry in result["grid"]:
+        label = (f"fc {entry['min_cutoff_hz']:g}, beta {entry['beta_per_rad']:g}, "
+                 f"dc {entry['d_cutoff_hz']:g}")
+        lines.append(_row(label, entry))
+    return "\n".join(lines)

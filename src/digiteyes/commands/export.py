@@ -1,0 +1,46 @@
+"""``digiteyes export TRACK_DIR -o OUT_DIR --format bvh|gltf|csv|parquet``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+HELP = """Export the track in TRACK_DIR (a `digiteyes track` output folder, or its
+states.csv) for animation and analysis tools (docs/output.md): BVH (track.bvh, mm), glTF
+2.0 (track.glb, an animated skinned skeleton, metres), CSV or Parquet (track.csv,
+track.parquet: states, joint angles in degrees, 3D keypoints in mm). --smooth applies the
+One Euro filter first."""
+
+
+@click.command(help=HELP)
+@click.argument("track_dir", metavar="TRACK_DIR", type=click.Path(exists=True, path_type=Path))
+@click.option("-o", "--output", required=True, type=click.Path(file_okay=False, path_type=Path),
+              help="Output folder.")
+@click.option("--format", "formats", multiple=True, required=True,
+              type=click.Choice(["bvh", "gltf", "csv", "parquet"]),
+              help="Export format (repeat for several).")
+@click.option("--model", "model_name",
+              help="Model name or .dh file (default: the shipped model the log's header fits).")
+@click.option("--fps", type=click.FloatRange(min=0.1), default=None,
+              help="Frame rate (default: TRACK_DIR/summary.json's, else 10).")
+@click.option("--smooth", is_flag=True, help="One Euro filter the states first (defaults).")
+@click.option("--min-cutoff", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="One Euro min_cutoff_hz (implies --smooth).")
+@click.option("--beta", type=click.FloatRange(min=0), default=None,
+              help="One Euro beta_per_rad (implies --smooth).")
+def export(track_dir: Path, output: Path, formats: tuple[str, ...], model_name: str | None,
+           fps: float | None, smooth: bool, min_cutoff: float | None,
+           beta: float | None) -> None:
+    from digiteyes.commands.track import smoothing_options
+    from digiteyes.io.export import export_track
+    from digiteyes.io.track_extras import read_track
+    from digiteyes.models import load_model
+
+    options = smoothing_options(smooth, min_cutoff, beta)
+    model = load_model(model_name) if model_name else None
+    model, log, fps = read_track(track_dir, model, fps, options)
+    for fmt in dict.fromkeys(formats):
+        path = export_track(model, log.frames, log.states, log.lost, fps, output, fmt)
+        click.echo(f"wrote {path} ({len(log)} frames, {fps:g} frames/s"
+                   f"{', One Euro filtered' if options else ''})")

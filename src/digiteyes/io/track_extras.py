@@ -1,0 +1,105 @@
+"""What ``digiteyes track`` writes after tracking, from the state log: joint angles,
+the One Euro-filtered states, the report page; and how a track folder is read back for
+``digiteyes export`` (its model and its states, raw or filtered)."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+
+from digiteyes.errors import DatasetError, DigitEyesError
+from digiteyes.filters import OneEuroOptions, one_euro_filter
+from digiteyes.io.state_log import LOG_COLUMNS, StateLog, StateLogWriter, read_state_log
+from digiteyes.kinematics import KinematicModel
+from digiteyes.kinematics.joint_angles import write_joint_angles_csv
+from digiteyes.models import load_model, shipped_models
+
+STATES = "states.csv"
+SMOOTHED_STATES = "states-smoothed.csv"
+JOINT_ANGLES = "joint_angles.csv"
+SMOOTHED_JOINT_ANGLES = "joint_angles-smoothed.csv"
+DEFAULT_FPS = 10.0
+
+
+def smooth_log(log: StateLog, model: KinematicModel, fps: float,
+               options: OneEuroOptions | None = None) -> StateLog:
+    """The log with its states One Euro-filtered (restarting after each lost frame)."""
+    reset = np.concatenate([[False], log.lost[:-1]]) if len(log) else log.lost
+    states = one_euro_filter(model, log.states, fps, options, reset=reset)
+    return StateLog(log.frames, states, log.lost, log.residual_rms_px, log.iterations,
+                    log.time_s)
+
+
+def write_log(path: Path, log: StateLog, model: KinematicModel) -> Path:
+    """Write ``log`` as a state log (the format of ``states.csv``)."""
+    with StateLogWriter(path, model) as writer:
+        for i in range(len(log)):
+            writer.append(int(log.frames[i]), log.states[i], time_s=float(log.time_s[i]),
+                          lost=bool(log.lost[i]),
+                          residual_rms_px=float(log.residual_rms_px[i]),
+                          iterations=int(log.iterations[i]))
+    return path
+
+
+def write_track_extras(out_dir: str | Path, model: KinematicModel, fps: float,
+                       smooth: OneEuroOptions | None = None) -> dict[str, Path]:
+    """From ``out_dir/states.csv``: ``joint_angles.csv`` and, with ``smooth``,
+    ``states-smoothed.csv`` and ``joint_angles-smoothed.csv``; return the files by key."""
+    out = Path(out_dir)
+    log = read_state_log(out / STATES, model)
+    files = {"joint-angles": write_joint_angles_csv(out / JOINT_ANGLES, model, log.frames,
+                                                    log.states)}
+    if smooth is not None and len(log):
+        smoothed = smooth_log(log, model, fps, smooth)
+        files["states-smoothed"] = write_log(out / SMOOTHED_STATES, smoothed, model)
+        files["joint-angles-smoothed"] = write_joint_angles_csv(
+            out / SMOOTHED_JOINT_ANGLES, model, smoothed.frames, smoothed.states)
+    return files
+
+
+def model_of_log(path: str | Path) -> KinematicModel:
+    """The shipped model whose state names are exactly the state columns of a state log.
+    Raises :class:`DatasetError` when none or several fit (then pass ``--model``)."""
+    path = Path(path)
+    try:
+        with open(path, newline="", encoding="utf-8") as handle:
+            header = next(csv.reader(handle), [])
+    except OSError as exc:
+        raise DatasetError(f"{path}: cannot read state log ({exc.strerror or exc})") from None
+    names = tuple(h for h in header if h not in LOG_COLUMNS)
+    fits = [m for m in shipped_models() if load_model(m).state_names == names]
+    if len(fits) != 1:
+        raise DatasetError(f"{path}: cannot tell the model from the header "
+                           f"({'several' if fits else 'no'} shipped model(s) fit); give --model")
+    return load_model(fits[0])
+
+
+def track_fps(track_dir: str | Path) -> float | None:
+    """The frame rate recorded in ``summary.json`` (key ``fps``), or None."""
+    path = Path(track_dir) / "summary.json"
+    if not path.is_file():
+        return None
+    try:
+        value = json.loads(path.read_text(encoding="utf-8")).get("fps")
+    except (OSError, ValueError) as exc:
+        raise DatasetError(f"{path}: cannot read ({exc})") from None
+    return float(value) if isinstance(value, int | float) and value > 0 else None
+
+
+def read_track(track_dir: str | Path, model: KinematicModel | None, fps: float | None,
+               smooth: OneEuroOptions | None) -> tuple[KinematicModel, StateLog, float]:
+    """Model, state log (filtered when ``smooth``) and frame rate of a track folder (or a
+    state-log file). ``fps`` None: the folder's ``summary.json``, else 10."""
+    track_dir = Path(track_dir)
+    log_path = track_dir if track_dir.is_file() else track_dir / STATES
+    if not log_path.is_file():
+        raise DigitEyesError(f"{track_dir}: no {STATES} (not a track folder)")
+    model = model or model_of_log(log_path)
+    fps = fps or track_fps(log_path.parent) or DEFAULT_FPS
+    log = read_state_log(log_path, model)
+    if smooth is not None:
+        log = smooth_log(log, model, fps, smooth)
+    return model, log, fps

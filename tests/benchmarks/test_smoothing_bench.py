@@ -1,0 +1,41 @@
+"""The smoothing benchmark's measures on inputs with known answers (no tracking)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from digiteyes.benchmarks import smoothing as bench
+from digiteyes.kinematics import load_model
+
+
+def test_lag_recovers_a_known_delay():
+    t = np.arange(60, dtype=float)
+    truth = np.stack([np.sin(0.2 * t), np.cos(0.13 * t), 0.01 * t ** 1.5], axis=-1)[:, None, :]
+    delayed = np.stack([np.sin(0.2 * (t - 1.3)), np.cos(0.13 * (t - 1.3)),
+                        0.01 * np.clip(t - 1.3, 0, None) ** 1.5], axis=-1)[:, None, :]
+    lag, rms = bench.lag_frames(delayed, truth)
+    assert lag == pytest.approx(1.3, abs=bench.LAG_STEP)
+    assert rms < 0.01
+    assert bench.lag_frames(truth, truth) == (0.0, 0.0)
+
+
+def test_jitter_of_a_still_and_a_trembling_hand():
+    model = load_model("hand")
+    still = np.repeat(model.neutral()[None], 20, axis=0)
+    assert bench.jitter(model, still) == {"keypoint_mm": 0.0, "joint_angle_deg": 0.0}
+    trembling = still.copy()
+    trembling[::2, 4] += 1.0  # the palm jumps 1 mm along x every other frame
+    assert bench.jitter(model, trembling)["keypoint_mm"] == pytest.approx(1.0)
+    assert bench.jitter(model, trembling)["joint_angle_deg"] == 0.0
+
+
+def test_targets_need_both_ratio_and_lag():
+    raw = {"jitter_still": {"keypoint_mm": 1.0}, "lag_frames": 0.1}
+
+    def filtered(jitter, lag):
+        return {"jitter_still": {"keypoint_mm": jitter}, "lag_frames": lag}
+
+    assert bench._versus(raw, filtered(0.19, 1.1))["meets_targets"]
+    assert not bench._versus(raw, filtered(0.21, 0.5))["meets_targets"]
+    assert not bench._versus(raw, filtered(0.1, 1.2))["meets_targets"]
