@@ -15,6 +15,7 @@ from digiteyes.commands.bench import bench
 from digiteyes.commands.demo import demo
 from digiteyes.commands.evaluate import evaluate
 from digiteyes.commands.model import model
+from digiteyes.commands.mouse import mouse
 from digiteyes.commands.render import render
 from digiteyes.commands.track import track
 from digiteyes.errors import DigitEyesError
@@ -26,7 +27,7 @@ def cli() -> None:
     """Model-based 3D tracking of articulated objects (the hand first) from video."""
 
 
-for command in (demo, model, render, track, evaluate, bench):
+for command in (demo, model, render, track, evaluate, bench, mouse):
     cli.add_command(command)
 
 
