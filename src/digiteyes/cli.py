@@ -18,6 +18,7 @@ from digiteyes.commands.model import model
 from digiteyes.commands.mouse import mouse
 from digiteyes.commands.render import render
 from digiteyes.commands.track import track
+from digiteyes.commands.track_many import track_many_command
 from digiteyes.errors import DigitEyesError
 
 
@@ -27,7 +28,7 @@ def cli() -> None:
     """Model-based 3D tracking of articulated objects (the hand first) from video."""
 
 
-for command in (demo, model, render, track, evaluate, bench, mouse):
+for command in (demo, model, render, track, evaluate, bench, mouse, track_many_command):
     cli.add_command(command)
 
 

@@ -2,25 +2,12 @@
 
 from __future__ import annotations
 
-from itertools import chain, islice
-from pathlib import Path
-
 import click
-import numpy as np
 
-from digiteyes.camera import load_rig
-from digiteyes.errors import CameraError, DatasetError
-from digiteyes.features import FeatureOptions
-from digiteyes.io import open_sequence, open_video_frames
-from digiteyes.kinematics import State
-from digiteyes.models import load_model
-from digiteyes.pipeline import TrackingRun, run_tracker
-from digiteyes.trackers import (
-    FeatureTracker,
-    FeatureTrackerOptions,
-    all_features,
-    thesis_whole_hand_links,
-)
+from digiteyes.pipeline import TrackingRun
+from digiteyes.track_job import TrackJob, run_track_job, tracker_options
+
+__all__ = ["print_run", "track", "tracker_options"]
 
 HELP = """Track INPUT with the DigitEyes feature tracker (thesis Sec. 4.3).
 
@@ -29,21 +16,6 @@ unless overridden) or one video file per camera of the rig, in rig order (then -
 --rig and --init are required). Writes states.csv, overlay.mp4, views/, trajectory plots
 and summary.json into OUT. Ctrl-C keeps every frame tracked so far.
 """
-
-
-def tracker_options(iterations: int, window: float, links: str, model, robust: str | None,
-                    prediction: str, shading: bool = True) -> FeatureTrackerOptions:
-    """Tracker settings from the command-line choices (shared with ``digiteyes demo``)."""
-    chosen = {"default": None, "all": all_features(model),
-              "thesis": thesis_whole_hand_links(model)}[links]
-    return FeatureTrackerOptions(
-        iterations_per_frame=iterations,
-        features=FeatureOptions(window_px=window),
-        links=chosen,
-        robust_loss=robust,
-        prediction=prediction,
-        shading_correction=shading,
-    )
 
 
 def print_run(run: TrackingRun) -> None:
@@ -99,42 +71,9 @@ def track(inputs: tuple[str, ...], model_name: str | None, rig_path: str | None,
           init_path: str | None, output: str, iterations: int, window: float, links: str,
           robust: str | None, prediction: str, shading: bool, max_frames: int | None,
           fps: float | None, no_overlay: bool, quiet: bool) -> None:
-    dataset = None
-    if len(inputs) == 1 and Path(inputs[0]).is_dir():
-        dataset = open_sequence(inputs[0])
-    elif any(Path(p).is_dir() for p in inputs):
-        raise DatasetError("give one dataset folder, or one video file per camera")
-    if dataset is None and not (model_name and rig_path and init_path):
-        raise click.UsageError("tracking videos needs --model, --rig and --init")
-    model = load_model(model_name) if model_name else dataset.model
-    rig = load_rig(rig_path) if rig_path else dataset.rig
-    if init_path:
-        initial = State.load_json(model, init_path).q
-    else:
-        initial = State(model, dataset.initial_state).q
-    if dataset is not None:
-        frames = iter(dataset)
-        total = dataset.n_frames
-        rate = fps or dataset.fps
-    else:
-        if len(inputs) != len(rig):
-            raise CameraError(f"the rig has {len(rig)} camera(s) ({', '.join(rig.names)}) but "
-                              f"{len(inputs)} video(s) were given")
-        frames = open_video_frames(list(inputs))
-        total = None
-        rate = fps or 10.0
-    if max_frames is not None:
-        frames = islice(frames, max_frames)
-        total = max_frames if total is None else min(total, max_frames)
-    first = next(frames, None)
-    if first is None:
-        raise DatasetError(f"{inputs[0]}: no frames to track")
-    rig.check_images(first)
-    options = tracker_options(iterations, window, links, model, robust, prediction, shading)
-    tracker = FeatureTracker(model, rig, options)
-    run = run_tracker(tracker, model, rig, chain([first], frames), np.asarray(initial),
-                      output, fps=rate, total=total, overlay=not no_overlay,
-                      progress=not quiet)
+    job = TrackJob(inputs, output, model_name, rig_path, init_path, iterations, window, links,
+                   robust, prediction, shading, max_frames, fps, not no_overlay, not quiet)
+    run = run_track_job(job)
     print_run(run)
     if run.interrupted:
         raise KeyboardInterrupt
