@@ -148,16 +148,18 @@ def render_scenario_frames(name: str = "mouse", seed: int = 0, n_frames: int | N
         scenario = resample_scenario(scenario, speed)
     if n_frames is not None:
         scenario = replace(scenario, states=scenario.states[:n_frames])
+    return scenario, render_frames(scenario, seed)
+
+
+def render_frames(scenario, seed: int = 0) -> Iterator[list[np.ndarray]]:
+    """The frames of ``scenario.states`` rendered one at a time through its rig (grey,
+    black cloth, noise :data:`SCENARIO_NOISE_SIGMA`, seeds as ``digiteyes render``)."""
     options = RenderOptions(background="black", noise_sigma=SCENARIO_NOISE_SIGMA,
                             background_seed=seed)
-
-    def frames() -> Iterator[list[np.ndarray]]:
-        for t, q in enumerate(scenario.states):
-            views = render_views(scenario.model, q, scenario.rig, options,
-                                 np.random.default_rng([seed, t]))
-            yield [v.image for v in views]
-
-    return scenario, frames()
+    for t, q in enumerate(scenario.states):
+        views = render_views(scenario.model, q, scenario.rig, options,
+                             np.random.default_rng([seed, t]))
+        yield [v.image for v in views]
 
 
 def resample_scenario(scenario, speed: float):

@@ -10,6 +10,8 @@ SUITES = {
     "kinematics": "digiteyes.benchmarks.kinematics",
     "render": "digiteyes.benchmarks.render",
     "tracker": "digiteyes.benchmarks.tracker",
+    "mouse": "digiteyes.benchmarks.mouse",
+    "track-many": "digiteyes.benchmarks.track_many",
 }
 
 
@@ -20,7 +22,7 @@ SUITES = {
                    "suffixed by the suite name).")
 @click.option("--quick", is_flag=True, help="Fewer repeats and frames (for a smoke run).")
 def bench(suite: str, json_path: str | None, quick: bool) -> None:
-    """Run benchmark SUITE: kinematics, render, tracker or all."""
+    """Run benchmark SUITE: kinematics, render, tracker, mouse, track-many or all."""
     names = list(SUITES) if suite == "all" else [suite]
     for name in names:
         path = json_path
