@@ -5,11 +5,11 @@
 "use strict";
 
 const LIGHT = [0.35, -0.25, 1.0];    // direction towards the light (shadows fall away from it)
-const EYE = [260.0, -420.0, 300.0];  // viewer position, mm
-const TARGET = [0.0, 20.0, 20.0];    // point looked at, mm
-const FOCAL_PX = 620.0;
-const GRID_HALF_MM = 200.0;
-const GRID_STEP_MM = 25.0;
+const EYE = [280.0, -480.0, 330.0];  // viewer position, mm
+const TARGET = [0.0, 15.0, 25.0];    // point looked at, mm
+const FOCAL_PX = 900.0;
+const GRID_HALF_MM = 120.0;
+const GRID_STEP_MM = 20.0;
 
 // Everything the page knows, exposed for tests and the console.
 const mouse = {
@@ -106,8 +106,8 @@ function drawSphere(ctx, canvas, s) {
 
 function drawPole(ctx, canvas, tip) {
   const base = [tip[0], tip[1], 0];
-  line(ctx, canvas, base, shadowOf(tip), "rgba(0,0,0,0.55)", 4);
-  line(ctx, canvas, base, tip, "#f0f0f0", 3);
+  line(ctx, canvas, base, shadowOf(tip), "rgba(0,0,0,0.6)", 5);
+  line(ctx, canvas, base, tip, "#f0f0f0", 5);
   const t = project(canvas, tip);
   ctx.fillStyle = mouse.buttons.thumb ? "#ffb347" : "#ff5050";
   ctx.beginPath(); ctx.arc(t.x, t.y, Math.max(3, FOCAL_PX * 5 / t.depth), 0, 2 * Math.PI); ctx.fill();
