@@ -39,7 +39,7 @@ def render_inputs(folder: Path, count: int, frames: int) -> list[str]:
     paths = []
     for seed in range(count):
         path = folder / f"mouse-{seed}"
-        with contextlib.redirect_stderr(io.StringIO()):
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
             code = main(["render", "mouse", "-o", str(path), "--frames", str(frames),
                          "--seed", str(seed)])
         if code != 0:
