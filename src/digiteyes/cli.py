@@ -21,10 +21,12 @@ try:
     from digiteyes.commands.evaluate import evaluate
     from digiteyes.commands.export import export
     from digiteyes.commands.model import model
+    from digiteyes.commands.mouse import mouse
     from digiteyes.commands.pose import pose
     from digiteyes.commands.prior import prior
     from digiteyes.commands.render import render
     from digiteyes.commands.track import track
+    from digiteyes.commands.track_many import track_many_command
     from digiteyes.errors import DigitEyesError
 except KeyboardInterrupt:  # Ctrl-C while the libraries load: one line, no traceback
     sys.stderr.write("digiteyes: interrupted\n")
@@ -37,8 +39,8 @@ def cli() -> None:
     """Model-based 3D tracking of articulated objects (the hand first) from video."""
 
 
-for command in (demo, model, render, track, evaluate, export, bench, prior, pose, calibrate_camera,
-                calibrate_hand):
+for command in (demo, model, render, track, evaluate, export, bench, prior, pose,
+                calibrate_camera, calibrate_hand, mouse, track_many_command):
     cli.add_command(command)
 
 

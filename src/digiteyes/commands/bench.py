@@ -13,6 +13,8 @@ SUITES = {
     "tracker": "digiteyes.benchmarks.tracker",
     "smc": "digiteyes.benchmarks.smc",
     "templates": "digiteyes.benchmarks.templates",
+    "mouse": "digiteyes.benchmarks.mouse",
+    "track-many": "digiteyes.benchmarks.track_many",
 }
 
 
