@@ -12,7 +12,7 @@ import pytest
 
 from digiteyes.cli import main
 from digiteyes.io import read_state_log
-from digiteyes.models import load_model
+from digiteyes.kinematics import load_model
 from digiteyes.track_job import TrackJob, run_track_job
 from digiteyes.track_many import (
     DONE_MARKER,

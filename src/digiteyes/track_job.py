@@ -19,8 +19,7 @@ from digiteyes.camera import load_rig
 from digiteyes.errors import CameraError, DatasetError
 from digiteyes.features import FeatureOptions
 from digiteyes.io import open_sequence, open_video_frames
-from digiteyes.kinematics import KinematicModel, State
-from digiteyes.models import load_model
+from digiteyes.kinematics import KinematicModel, State, load_model
 from digiteyes.pipeline import TrackingRun, run_tracker
 from digiteyes.trackers import (
     FeatureTracker,

@@ -23,7 +23,7 @@ from digiteyes.apps.mouse_browser import (
 )
 from digiteyes.apps.mouse_server import DEFAULT_SPHERE, static_file
 from digiteyes.io import StateLogWriter, read_state_log
-from digiteyes.models import load_model
+from digiteyes.kinematics import load_model
 from digiteyes.synth.scenarios import MOUSE_RAISE
 
 N_REPLAY = 50

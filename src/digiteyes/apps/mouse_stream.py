@@ -35,8 +35,7 @@ from digiteyes.apps.mouse3d import buttons_from_state, pole_from_state
 from digiteyes.camera import Rig, load_rig
 from digiteyes.errors import CameraError, DatasetError
 from digiteyes.io import VideoReader, open_sequence, open_video_frames, read_state_log
-from digiteyes.kinematics import KinematicModel, State
-from digiteyes.models import load_model
+from digiteyes.kinematics import KinematicModel, State, load_model
 from digiteyes.pipeline import overlay_image
 from digiteyes.synth import RenderOptions, render_views
 from digiteyes.synth.scenarios import build_scenario

@@ -35,7 +35,7 @@ def export(track_dir: Path, output: Path, formats: tuple[str, ...], model_name: 
     from digiteyes.commands.track import smoothing_options
     from digiteyes.io.export import export_track
     from digiteyes.io.track_extras import read_track
-    from digiteyes.models import load_model
+    from digiteyes.kinematics import load_model
 
     options = smoothing_options(smooth, min_cutoff, beta)
     model = load_model(model_name) if model_name else None

@@ -13,9 +13,9 @@ import numpy as np
 from digiteyes.errors import DatasetError, DigitEyesError
 from digiteyes.filters import OneEuroOptions, one_euro_filter
 from digiteyes.io.state_log import LOG_COLUMNS, StateLog, StateLogWriter, read_state_log
-from digiteyes.kinematics import KinematicModel
+from digiteyes.kinematics import KinematicModel, load_model
 from digiteyes.kinematics.joint_angles import write_joint_angles_csv
-from digiteyes.models import load_model, shipped_models
+from digiteyes.models import shipped_models
 
 STATES = "states.csv"
 SMOOTHED_STATES = "states-smoothed.csv"
