@@ -28,6 +28,7 @@ import numpy as np
 
 from digiteyes.kinematics import KinematicModel, dh_transform
 from digiteyes.kinematics.model_file import FrameSpec, ShapeSpec
+from digiteyes.kinematics.scaling import scaled_model
 from digiteyes.render.scene import tip_of_link
 from digiteyes.synth.options import RenderError
 
@@ -147,13 +148,4 @@ def scale_model(model: KinematicModel, factor: float) -> KinematicModel:
     """
     if not (isinstance(factor, (int, float)) and 0.1 < factor < 10.0):
         raise RenderError(f"scale_model: factor must be a number in (0.1, 10), got {factor!r}")
-    frames = []
-    for row in model.spec.frames:
-        shape = row.shape
-        if shape is not None:
-            shape = ShapeSpec(shape.kind, tuple(v * factor for v in shape.params))
-        frames.append(dataclasses.replace(row, d=row.d * factor, a=row.a * factor,
-                                          shape=shape))
-    return KinematicModel(dataclasses.replace(
-        model.spec, frames=tuple(frames),
-        description=f"{model.description} (scaled by {factor:g})"))
+    return scaled_model(model, float(factor))
