@@ -38,6 +38,8 @@ from digiteyes.features import FeatureOptions, feature_residuals, measure_featur
 from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import KinematicModel, forward_kinematics, validate_state
 from digiteyes.kinematics.anatomy import DIGITS
+from digiteyes.occlusion.parts import TemplatePlane, template_parts
+from digiteyes.occlusion.segmentation import segment_image
 from digiteyes.occlusion.visibility import (
     VisibilityOrder,
     occlusion_events,
@@ -46,7 +48,6 @@ from digiteyes.occlusion.visibility import (
 from digiteyes.occlusion.windows import image_windows
 from digiteyes.solvers import SolverSummary, hand_conditioning, solve_normal_equations
 from digiteyes.templates.filtering import TemplateError
-from digiteyes.templates.geometry import TemplatePlane, template_parts
 from digiteyes.templates.layered import (
     CameraTemplates,
     LayeredEvaluation,
@@ -54,7 +55,6 @@ from digiteyes.templates.layered import (
     acquire_templates,
     evaluate_layered,
     refresh_templates,
-    segment_image,
 )
 from digiteyes.trackers.base import TrackResult
 from digiteyes.trackers.parameterisation import StateParameterisation
@@ -63,9 +63,9 @@ from digiteyes.trackers.prediction import PREDICTIONS, PredictionKind, StatePred
 TEMPLATE_TIMING_STAGES = ("prediction", "filtering", "visibility", "template_rendering",
                           "residual", "jacobian", "linear_solve", "refresh")
 """Stages of :attr:`TrackResult.timings` for the template trackers (seconds; ``"total"``
-is reported too). ``template_rendering`` is placing the template pixels (planes, points, projection),
-``residual`` the compiled pass that samples the image and sums the error and normal
-equations, ``jacobian`` chaining the twist and window sums into ``H`` and ``g``."""
+is reported too). ``template_rendering`` is placing the template pixels (planes, points,
+projection), ``residual`` the compiled pass that samples the image and sums the error and
+normal equations, ``jacobian`` chaining the twist and window sums into ``H`` and ``g``."""
 
 SOLVERS = ("gauss-newton", "gradient-descent")
 
