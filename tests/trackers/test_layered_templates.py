@@ -51,6 +51,7 @@ def test_tracks_the_start_of_the_curl(sequence, cls):
     assert tip_error[-1].max() < 4.0
     middle = [scenario.model.state_index(f"middle.{j}") for j in ("mcp", "pip", "dip")]
     assert np.abs(results[-1].state[middle] - scenario.states[-1, middle]).max() < 0.05
+    assert (results[-1].timings["features"] > 0) == (cls is LayeredFeatureTracker)
 
 
 def test_results_carry_template_details(sequence):

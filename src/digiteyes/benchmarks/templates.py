@@ -12,7 +12,8 @@ camera) with templates plus edge features.
 * speed: frames per second of ``step`` (rendering excluded, the first frame with the
   template acquisition and compilation excluded) and milliseconds per iteration split
   into visibility, template rendering (placing template pixels), residual (the compiled
-  pass), Jacobian (chaining into ``H``, ``g``) and solve;
+  pass), Jacobian (chaining into ``H``, ``g``), edge features (combined tracker) and
+  solve;
 * visibility: share of contested pixels where the predicted front part is the one the
   renderer's depth buffer shows, over random states, and the time to predict an order.
 
@@ -39,7 +40,8 @@ from digiteyes.synth import RenderOptions, render_views
 from digiteyes.synth.scenarios import build_scenario
 from digiteyes.trackers import LayeredTemplateOptions, create_tracker
 
-STAGES = ("visibility", "template_rendering", "residual", "jacobian", "linear_solve")
+STAGES = ("visibility", "template_rendering", "residual", "jacobian", "features",
+          "linear_solve")
 
 
 def track_scenario(name: str, n_cameras: int, n_frames: int | None,

@@ -61,11 +61,13 @@ from digiteyes.trackers.parameterisation import StateParameterisation
 from digiteyes.trackers.prediction import PREDICTIONS, PredictionKind, StatePredictor
 
 TEMPLATE_TIMING_STAGES = ("prediction", "filtering", "visibility", "template_rendering",
-                          "residual", "jacobian", "linear_solve", "refresh")
+                          "residual", "jacobian", "features", "linear_solve", "refresh")
 """Stages of :attr:`TrackResult.timings` for the template trackers (seconds; ``"total"``
 is reported too). ``template_rendering`` is placing the template pixels (planes, points,
 projection), ``residual`` the compiled pass that samples the image and sums the error and
-normal equations, ``jacobian`` chaining the twist and window sums into ``H`` and ``g``."""
+normal equations, ``jacobian`` chaining the twist and window sums into ``H`` and ``g``,
+``features`` the edge features of the combined tracker (measurement, residuals, Jacobian;
+0 for the templates alone)."""
 
 SOLVERS = ("gauss-newton", "gradient-descent")
 
@@ -328,7 +330,7 @@ class LayeredTemplateTracker:
                     H += opts.feature_weight * (J.T @ J)
                     g += opts.feature_weight * (J.T @ r)
                     energy += 0.5 * opts.feature_weight * float(r @ r)
-                timings["jacobian"] += time.perf_counter() - tic
+                timings["features"] += time.perf_counter() - tic
             if iteration == 0:
                 summary.cost_initial = energy
             summary.cost_history.append(energy)
