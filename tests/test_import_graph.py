@@ -23,7 +23,7 @@ LAYERS = (
     ("errors", "jsonfile", "version"),
     ("models",),
     ("kinematics",),
-    ("camera",),
+    ("camera", "filters"),
     ("io", "render"),
     ("synth",),
     ("features", "occlusion", "templates", "solvers"),
@@ -31,14 +31,17 @@ LAYERS = (
     ("trackers",),
     ("apps", "viz"),
     ("evaluate",),
-    ("pipeline", "warmup"),
+    ("pipeline", "warmup", "track_job", "track_many"),
     ("benchmarks",),
     ("commands",),
-    ("cli", "__init__", "__main__"),
+    ("cli", "_signals", "__init__", "__main__"),
 )
 """DESIGN.md Sec. 1-2 from the top of the data flow down: a package may import packages
 of its own layer or above, never below. ``io`` reads frames and writes logs (beside the
-renderer: images in); ``synth`` writes sequences through it."""
+renderer: images in); ``synth`` writes sequences through it. ``filters`` smooths state
+sequences (kinematics only) for ``io``'s track extras. ``track_job`` (one ``digiteyes
+track`` run) and ``track_many`` (many, as Ray tasks) drive the run loop beside
+``pipeline``; ``_signals`` serves ``cli`` alone."""
 RANK = {name: i for i, layer in enumerate(LAYERS) for name in layer}
 
 

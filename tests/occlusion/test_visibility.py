@@ -6,6 +6,7 @@ import pytest
 
 from digiteyes.kinematics import forward_kinematics
 from digiteyes.occlusion.agreement import order_agreement
+from digiteyes.occlusion.parts import facing_plane, template_parts
 from digiteyes.occlusion.visibility import (
     OcclusionRelation,
     occlusion_events,
@@ -15,7 +16,6 @@ from digiteyes.occlusion.visibility import (
 from digiteyes.occlusion.windows import image_windows
 from digiteyes.synth import RenderOptions, render_views
 from digiteyes.synth.scenarios import build_scenario
-from digiteyes.templates.geometry import facing_plane, template_parts
 
 
 def rel(front, back, margin=1.0):

@@ -3,9 +3,9 @@
 import numpy as np
 
 from digiteyes.kinematics import forward_kinematics, integrate
+from digiteyes.occlusion.parts import facing_plane, template_parts
 from digiteyes.occlusion.windows import CAPSULE, POLYGON, image_windows
 from digiteyes.synth.scenarios import build_scenario
-from digiteyes.templates.geometry import facing_plane, template_parts
 
 
 def test_window_jacobians_match_finite_differences():

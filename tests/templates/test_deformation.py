@@ -4,8 +4,8 @@ pixel motion of template points against finite differences through ``integrate``
 import numpy as np
 
 from digiteyes.kinematics import forward_kinematics, integrate, load_model, point_jacobian
+from digiteyes.occlusion.parts import facing_plane, template_grid, template_parts
 from digiteyes.templates.deformation import part_twists
-from digiteyes.templates.geometry import facing_plane, template_grid, template_parts
 from digiteyes.templates.layered import world_points
 
 

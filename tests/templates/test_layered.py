@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 
 from digiteyes.kinematics import forward_kinematics, integrate
-from digiteyes.templates.geometry import template_parts
+from digiteyes.occlusion.parts import template_parts
+from digiteyes.occlusion.segmentation import segment_image
 from digiteyes.templates.layered import (
     TemplateOptions,
     acquire_templates,
     evaluate_layered,
     refresh_templates,
-    segment_image,
 )
 
 

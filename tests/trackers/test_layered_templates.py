@@ -9,6 +9,7 @@ from digiteyes.kinematics import forward_kinematics
 from digiteyes.synth import RenderOptions, render_views
 from digiteyes.synth.scenarios import build_scenario
 from digiteyes.templates.filtering import TemplateError
+from digiteyes.trackers import Tracker, TrackerError, TrackResult, create_tracker
 from digiteyes.trackers.layered_templates import (
     TEMPLATE_TIMING_STAGES,
     LayeredFeatureTracker,
@@ -16,6 +17,7 @@ from digiteyes.trackers.layered_templates import (
     LayeredTemplateTracker,
     TemplateDetails,
 )
+from digiteyes.viz.track_overlay import overlay_image
 
 N_FRAMES = 16
 
@@ -49,6 +51,7 @@ def test_tracks_the_start_of_the_curl(sequence, cls):
     assert tip_error[-1].max() < 4.0
     middle = [scenario.model.state_index(f"middle.{j}") for j in ("mcp", "pip", "dip")]
     assert np.abs(results[-1].state[middle] - scenario.states[-1, middle]).max() < 0.05
+    assert (results[-1].timings["features"] > 0) == (cls is LayeredFeatureTracker)
 
 
 def test_results_carry_template_details(sequence):
@@ -60,8 +63,15 @@ def test_results_carry_template_details(sequence):
     result = tracker.step(frames[1])
     details = result.details
     assert isinstance(details, TemplateDetails)
-    assert set(result.timings) == set(TEMPLATE_TIMING_STAGES)
+    assert tracker.stages == TEMPLATE_TIMING_STAGES
+    assert set(result.timings) == {*TEMPLATE_TIMING_STAGES, "total"}
+    assert result.timings["total"] >= sum(result.timings[s] for s in tracker.stages)
     assert result.iterations == 2 and result.frame_index == 1
+    assert details.summary.iterations == 2 and len(details.summary.cost_history) == 2
+    assert result.cost == pytest.approx(details.summary.cost_final)
+    assert set(result.finger_lost) == {"index", "middle"}
+    assert not any(result.finger_lost.values())
+    assert all(0 < v < 40 for v in details.finger_rms.values())
     seg = details.segmentations[0]
     assert seg.shape == (scenario.rig[0].height, scenario.rig[0].width)
     assert len(details.orders[0].order) == len(tracker.parts)
@@ -82,6 +92,38 @@ def test_templates_alone_with_gradient_descent_moves_towards_the_truth(sequence)
     before = np.abs(start[index] - scenario.states[14, index]).sum()
     after = np.abs(result.state[index] - scenario.states[14, index]).sum()
     assert after < before
+
+
+@pytest.mark.parametrize("name, cls", [("templates", LayeredTemplateTracker),
+                                       ("templates+features", LayeredFeatureTracker)])
+def test_registered_by_name(sequence, name, cls):
+    scenario, _ = sequence
+    tracker = create_tracker(name, scenario.model, scenario.rig, iterations_per_frame=2)
+    assert type(tracker) is cls and tracker.options.iterations_per_frame == 2
+    assert tracker.options.edge_features == (name == "templates+features")
+    assert isinstance(tracker, Tracker)
+    with pytest.raises(TrackerError, match="no option"):
+        create_tracker(name, scenario.model, scenario.rig, windows=3)
+
+
+def test_overlay_draws_the_template_windows(sequence):
+    """The registered drawer tints the segmented parts in colour (the grey frame has
+    equal channels everywhere) and differs from the fallback wireframe panel."""
+    scenario, frames = sequence
+    tracker = create_tracker("templates", scenario.model, scenario.rig)
+    tracker.reset(scenario.initial_state)
+    result = tracker.step(frames[0])
+    panel = overlay_image(frames[0], result, scenario.rig, scenario.model)
+    plain = overlay_image(frames[0], TrackResult(result.state, 0.0, 0.0, False, "", 0),
+                          scenario.rig, scenario.model)
+    assert panel.shape == plain.shape
+    assert np.any(panel != plain)
+    cam = scenario.rig[0]
+    tinted = panel[:cam.height, :cam.width].astype(int)
+    inside = result.details.segmentations[0] >= 0
+    assert inside.any()
+    spread = np.abs(tinted[inside] - tinted[inside].mean(axis=1, keepdims=True)).max(axis=1)
+    assert np.median(spread) > 5
 
 
 def test_bad_use_is_refused(sequence):

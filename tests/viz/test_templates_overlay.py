@@ -3,11 +3,11 @@
 import numpy as np
 
 from digiteyes.kinematics import forward_kinematics
+from digiteyes.occlusion.parts import facing_plane, template_parts
+from digiteyes.occlusion.segmentation import segment_image
 from digiteyes.occlusion.visibility import predict_visibility
 from digiteyes.occlusion.windows import image_windows
 from digiteyes.synth.scenarios import build_scenario
-from digiteyes.templates.geometry import facing_plane, template_parts
-from digiteyes.templates.layered import segment_image
 from digiteyes.viz.templates import draw_templates
 
 

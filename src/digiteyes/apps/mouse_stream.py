@@ -17,7 +17,7 @@ Sources (:func:`open_mouse_stream`):
   ``overlay.mp4`` when present, nothing tracked.
 
 The tracking itself is :class:`~digiteyes.trackers.FeatureTracker`, its overlay
-:func:`digiteyes.pipeline.overlay_image`: the same code as ``digiteyes track``.
+:func:`digiteyes.viz.track_overlay.overlay_image`: the same code as ``digiteyes track``.
 """
 
 from __future__ import annotations
@@ -36,10 +36,10 @@ from digiteyes.camera import Rig, load_rig
 from digiteyes.errors import CameraError, DatasetError
 from digiteyes.io import VideoReader, open_sequence, open_video_frames, read_state_log
 from digiteyes.kinematics import KinematicModel, State, load_model
-from digiteyes.pipeline import overlay_image
 from digiteyes.synth import RenderOptions, render_views
 from digiteyes.synth.scenarios import build_scenario
 from digiteyes.trackers import FeatureTracker, FeatureTrackerOptions
+from digiteyes.viz.track_overlay import overlay_image
 
 JPEG_QUALITY = 80
 """JPEG quality of the overlay images sent to the page (OpenCV's 0-100 scale)."""
@@ -128,7 +128,7 @@ def track_frames(model: KinematicModel, rig: Rig, frames: Iterable[tuple[float, 
     tracker.reset(np.asarray(initial_state, dtype=float))
     for index, (t_frame, images) in enumerate(frames):
         result = tracker.step(images)
-        image = overlay_image(images, result, rig) if overlay else None
+        image = overlay_image(images, result, rig, model) if overlay else None
         yield mouse_frame(model, index, result.state, result.lost, t_frame, image)
 
 

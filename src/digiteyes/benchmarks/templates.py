@@ -12,7 +12,8 @@ camera) with templates plus edge features.
 * speed: frames per second of ``step`` (rendering excluded, the first frame with the
   template acquisition and compilation excluded) and milliseconds per iteration split
   into visibility, template rendering (placing template pixels), residual (the compiled
-  pass), Jacobian (chaining into ``H``, ``g``) and solve;
+  pass), Jacobian (chaining into ``H``, ``g``), edge features (combined tracker) and
+  solve;
 * visibility: share of contested pixels where the predicted front part is the one the
   renderer's depth buffer shows, over random states, and the time to predict an order.
 
@@ -23,6 +24,7 @@ OpenCV and numba are held to one thread. ``digiteyes bench templates [--json FIL
 from __future__ import annotations
 
 import time
+from dataclasses import fields
 
 import numpy as np
 
@@ -30,37 +32,35 @@ from digiteyes.benchmarks._machine import emit, kernel_threads, machine_info, ma
 from digiteyes.camera import Rig
 from digiteyes.kinematics import forward_kinematics
 from digiteyes.occlusion.agreement import order_agreement
+from digiteyes.occlusion.parts import facing_plane, template_parts
 from digiteyes.occlusion.visibility import predict_visibility
 from digiteyes.occlusion.windows import image_windows
+from digiteyes.pipeline import step_frames
 from digiteyes.synth import RenderOptions, render_views
 from digiteyes.synth.scenarios import build_scenario
-from digiteyes.templates.geometry import facing_plane, template_parts
-from digiteyes.trackers.layered_templates import (
-    LayeredFeatureTracker,
-    LayeredTemplateOptions,
-    LayeredTemplateTracker,
-)
+from digiteyes.trackers import LayeredTemplateOptions, create_tracker
 
-STAGES = ("visibility", "template_rendering", "residual", "jacobian", "linear_solve")
+STAGES = ("visibility", "template_rendering", "residual", "jacobian", "features",
+          "linear_solve")
 
 
 def track_scenario(name: str, n_cameras: int, n_frames: int | None,
-                   options: LayeredTemplateOptions, combined: bool = False) -> dict:
-    """Render a scenario, track it from its first true state and score it against the
-    truth (figures of the module docstring)."""
+                   options: LayeredTemplateOptions, tracker: str = "templates") -> dict:
+    """Render a scenario, track it from its first true state with the registered
+    ``tracker`` (created by :func:`~digiteyes.trackers.create_tracker`, stepped by the run
+    loop :func:`~digiteyes.pipeline.step_frames`) and score it against the truth (figures
+    of the module docstring)."""
     scenario = build_scenario(name, n_frames=n_frames)
     model = scenario.model
     rig = Rig(scenario.rig.cameras[:n_cameras])
     frames = [[v.image for v in render_views(model, q, rig, RenderOptions(), rng=i)]
               for i, q in enumerate(scenario.states)]
-    tracker = (LayeredFeatureTracker if combined else LayeredTemplateTracker)(
-        model, rig, options)
-    tracker.reset(scenario.initial_state)
+    settings = {f.name: getattr(options, f.name) for f in fields(options)}
+    runner = create_tracker(tracker, model, rig, **settings)
     states, lost, seconds = [], 0, 0.0
     stage_seconds = dict.fromkeys(STAGES, 0.0)
     iterations = 0
-    for i, images in enumerate(frames):
-        result = tracker.step(images)
+    for i, _, result, _ in step_frames(runner, frames, scenario.initial_state):
         states.append(result.state)
         lost += bool(result.lost)
         if i > 0:
@@ -74,7 +74,7 @@ def track_scenario(name: str, n_cameras: int, n_frames: int | None,
     kt = forward_kinematics(model, truth).T_world_shape[:, tips, :3, 3]
     ke = forward_kinematics(model, est).T_world_shape[:, tips, :3, 3]
     tip_error = np.linalg.norm(kt - ke, axis=2)
-    out = {"scenario": name, "tracker": tracker.name, "cameras": n_cameras,
+    out = {"scenario": name, "tracker": tracker, "cameras": n_cameras,
            "frames": len(truth),
            "iterations_per_frame": options.iterations_per_frame,
            "mean_tip_error_mm": float(tip_error.mean()),
@@ -123,13 +123,13 @@ def visibility_agreement(name: str, n_states: int, seed: int = 0) -> dict:
 def run(json_path: str | None = None, quick: bool = False) -> dict:
     """Run the benchmark, print a table, optionally write JSON (see module docstring)."""
     options = LayeredTemplateOptions()
-    runs = [("two-finger-occlusion", 1, 30 if quick else None, False),
-            ("two-finger-occlusion", 1, 30 if quick else None, True),
-            ("natural", 2, 40 if quick else None, False),
-            ("natural", 2, 40 if quick else None, True),
-            ("natural", 1, 40 if quick else None, False)]
+    runs = [("two-finger-occlusion", 1, 30 if quick else None, "templates"),
+            ("two-finger-occlusion", 1, 30 if quick else None, "templates+features"),
+            ("natural", 2, 40 if quick else None, "templates"),
+            ("natural", 2, 40 if quick else None, "templates+features"),
+            ("natural", 1, 40 if quick else None, "templates")]
     with kernel_threads(1, 1):
-        tracking = [track_scenario(n, c, f, options, combined) for n, c, f, combined in runs]
+        tracking = [track_scenario(n, c, f, options, t) for n, c, f, t in runs]
         visibility = [visibility_agreement(n, 5 if quick else 30)
                       for n in ("two-finger-occlusion", "natural")]
     result = {"tracking": tracking, "visibility": visibility,

@@ -19,13 +19,13 @@ Figures from a busy machine are provisional.
 
 from __future__ import annotations
 
-import contextlib
-import io
 import tempfile
 import time
 from pathlib import Path
 
 from digiteyes.benchmarks._machine import emit, kernel_threads, machine_info, machine_lines
+from digiteyes.synth.scenarios import build_scenario
+from digiteyes.synth.sequence import render_scenario
 from digiteyes.track_job import TrackJob
 from digiteyes.track_many import WORKER_ENV, plan_jobs, track_many, track_one
 
@@ -35,15 +35,11 @@ SPEEDUP_TARGET = 1.8
 
 def render_inputs(folder: Path, count: int, frames: int) -> list[str]:
     """``count`` mouse datasets of ``frames`` frames (seeds 0..count-1) in ``folder``."""
-    from digiteyes.cli import main
     paths = []
     for seed in range(count):
         path = folder / f"mouse-{seed}"
-        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
-            code = main(["render", "mouse", "-o", str(path), "--frames", str(frames),
-                         "--seed", str(seed)])
-        if code != 0:
-            raise RuntimeError(f"rendering {path} failed")
+        render_scenario(build_scenario("mouse", seed=seed, n_frames=frames), path, seed=seed,
+                        progress=False)
         paths.append(str(path))
     return paths
 

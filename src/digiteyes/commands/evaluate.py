@@ -24,8 +24,8 @@ def evaluate(result: Path, gt_dir: Path, output: Path | None, loss_threshold_mm:
     """
     from digiteyes.errors import DatasetError
     from digiteyes.evaluate import evaluate_run, headline_rows, write_report
+    from digiteyes.evaluate.report_page import write_report_page
     from digiteyes.io import open_sequence, read_state_log
-    from digiteyes.viz.report_page import write_report_page
 
     log_path = result if result.is_file() else result / "states.csv"
     with open_sequence(gt_dir) as seq:

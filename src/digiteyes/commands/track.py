@@ -14,6 +14,7 @@ import numpy as np
 from digiteyes.camera import load_rig
 from digiteyes.commands._video_lengths import check_lengths, record_missing
 from digiteyes.errors import CameraError, DatasetError
+from digiteyes.evaluate.report_page import write_report_page
 from digiteyes.features import FeatureOptions
 from digiteyes.filters import OneEuroOptions
 from digiteyes.io import open_sequence, open_video_frames
@@ -29,7 +30,6 @@ from digiteyes.trackers import (
     tracker_entry,
     tracker_names,
 )
-from digiteyes.viz.report_page import write_report_page
 from digiteyes.warmup import COMPILE_MESSAGE, cold_kernels
 
 HELP = """Track INPUT with a registered tracker (--tracker; default: the DigitEyes feature

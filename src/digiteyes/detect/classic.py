@@ -28,14 +28,13 @@ import cv2
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from digiteyes import load_model
 from digiteyes.camera import Camera
 from digiteyes.detect.candidate import HandCandidate, bbox_of
 from digiteyes.detect.hand21 import DIGITS
 from digiteyes.detect.model_fit import palm_points
 from digiteyes.detect.segmentation import BackgroundModel, hand_mask, largest_blob
 from digiteyes.errors import DigitEyesError
-from digiteyes.kinematics import KinematicModel, clip_to_limits
+from digiteyes.kinematics import KinematicModel, clip_to_limits, load_model
 
 RING = 1.75
 """Radius of the crossing circle, in palm radii (through the proximal phalanges)."""

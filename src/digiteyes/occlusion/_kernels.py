@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from digiteyes.templates._kernels import polygon_distance
+from digiteyes.occlusion.window_functions import polygon_distance, window_distance
 
 
 @njit(cache=True)
@@ -71,3 +71,24 @@ def pair_overlap_kernel(kind, points, radius, margin, pairs, overlap, s_out,
                     best = inside
                     s_out[n] = s
                     overlap[n] = True
+
+
+@njit(cache=True)
+def segment_kernel(order, win_kind, win_pts, win_r, bounds, labels):  # pragma: no cover
+    """List-priority segmentation (thesis Sec. 3.3.4): paint the unit windows from the
+    back of the visibility ``order`` to its front into ``labels`` (H, W), int16, -1 where
+    no window covers a pixel."""
+    height, width = labels.shape
+    gw = np.empty(2)
+    gp = np.empty((4, 2))
+    for n in range(len(order) - 1, -1, -1):
+        k = order[n]
+        u0 = max(0, int(np.floor(bounds[k, 0])))
+        v0 = max(0, int(np.floor(bounds[k, 1])))
+        u1 = min(width - 1, int(np.ceil(bounds[k, 2])))
+        v1 = min(height - 1, int(np.ceil(bounds[k, 3])))
+        for v in range(v0, v1 + 1):
+            for u in range(u0, u1 + 1):
+                if window_distance(win_kind[k], win_pts[k], win_r[k], float(u), float(v),
+                                   gw, gp) >= 0.0:
+                    labels[v, u] = k

@@ -1,7 +1,7 @@
 """How well a predicted visibility order agrees with a renderer's depth buffer.
 
 At every pixel that two or more unit windows cover, the predicted segmentation
-(:func:`~digiteyes.templates.layered.segment_image`, front-most window in the predicted
+(:func:`~digiteyes.occlusion.segmentation.segment_image`, front-most window in the predicted
 order) names a part; the renderer's label image names the surface it drew there (from
 its depth buffer). The agreement is the share of those contested pixels where both name
 the same part, counted only where the renderer saw one of the covering parts (a window
@@ -16,10 +16,10 @@ import numpy as np
 
 from digiteyes.camera import Camera
 from digiteyes.kinematics import Kinematics
+from digiteyes.occlusion._kernels import segment_kernel
+from digiteyes.occlusion.parts import TemplatePart, facing_plane
 from digiteyes.occlusion.visibility import VisibilityOrder, predict_visibility
 from digiteyes.occlusion.windows import image_windows
-from digiteyes.templates._kernels import segment_kernel
-from digiteyes.templates.geometry import TemplatePart, facing_plane
 
 
 @dataclass(frozen=True)

@@ -34,8 +34,8 @@ import numpy as np
 
 from digiteyes.camera import Camera
 from digiteyes.occlusion._kernels import pair_overlap_kernel
+from digiteyes.occlusion.parts import TemplatePart, towards_camera
 from digiteyes.occlusion.windows import CAPSULE, ImageWindows
-from digiteyes.templates.geometry import TemplatePart, towards_camera
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,7 @@ import numpy as np
 
 from digiteyes.camera import Camera
 from digiteyes.kinematics import Kinematics, point_jacobian
-from digiteyes.templates.geometry import TemplatePart, TemplatePlane
+from digiteyes.occlusion.parts import TemplatePart, TemplatePlane
 
 CAPSULE, POLYGON = 0, 1
 

@@ -11,7 +11,13 @@ docs/scenarios.md.
 
 from digiteyes.synth.options import BACKGROUNDS, RenderError, RenderOptions
 from digiteyes.synth.perturb import anchor_chains, perturb_model
+from digiteyes.synth.scenarios import SCENARIOS
+from digiteyes.synth.setups import SETUP_SCENARIOS
 from digiteyes.synth.views import RenderedView, render_views
+
+# The camera-setup scenarios (built on synth.scenarios) join the scenario table here, where
+# both modules are loaded, so that neither imports the other back.
+SCENARIOS.update(SETUP_SCENARIOS)
 
 __all__ = [
     "BACKGROUNDS", "RenderError", "RenderOptions", "RenderedView", "anchor_chains",

@@ -484,14 +484,3 @@ def build_scenario(name: str, seed: int = 0, n_frames: int | None = None) -> Sce
     if int(seed) != seed or seed < 0:
         raise DigitEyesError(f"the seed must be a non-negative integer, got {seed}")
     return SCENARIOS[name](seed=int(seed), n_frames=None if n_frames is None else int(n_frames))
-
-
-def _register_setups() -> None:
-    """Add the camera-setup scenarios (:mod:`digiteyes.synth.setups`, which builds on this
-    module) to :data:`SCENARIOS`."""
-    from digiteyes.synth.setups import SETUP_SCENARIOS
-
-    SCENARIOS.update(SETUP_SCENARIOS)
-
-
-_register_setups()

@@ -1,8 +1,8 @@
-"""Compiled loops of the layered template error (numba): window functions, the per-pixel
-residual with its region and boundary derivatives, and list-priority segmentation.
+"""Compiled loops of the layered template error (numba): the per-pixel residual with its
+region and boundary derivatives, and the placing of template pixels.
 
-See :mod:`digiteyes.templates.layered` for the maths; the window geometry follows
-:mod:`digiteyes.occlusion.windows` (capsule 0, polygon 1).
+See :mod:`digiteyes.templates.layered` for the maths; the window functions are
+:mod:`digiteyes.occlusion.window_functions` (capsule 0, polygon 1).
 """
 
 from __future__ import annotations
@@ -10,87 +10,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from digiteyes.occlusion.window_functions import window_distance, window_value
+
 BOUNDARY_REACH = 8.0
 """Beyond this many window widths from a boundary the smooth window's gradient is taken
 as zero (it is below 1.4e-3 of its peak there)."""
-
-
-@njit(cache=True, inline="always")
-def capsule_distance(pts, r, wx, wy, gw, gp):  # pragma: no cover - compiled
-    """Signed distance (px, positive inside) of ``(wx, wy)`` to the capsule of segment
-    ``pts[0]``-``pts[1]`` and radius ``r``; fills ``gw`` (2) and ``gp`` (4, 2) with its
-    derivatives by the pixel and the points (the derivative by ``r`` is 1)."""
-    ax, ay, bx, by = pts[0, 0], pts[0, 1], pts[1, 0], pts[1, 1]
-    ex, ey = bx - ax, by - ay
-    l2 = ex * ex + ey * ey
-    t = 0.0
-    if l2 > 1e-12:
-        t = ((wx - ax) * ex + (wy - ay) * ey) / l2
-        t = min(1.0, max(0.0, t))
-    dx, dy = wx - (ax + t * ex), wy - (ay + t * ey)
-    dist = np.sqrt(dx * dx + dy * dy)
-    nx, ny = 0.0, 0.0
-    if dist > 1e-9:
-        nx, ny = dx / dist, dy / dist
-    gw[0], gw[1] = -nx, -ny
-    gp[:, :] = 0.0
-    gp[0, 0], gp[0, 1] = (1.0 - t) * nx, (1.0 - t) * ny
-    gp[1, 0], gp[1, 1] = t * nx, t * ny
-    return r - dist
-
-
-@njit(cache=True, inline="always")
-def polygon_distance(pts, wx, wy, gw, gp):  # pragma: no cover - compiled
-    """Signed distance (px, positive inside) of ``(wx, wy)`` to the convex quadrilateral
-    ``pts`` (4, 2): the smallest distance inside any edge line; fills ``gw`` and ``gp``
-    with its derivatives (of the edge that decides)."""
-    area = 0.0
-    for i in range(4):
-        j = (i + 1) % 4
-        area += pts[i, 0] * pts[j, 1] - pts[j, 0] * pts[i, 1]
-    s = 1.0 if area >= 0.0 else -1.0
-    best, best_i = 1e300, 0
-    for i in range(4):
-        j = (i + 1) % 4
-        ex, ey = pts[j, 0] - pts[i, 0], pts[j, 1] - pts[i, 1]
-        length = np.sqrt(ex * ex + ey * ey) + 1e-12
-        d = s * (ex * (wy - pts[i, 1]) - ey * (wx - pts[i, 0])) / length
-        if d < best:
-            best, best_i = d, i
-    i, j = best_i, (best_i + 1) % 4
-    ax, ay, bx, by = pts[i, 0], pts[i, 1], pts[j, 0], pts[j, 1]
-    ex, ey = bx - ax, by - ay
-    length = np.sqrt(ex * ex + ey * ey) + 1e-12
-    c = ex * (wy - ay) - ey * (wx - ax)
-    k = s / length
-    q = s * c / (length * length * length)
-    gw[0], gw[1] = -ey * k, ex * k
-    gp[:, :] = 0.0
-    gp[i, 0] = (by - wy) * k + ex * q
-    gp[i, 1] = (wx - bx) * k + ey * q
-    gp[j, 0] = (wy - ay) * k - ex * q
-    gp[j, 1] = -(wx - ax) * k - ey * q
-    return best
-
-
-@njit(cache=True, inline="always")
-def window_distance(kind, pts, r, wx, wy, gw, gp):  # pragma: no cover - compiled
-    if kind == 0:
-        return capsule_distance(pts, r, wx, wy, gw, gp)
-    return polygon_distance(pts, wx, wy, gw, gp)
-
-
-@njit(cache=True, inline="always")
-def window_value(d, tau):  # pragma: no cover - compiled
-    """Window ``M`` and ``dM/dd`` at signed distance ``d``: unit (``tau == 0``) or
-    logistic of width ``tau`` px."""
-    if tau <= 0.0:
-        return (1.0 if d >= 0.0 else 0.0), 0.0
-    x = -d / tau
-    if x > 40.0:
-        return 0.0, 0.0
-    m = 1.0 / (1.0 + np.exp(x))
-    return m, m * (1.0 - m) / tau
 
 
 @njit(cache=True, inline="always")
@@ -216,27 +140,6 @@ def layered_kernel(image, pix_part, p_world, w, Jp, values, weights, twists, occ
                         acc += gp[q, 0] * win_dpts[j, q, 0, c] + gp[q, 1] * win_dpts[j, q, 1, c]
                     rows_dv[i, c] += f * acc
     return energy
-
-
-@njit(cache=True)
-def segment_kernel(order, win_kind, win_pts, win_r, bounds, labels):  # pragma: no cover
-    """List-priority segmentation (thesis Sec. 3.3.4): paint the unit windows from the
-    back of the visibility ``order`` to its front into ``labels`` (H, W), int16, -1 where
-    no window covers a pixel."""
-    height, width = labels.shape
-    gw = np.empty(2)
-    gp = np.empty((4, 2))
-    for n in range(len(order) - 1, -1, -1):
-        k = order[n]
-        u0 = max(0, int(np.floor(bounds[k, 0])))
-        v0 = max(0, int(np.floor(bounds[k, 1])))
-        u1 = min(width - 1, int(np.ceil(bounds[k, 2])))
-        v1 = min(height - 1, int(np.ceil(bounds[k, 3])))
-        for v in range(v0, v1 + 1):
-            for u in range(u0, u1 + 1):
-                if window_distance(win_kind[k], win_pts[k], win_r[k], float(u), float(v),
-                                   gw, gp) >= 0.0:
-                    labels[v, u] = k
 
 
 @njit(cache=True)

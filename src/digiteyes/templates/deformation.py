@@ -2,7 +2,7 @@
 (Rehg thesis eq. 2.9-2.11, 2.13-2.16).
 
 A template pixel with coordinates ``(a, b)`` is a point fixed in its part's shape frame
-(:mod:`digiteyes.templates.geometry`); forward kinematics places it in the world and the
+(:mod:`digiteyes.occlusion.parts`); forward kinematics places it in the world and the
 camera projects it, ``w = f(q, s)``. Its derivative with respect to a tangent step ``v``
 of the state (:func:`digiteyes.kinematics.integrate`) factors as
 
@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from digiteyes.kinematics import Kinematics, point_jacobian
-from digiteyes.templates.geometry import TemplatePart
+from digiteyes.occlusion.parts import TemplatePart
 
 
 def part_twists(parts: tuple[TemplatePart, ...], kin: Kinematics) -> np.ndarray:

@@ -1,7 +1,7 @@
 """Layered templates: acquisition, refresh and the layered template error with its
 region and boundary derivatives (Rehg thesis Sec. 2.4, 3.3, 4.4).
 
-Per camera, every part (:func:`~digiteyes.templates.geometry.template_parts`) carries a
+Per camera, every part (:func:`~digiteyes.occlusion.parts.template_parts`) carries a
 template: grey levels of the LoG-filtered image (Sec. 2.4.2) at template pixels on the
 part's template plane. With ``f_k(q, s)`` the deformation of part k's pixel ``s``
 (:mod:`digiteyes.templates.deformation`) and the parts in visibility order
@@ -40,18 +40,18 @@ import numpy as np
 
 from digiteyes.camera import Camera
 from digiteyes.kinematics import Kinematics
-from digiteyes.occlusion.visibility import VisibilityOrder, predict_visibility
-from digiteyes.occlusion.windows import ImageWindows, image_windows
-from digiteyes.templates._kernels import layered_kernel, segment_kernel, transform_kernel
-from digiteyes.templates.deformation import part_twists
-from digiteyes.templates.filtering import LogFilter, TemplateError
-from digiteyes.templates.geometry import (
+from digiteyes.occlusion.parts import (
     TemplatePart,
     TemplatePlane,
     facing_plane,
     mm_per_pixel,
     template_grid,
 )
+from digiteyes.occlusion.visibility import VisibilityOrder, predict_visibility
+from digiteyes.occlusion.windows import ImageWindows, image_windows
+from digiteyes.templates._kernels import layered_kernel, transform_kernel
+from digiteyes.templates.deformation import part_twists
+from digiteyes.templates.filtering import LogFilter, TemplateError
 
 WINDOWS = ("unit", "smooth")
 
@@ -310,13 +310,3 @@ def refresh_templates(templates: CameraTemplates, evaluation: LayeredEvaluation,
     templates.reference[new] = observed[new]
     templates.weights[new] = 1.0
     return int(known.sum() + new.sum())
-
-
-def segment_image(windows: ImageWindows, order: VisibilityOrder, width: int,
-                  height: int) -> np.ndarray:
-    """List-priority segmentation (thesis Sec. 3.3.4): (H, W) int16 part index of the
-    front-most unit window at each pixel, -1 where none covers it."""
-    labels = np.full((height, width), -1, dtype=np.int16)
-    segment_kernel(order.order, windows.kind, windows.points, windows.radius,
-                   windows.bounds(), labels)
-    return labels

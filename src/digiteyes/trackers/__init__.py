@@ -2,7 +2,8 @@
 
 :class:`FeatureTracker` is DigitEyes (thesis Sec. 2.5, 4.3): point and line features,
 stabilised Gauss-Newton, several cameras stacked in one system; registered as
-``"features"``. :func:`create_tracker` builds any registered tracker by name.
+``"features"``. The layered template trackers (thesis Ch. 3) are ``"templates"`` and
+``"templates+features"``. :func:`create_tracker` builds any registered tracker by name.
 """
 
 from digiteyes.trackers.base import Tracker, TrackResult
@@ -13,6 +14,12 @@ from digiteyes.trackers.feature_tracker import (
     FeatureTrackerOptions,
     all_features,
     thesis_whole_hand_links,
+)
+from digiteyes.trackers.layered_templates import (
+    LayeredFeatureTracker,
+    LayeredTemplateOptions,
+    LayeredTemplateTracker,
+    TemplateDetails,
 )
 from digiteyes.trackers.parameterisation import StateParameterisation
 from digiteyes.trackers.prediction import StatePredictor
@@ -30,10 +37,18 @@ DEFAULT_TRACKER = "features"
 register_tracker(DEFAULT_TRACKER, FeatureTracker, FeatureTrackerOptions,
                  "DigitEyes: point and line features, stabilised Gauss-Newton "
                  "(thesis Sec. 4.3)")
+register_tracker("templates", LayeredTemplateTracker, LayeredTemplateOptions,
+                 "layered templates with predicted visibility order (thesis Ch. 3, "
+                 "Sec. 4.4)")
+register_tracker("templates+features", LayeredFeatureTracker, LayeredTemplateOptions,
+                 "layered templates plus edge features of unoccluded links (thesis Ch. 3 "
+                 "and Sec. 2.5)")
 
 __all__ = [
     "DEFAULT_TRACKER", "THESIS_EXCLUDED_LINKS", "FeatureDetails", "FeatureTracker",
-    "FeatureTrackerOptions", "StateParameterisation", "StatePredictor", "TrackResult",
-    "Tracker", "TrackerEntry", "TrackerError", "all_features", "create_tracker",
-    "register_tracker", "thesis_whole_hand_links", "tracker_entry", "tracker_names",
+    "FeatureTrackerOptions", "LayeredFeatureTracker", "LayeredTemplateOptions",
+    "LayeredTemplateTracker", "StateParameterisation", "StatePredictor", "TemplateDetails",
+    "TrackResult", "Tracker", "TrackerEntry", "TrackerError", "all_features",
+    "create_tracker", "register_tracker", "thesis_whole_hand_links", "tracker_entry",
+    "tracker_names",
 ]

@@ -37,6 +37,9 @@ from digiteyes.errors import StateError
 from digiteyes.features import FeatureOptions, feature_residuals, measure_features
 from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import KinematicModel, forward_kinematics, validate_state
+from digiteyes.kinematics.anatomy import DIGITS
+from digiteyes.occlusion.parts import TemplatePlane, template_parts
+from digiteyes.occlusion.segmentation import segment_image
 from digiteyes.occlusion.visibility import (
     VisibilityOrder,
     occlusion_events,
@@ -45,7 +48,6 @@ from digiteyes.occlusion.visibility import (
 from digiteyes.occlusion.windows import image_windows
 from digiteyes.solvers import SolverSummary, hand_conditioning, solve_normal_equations
 from digiteyes.templates.filtering import TemplateError
-from digiteyes.templates.geometry import TemplatePlane, template_parts
 from digiteyes.templates.layered import (
     CameraTemplates,
     LayeredEvaluation,
@@ -53,18 +55,19 @@ from digiteyes.templates.layered import (
     acquire_templates,
     evaluate_layered,
     refresh_templates,
-    segment_image,
 )
 from digiteyes.trackers.base import TrackResult
 from digiteyes.trackers.parameterisation import StateParameterisation
 from digiteyes.trackers.prediction import PREDICTIONS, PredictionKind, StatePredictor
 
 TEMPLATE_TIMING_STAGES = ("prediction", "filtering", "visibility", "template_rendering",
-                          "residual", "jacobian", "linear_solve", "refresh", "total")
-"""Stage names of :attr:`TrackResult.timings` for the template trackers (seconds).
-``template_rendering`` is placing the template pixels (planes, points, projection),
-``residual`` the compiled pass that samples the image and sums the error and normal
-equations, ``jacobian`` chaining the twist and window sums into ``H`` and ``g``."""
+                          "residual", "jacobian", "features", "linear_solve", "refresh")
+"""Stages of :attr:`TrackResult.timings` for the template trackers (seconds; ``"total"``
+is reported too). ``template_rendering`` is placing the template pixels (planes, points,
+projection), ``residual`` the compiled pass that samples the image and sums the error and
+normal equations, ``jacobian`` chaining the twist and window sums into ``H`` and ``g``,
+``features`` the edge features of the combined tracker (measurement, residuals, Jacobian;
+0 for the templates alone)."""
 
 SOLVERS = ("gauss-newton", "gradient-descent")
 
@@ -149,6 +152,10 @@ class TemplateDetails:
     residual_rms : visibility-weighted template residual RMS, grey levels.
     feature_links : links whose edge features were used (combined tracker), per camera.
     refreshed : template pixels refreshed in this frame, all cameras.
+    summary : the solver's :class:`~digiteyes.solvers.SolverSummary` (costs per
+        iteration, step norms, termination).
+    finger_rms : finger name -> visibility-weighted template residual RMS of its parts,
+        grey levels (NaN when none of its pixels is visible).
     """
 
     templates: list[CameraTemplates]
@@ -161,6 +168,8 @@ class TemplateDetails:
     residual_rms: float
     feature_links: list[list[str]]
     refreshed: int
+    summary: SolverSummary
+    finger_rms: dict[str, float]
 
 
 class LayeredTemplateTracker:
@@ -172,11 +181,13 @@ class LayeredTemplateTracker:
     rig : the cameras; :meth:`step` takes one image per camera in rig order.
     options : :class:`LayeredTemplateOptions`.
 
-    Each :class:`TrackResult` carries a :class:`TemplateDetails` as ``result.details``.
+    Each :class:`TrackResult` carries a :class:`TemplateDetails` as ``result.details``;
+    ``result.finger_lost`` flags each finger whose visible template pixels have a residual
+    RMS above ``max_residual_rms`` (a hidden finger is not lost).
+    Registered as tracker ``"templates"``.
     """
 
-    name = "templates"
-    timing_stages = TEMPLATE_TIMING_STAGES
+    stages = TEMPLATE_TIMING_STAGES
 
     def __init__(self, model: KinematicModel, rig: Rig,
                  options: LayeredTemplateOptions | None = None) -> None:
@@ -196,6 +207,11 @@ class LayeredTemplateTracker:
         self._frame_index = 0
         self._feature_links = [link.name for link in model.links if link.kind == "link"]
         self._part_of_link = {p.link: k for k, p in enumerate(self.parts)}
+        self._fingers: dict[str, list[int]] = {}
+        for k, part in enumerate(self.parts):
+            finger = part.name.split(".")[0]
+            if part.kind != "palm" and finger in DIGITS:
+                self._fingers.setdefault(finger, []).append(k)
 
     def reset(self, initial_state: np.ndarray) -> None:
         """Start a new track from ``initial_state`` (n_q,); the templates are acquired
@@ -219,7 +235,7 @@ class LayeredTemplateTracker:
             raise StateError("the tracker has no state: call reset(initial_state) first")
         start_total = time.perf_counter()
         self.rig.check_images(frames)
-        timings = dict.fromkeys(TEMPLATE_TIMING_STAGES, 0.0)
+        timings = dict.fromkeys((*self.stages, "total"), 0.0)
         tic = time.perf_counter()
         predicted = self.predictor.predict()
         timings["prediction"] = time.perf_counter() - tic
@@ -314,7 +330,7 @@ class LayeredTemplateTracker:
                     H += opts.feature_weight * (J.T @ J)
                     g += opts.feature_weight * (J.T @ r)
                     energy += 0.5 * opts.feature_weight * float(r @ r)
-                timings["jacobian"] += time.perf_counter() - tic
+                timings["features"] += time.perf_counter() - tic
             if iteration == 0:
                 summary.cost_initial = energy
             summary.cost_history.append(energy)
@@ -361,14 +377,31 @@ class LayeredTemplateTracker:
                                                    strict=True)]
         feature_links = ([self._unoccluded_links(o) for o in setup["orders"]]
                          if opts.edge_features else [[] for _ in self.rig])
-        result = TrackResult(
-            state=q, residual_rms_px=rms, cost=energy, lost=bool(reasons),
-            loss_reason="; ".join(reasons), iterations=summary.iterations, summary=summary,
-            predicted_state=predicted, frame_index=self._frame_index, timings=timings)
-        result.details = TemplateDetails(
+        finger_rms = self._finger_rms(final)
+        details = TemplateDetails(
             list(self.templates), setup["orders"], setup["events"], final, setup["planes"],
-            segmentations, visible_fraction, rms, feature_links, refreshed)
-        return result
+            segmentations, visible_fraction, rms, feature_links, refreshed, summary,
+            finger_rms)
+        return TrackResult(
+            state=q, cost=energy, residual_rms_px=rms, lost=bool(reasons),
+            loss_reason="; ".join(reasons), iterations=summary.iterations,
+            predicted_state=predicted, frame_index=self._frame_index, timings=timings,
+            finger_lost={f: bool(v > opts.max_residual_rms) for f, v in finger_rms.items()},
+            details=details)
+
+    def _finger_rms(self, final: list[LayeredEvaluation]) -> dict[str, float]:
+        """Visibility-weighted residual RMS of each finger's parts over all cameras."""
+        squares = dict.fromkeys(self._fingers, 0.0)
+        weights = dict.fromkeys(self._fingers, 0.0)
+        for t, ev in zip(self.templates, final, strict=True):
+            for finger, parts in self._fingers.items():
+                for k in parts:
+                    sl = t.slices[k]
+                    v = ev.visibility[sl]
+                    squares[finger] += float((v * ev.residuals[sl] ** 2).sum())
+                    weights[finger] += float(v.sum())
+        return {f: float(np.sqrt(squares[f] / weights[f])) if weights[f] > 0 else np.nan
+                for f in self._fingers}
 
     def _loss_reasons(self, rms: float, visible_fraction: float) -> list[str]:
         opts = self.options
@@ -391,9 +424,8 @@ class LayeredTemplateTracker:
 
 class LayeredFeatureTracker(LayeredTemplateTracker):
     """Layered templates everywhere plus the DigitEyes edge features (thesis Sec. 2.5) of
-    the links that no other part occludes, in one least-squares system."""
-
-    name = "templates+features"
+    the links that no other part occludes, in one least-squares system. Registered as
+    tracker ``"templates+features"`` (``edge_features`` is always on)."""
 
     def __init__(self, model: KinematicModel, rig: Rig,
                  options: LayeredTemplateOptions | None = None) -> None:

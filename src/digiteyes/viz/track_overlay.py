@@ -4,7 +4,9 @@ measured drawn on it, cameras side by side (report Fig. 4, thesis Fig. 4.2).
 What is drawn depends on the type of :attr:`TrackResult.details`: every tracker type
 registers one drawer for its details with :func:`register_overlay` (the feature
 tracker's :class:`~digiteyes.trackers.FeatureDetails` is registered here and drawn by
-:func:`~digiteyes.viz.overlay.draw_features`). Details of a type nobody registered, and
+:func:`~digiteyes.viz.overlay.draw_features`, the template trackers'
+:class:`~digiteyes.trackers.TemplateDetails` by
+:func:`~digiteyes.viz.templates.draw_templates`). Details of a type nobody registered, and
 ``None``, still get the projected model at the estimated state
 (:func:`~digiteyes.viz.model_view.draw_wireframe`).
 """
@@ -18,9 +20,10 @@ import numpy as np
 
 from digiteyes.camera import Camera, Rig
 from digiteyes.kinematics import KinematicModel
-from digiteyes.trackers import FeatureDetails, TrackResult
+from digiteyes.trackers import FeatureDetails, TemplateDetails, TrackResult
 from digiteyes.viz.model_view import draw_wireframe
 from digiteyes.viz.overlay import draw_features, to_rgb
+from digiteyes.viz.templates import draw_templates
 
 DetailsDrawer = Callable[[np.ndarray, int, Camera, TrackResult, KinematicModel], np.ndarray]
 """``draw(image, camera_index, camera, result, model) -> (H, W, 3) RGB uint8``: one
@@ -80,3 +83,14 @@ def _draw_feature_details(image: np.ndarray, camera_index: int, camera: Camera,
 
 
 register_overlay(FeatureDetails, _draw_feature_details)
+
+
+def _draw_template_details(image: np.ndarray, camera_index: int, camera: Camera,
+                           result: TrackResult, model: KinematicModel) -> np.ndarray:
+    details: TemplateDetails = result.details
+    return draw_templates(image, details.evaluations[camera_index].windows,
+                          details.orders[camera_index],
+                          details.segmentations[camera_index])
+
+
+register_overlay(TemplateDetails, _draw_template_details)

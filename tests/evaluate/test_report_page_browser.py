@@ -18,9 +18,9 @@ from selenium.webdriver.chrome.options import Options
 from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
 
+from digiteyes.evaluate.report_page import PAGE_NAME, summary_rows, write_report_page
 from digiteyes.io import VideoWriter
 from digiteyes.viz.plots import new_figure, save_figure
-from digiteyes.viz.report_page import PAGE_NAME, summary_rows, write_report_page
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMEDRIVER = "/usr/bin/chromedriver"
