@@ -13,8 +13,9 @@ This is the layer between :mod:`digiteyes.io` (frames in, logs out) and
   (thesis Fig. 4.6) every ``views_every`` frames and at the last frame;
 * ``trajectory-palm.png`` and ``trajectory-joints.png``: the estimated palm pose and the
   index and thumb joint angles over time (thesis Figs. 4.7, 4.8);
-* ``summary.json``: the tracker, frames, losses, timings per stage (the stages the
-  tracker declares in ``Tracker.stages``; thesis Table 4.1 rows for the feature tracker).
+* ``summary.json``: the tracker, the frame rate of the input (``fps``, which
+  ``digiteyes export`` reads), frames, losses, timings per stage (the stages the tracker
+  declares in ``Tracker.stages``; thesis Table 4.1 rows for the feature tracker).
 
 Any :class:`~digiteyes.trackers.Tracker` runs through :func:`run_tracker`;
 :func:`step_frames` is the bare loop (reset, then one timed ``step`` per frame) that the
@@ -60,11 +61,13 @@ class TrackingRun:
     (:func:`digiteyes.warmup.warm_up`), kept out of every other figure;
     ``tracker_seconds`` sums the ``step`` calls; ``loop_seconds`` is the whole per-frame
     loop (reading frames, tracking, logging, overlays); ``wall_seconds`` adds the one-off
-    outputs written at the end (plots, last 3D view, summary).
+    outputs written at the end (plots, last 3D view, summary). ``fps`` is the frame rate
+    of the input sequence (frames/s), not the tracker's speed (``tracker_fps``).
     """
 
     out_dir: Path
     tracker: str = ""
+    fps: float | None = None
     stages: tuple[str, ...] = ()
     n_frames: int = 0
     n_lost: int = 0
@@ -102,6 +105,7 @@ class TrackingRun:
                          for k, v in self.stage_seconds.items()}
         return {
             "tracker": self.tracker,
+            "fps": self.fps,
             "stages": list(self.stages),
             "frames": self.n_frames,
             "lost_frames": self.n_lost,
@@ -163,8 +167,8 @@ def run_tracker(
     out = Path(out_dir)
     (out / "views").mkdir(parents=True, exist_ok=True)
     stages = tuple(tracker.stages)
-    run = TrackingRun(out, tracker=tracker_name or type(tracker).__name__, stages=stages,
-                      stage_seconds=dict.fromkeys(stages, 0.0))
+    run = TrackingRun(out, tracker=tracker_name or type(tracker).__name__, fps=float(fps),
+                      stages=stages, stage_seconds=dict.fromkeys(stages, 0.0))
     states: list[np.ndarray] = []
     frames = iter(frames)
     first = next(frames, None)
