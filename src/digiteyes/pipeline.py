@@ -13,8 +13,9 @@ This is the layer between :mod:`digiteyes.io` (frames in, logs out) and
   (thesis Fig. 4.6) every ``views_every`` frames and at the last frame;
 * ``trajectory-palm.png`` and ``trajectory-joints.png``: the estimated palm pose and the
   index and thumb joint angles over time (thesis Figs. 4.7, 4.8);
-* ``summary.json``: the tracker, frames, losses, timings per stage (the stages the
-  tracker declares in ``Tracker.stages``; thesis Table 4.1 rows for the feature tracker).
+* ``summary.json``: the tracker, the frame rate of the input (``fps``, which
+  ``digiteyes export`` reads), frames, losses, timings per stage (the stages the tracker
+  declares in ``Tracker.stages``; thesis Table 4.1 rows for the feature tracker).
 
 Any :class:`~digiteyes.trackers.Tracker` runs through :func:`run_tracker`;
 :func:`step_frames` is the bare loop (reset, then one timed ``step`` per frame) that the
@@ -39,11 +40,10 @@ from digiteyes.camera import Rig
 from digiteyes.io import StateLogWriter, VideoWriter
 from digiteyes.io.safe_paths import atomic_write_json
 from digiteyes.kinematics import KinematicModel
-from digiteyes.trackers import Tracker, TrackResult
+from digiteyes.trackers import Tracker, TrackResult, warm_up
 from digiteyes.viz.model_view import write_model_png
 from digiteyes.viz.track_overlay import overlay_image
 from digiteyes.viz.trajectory import write_trajectory_plots
-from digiteyes.warmup import warm_up
 
 OVERLAY_CRF = 23
 OVERLAY_PRESET = "veryfast"
@@ -57,14 +57,16 @@ class TrackingRun:
     """What a run produced: counts, timings (seconds) and the files written.
 
     ``warm_up_seconds`` is the untimed first step that compiles (or loads) the kernels
-    (:func:`digiteyes.warmup.warm_up`), kept out of every other figure;
+    (:func:`digiteyes.trackers.warm_up`), kept out of every other figure;
     ``tracker_seconds`` sums the ``step`` calls; ``loop_seconds`` is the whole per-frame
     loop (reading frames, tracking, logging, overlays); ``wall_seconds`` adds the one-off
-    outputs written at the end (plots, last 3D view, summary).
+    outputs written at the end (plots, last 3D view, summary). ``fps`` is the frame rate
+    of the input sequence (frames/s), not the tracker's speed (``tracker_fps``).
     """
 
     out_dir: Path
     tracker: str = ""
+    fps: float | None = None
     stages: tuple[str, ...] = ()
     n_frames: int = 0
     n_lost: int = 0
@@ -102,6 +104,7 @@ class TrackingRun:
                          for k, v in self.stage_seconds.items()}
         return {
             "tracker": self.tracker,
+            "fps": self.fps,
             "stages": list(self.stages),
             "frames": self.n_frames,
             "lost_frames": self.n_lost,
@@ -158,13 +161,13 @@ def run_tracker(
     ``initial_state`` with any :class:`~digiteyes.trackers.Tracker` and write the outputs
     listed in the module docstring. ``tracker_name`` goes into ``summary.json`` (default:
     the tracker's class name). With ``warm`` the tracker first steps once on the first
-    frame, untimed, and is reset (:func:`digiteyes.warmup.warm_up`): compiling the
+    frame, untimed, and is reset (:func:`digiteyes.trackers.warm_up`): compiling the
     kernels on a first run stays out of the figures."""
     out = Path(out_dir)
     (out / "views").mkdir(parents=True, exist_ok=True)
     stages = tuple(tracker.stages)
-    run = TrackingRun(out, tracker=tracker_name or type(tracker).__name__, stages=stages,
-                      stage_seconds=dict.fromkeys(stages, 0.0))
+    run = TrackingRun(out, tracker=tracker_name or type(tracker).__name__, fps=float(fps),
+                      stages=stages, stage_seconds=dict.fromkeys(stages, 0.0))
     states: list[np.ndarray] = []
     frames = iter(frames)
     first = next(frames, None)

@@ -57,6 +57,7 @@ class InputResult:
     frames: int = 0
     lost_frames: int = 0
     seconds: float = 0.0
+    cpu_seconds: float = 0.0
     error: str = ""
 
 
@@ -100,19 +101,33 @@ def track_one(job: TrackJob) -> dict:
     """Run one job (the body of a Ray task) and write its completion marker last.
 
     Returns the marker's content: ``frames``, ``lost_frames``, ``seconds`` (wall time of
-    the tracking run). An interrupted run writes no marker and raises KeyboardInterrupt.
+    the tracking run) and ``cpu_seconds`` (CPU time of this process meanwhile, all its
+    threads). An interrupted run writes no marker and raises KeyboardInterrupt.
     """
-    started = time.perf_counter()
+    started, cpu_started = time.perf_counter(), time.process_time()
     run = run_track_job(job)
     if run.interrupted:
         raise KeyboardInterrupt
     done = {"inputs": list(job.inputs), "frames": run.n_frames, "lost_frames": run.n_lost,
-            "seconds": time.perf_counter() - started}
+            "seconds": time.perf_counter() - started,
+            "cpu_seconds": time.process_time() - cpu_started}
     marker = Path(job.output) / DONE_MARKER
     partial = marker.with_suffix(".part")
     partial.write_text(json.dumps(done, indent=2) + "\n", encoding="utf-8")
     os.replace(partial, marker)
     return done
+
+
+def track_in_worker(job: TrackJob) -> dict:
+    """:func:`track_one` in a Ray worker, with OpenCV and numba on one thread: a worker
+    has one CPU (``num_cpus=1``), and threads beyond it only fight the other workers for
+    the cores (:data:`WORKER_ENV` sets the same for libraries that read it at start)."""
+    import cv2
+    import numba
+
+    cv2.setNumThreads(1)
+    numba.set_num_threads(1)
+    return track_one(job)
 
 
 def plan_jobs(inputs: Sequence[str], out_dir: str | Path, template: TrackJob) -> list[TrackJob]:
@@ -211,7 +226,7 @@ def track_many(inputs: Sequence[str], out_dir: str | Path, template: TrackJob, *
             done = json.loads((Path(job.output) / DONE_MARKER).read_text(encoding="utf-8"))
             results[k] = InputResult(job.inputs[0], job.output, "skipped",
                                      done.get("frames", 0), done.get("lost_frames", 0),
-                                     done.get("seconds", 0.0))
+                                     done.get("seconds", 0.0), done.get("cpu_seconds", 0.0))
             say(f"skipped {job.inputs[0]} (done before: {job.output})")
         else:
             todo.append(k)
@@ -233,7 +248,7 @@ def track_many(inputs: Sequence[str], out_dir: str | Path, template: TrackJob, *
 
 def _run_tasks(ray, jobs: list[TrackJob], todo: list[int], results: dict[int, InputResult],
                progress: bool, poll_s: float, say: Callable[[str], None]) -> None:
-    remote = ray.remote(num_cpus=1, max_retries=0)(track_one)
+    remote = ray.remote(num_cpus=1, max_retries=0)(track_in_worker)
     pending = {remote.remote(jobs[k]): k for k in todo}
     bars = {k: tqdm(total=_total_frames(jobs[k]), desc=Path(jobs[k].output).name,
                     unit="frame", position=i, leave=True, disable=not progress)
@@ -255,7 +270,8 @@ def _run_tasks(ray, jobs: list[TrackJob], todo: list[int], results: dict[int, In
                     say(f"failed  {job.inputs[0]}: {results[k].error}")
                 else:
                     results[k] = InputResult(job.inputs[0], job.output, "done", done["frames"],
-                                             done["lost_frames"], done["seconds"])
+                                             done["lost_frames"], done["seconds"],
+                                             done["cpu_seconds"])
                     bars[k].update(done["frames"] - bars[k].n)
                     say(f"done    {job.inputs[0]}: {done['frames']} frame(s) in "
                         f"{done['seconds']:.1f} s -> {job.output}")

@@ -18,14 +18,12 @@ from __future__ import annotations
 import importlib
 import subprocess
 import sys
-import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable
 from pathlib import Path
 
-import numpy as np
 from numba.core.registry import CPUDispatcher
 
-from digiteyes.trackers import Tracker
+from digiteyes.trackers import warm_up
 
 KERNEL_MODULES = (
     "digiteyes.kinematics._kernels", "digiteyes.camera.camera", "digiteyes.render._kernels",
@@ -61,17 +59,6 @@ def cold_kernels(modules: Iterable[str] = KERNEL_MODULES) -> list[str]:
         if not any(folder.glob(f"{stem}*.nbi")):
             cold.append(f"{kernel.__module__}.{kernel.py_func.__qualname__}")
     return cold
-
-
-def warm_up(tracker: Tracker, images: Sequence[np.ndarray], initial_state: np.ndarray
-            ) -> float:
-    """Step ``tracker`` once on ``images`` from ``initial_state`` and discard the result
-    (compiles or loads every kernel the tracker uses); the caller resets the tracker
-    before tracking. Returns the seconds it took."""
-    start = time.perf_counter()
-    tracker.reset(np.asarray(initial_state, dtype=float))
-    tracker.step(list(images))
-    return time.perf_counter() - start
 
 
 def compile_in_background(scenario: str = "whole-hand") -> subprocess.Popen | None:

@@ -15,6 +15,7 @@ import pytest
 from digiteyes.camera import Rig
 from digiteyes.cli import main
 from digiteyes.io import VideoReader, open_sequence, read_state_log
+from digiteyes.io.track_extras import track_fps
 from digiteyes.kinematics import KinematicModel
 from digiteyes.kinematics.anatomy import FINGERS
 from digiteyes.trackers import (
@@ -126,6 +127,7 @@ def test_plugin_runs_through_track_overlay_and_evaluate(sequence, tmp_path, caps
     assert list(log.lost) == [False, False, True, True]
     summary = json.loads((out / "summary.json").read_text())
     assert summary["tracker"] == "hold-still" and summary["stages"] == ["measure", "hold"]
+    assert summary["fps"] == seq.fps and track_fps(out) == seq.fps  # what export reads
     assert summary["lost_frames"] == 2 and summary["first_lost_frame"] == 2
     assert summary["lost_frames_per_finger"] == {"index": 2, "middle": 0, "ring": 0,
                                                  "little": 0}

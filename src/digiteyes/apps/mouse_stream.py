@@ -25,7 +25,7 @@ from __future__ import annotations
 import time
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, replace
-from itertools import islice
+from itertools import chain, islice
 from pathlib import Path
 
 import cv2
@@ -38,7 +38,7 @@ from digiteyes.io import VideoReader, open_sequence, open_video_frames, read_sta
 from digiteyes.kinematics import KinematicModel, State, load_model
 from digiteyes.synth import RenderOptions, render_views
 from digiteyes.synth.scenarios import build_scenario
-from digiteyes.trackers import FeatureTracker, FeatureTrackerOptions
+from digiteyes.trackers import FeatureTracker, FeatureTrackerOptions, warm_up
 from digiteyes.viz.track_overlay import overlay_image
 
 JPEG_QUALITY = 80
@@ -123,10 +123,20 @@ def track_frames(model: KinematicModel, rig: Rig, frames: Iterable[tuple[float, 
                  initial_state: np.ndarray, options: FeatureTrackerOptions | None = None,
                  *, overlay: bool = True) -> Iterator[MouseFrame]:
     """Track timestamped frames (from :func:`timestamped`) with the feature tracker and
-    yield one :class:`MouseFrame` per frame."""
+    yield one :class:`MouseFrame` per frame.
+
+    The tracker first steps once on the first frame, untimed, and is reset
+    (:func:`digiteyes.trackers.warm_up`): compiling or loading the kernels happens before
+    the first frame's clock starts, so it never shows as frame-to-page latency."""
     tracker = FeatureTracker(model, rig, options or FeatureTrackerOptions())
+    frames = iter(frames)
+    first = next(frames, None)
+    if first is None:
+        return
+    warm_up(tracker, first[1], initial_state)
     tracker.reset(np.asarray(initial_state, dtype=float))
-    for index, (t_frame, images) in enumerate(frames):
+    restamped = (time.time(), first[1])
+    for index, (t_frame, images) in enumerate(chain([restamped], frames)):
         result = tracker.step(images)
         image = overlay_image(images, result, rig, model) if overlay else None
         yield mouse_frame(model, index, result.state, result.lost, t_frame, image)

@@ -16,7 +16,7 @@ Link reason codes index ``LINK_REASONS`` and tip codes ``TIP_REASONS`` (measure.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from digiteyes.camera.camera import project_point
 from digiteyes.features.edges import peak_in_range, smoothed_derivative
@@ -42,7 +42,7 @@ def _profile(gray, ox, oy, dx, dy, j_first, step, prof, inside, response):  # pr
     smoothed_derivative(prof, response)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def links_kernel(gray, params, view, perspective, shapes, rows, lengths, radii, fractions,
                  min_axis_px, min_edge_points, half, step, min_contrast, polarity, loss,
                  max_fit_rms, cos_max_angle, max_width_error, side_samples,
@@ -50,26 +50,28 @@ def links_kernel(gray, params, view, perspective, shapes, rows, lengths, radii, 
                  edge_points, edge_inlier, slice_ends):  # pragma: no cover - compiled
     """Measure every link (docs/features.md Sec. 1); fills the (L, ...) output arrays.
 
-    Links are shared out among numba's threads, each with its own scratch arrays; a link
-    writes only its own rows of the outputs."""
+    One thread, links one after the other with shared scratch arrays: a link is a few
+    microseconds of work, too little for numba's ``parallel=True`` to pay for its thread
+    start-up, its barrier per call (costly when the cores are shared) and its compile time
+    (about 30 s of a first run; docs/architecture.md, "The first run")."""
     n_slices = w_slices.shape[1]
     margin = max(side_samples, 3) + 1
-    for i in prange(rows.shape[0]):
-        tangent = np.empty((2, 3))
-        w_tan = np.empty((n_slices, 2, 2))
-        position = np.empty((2, n_slices))
-        before = np.empty((2, n_slices))
-        after = np.empty((2, n_slices))
-        window = np.empty((2, n_slices))
-        moved = np.empty((n_slices, 2))
-        fit_line = np.empty((2, 3))
-        shifted = np.empty(3)
-        work = np.empty((3, n_slices))
-        unused = np.empty(n_slices, dtype=np.bool_)
-        count = np.empty(2, dtype=np.int64)
-        rms = np.empty(2)
-        prof_buf, inside_buf, response_buf = (np.empty(128), np.empty(128, np.bool_),
-                                              np.empty(128))
+    tangent = np.empty((2, 3))
+    w_tan = np.empty((n_slices, 2, 2))
+    position = np.empty((2, n_slices))
+    before = np.empty((2, n_slices))
+    after = np.empty((2, n_slices))
+    window = np.empty((2, n_slices))
+    moved = np.empty((n_slices, 2))
+    fit_line = np.empty((2, 3))
+    shifted = np.empty(3)
+    work = np.empty((3, n_slices))
+    unused = np.empty(n_slices, dtype=np.bool_)
+    count = np.empty(2, dtype=np.int64)
+    rms = np.empty(2)
+    prof_buf, inside_buf, response_buf = (np.empty(128), np.empty(128, np.bool_),
+                                          np.empty(128))
+    for i in range(rows.shape[0]):
         T = shapes[rows[i]]
         behind = False
         # Axis ends, slice centres and contour tangent points, projected.
@@ -83,7 +85,7 @@ def links_kernel(gray, params, view, perspective, shapes, rows, lengths, radii, 
                 continue
             w_slices[i, k - 2, 0], w_slices[i, k - 2, 1] = u, v
             tangent_pair(px, py, pz, T[0, 0], T[1, 0], T[2, 0], radii[i], view, perspective,
-                         False, tangent)
+                         np.bool_(False), tangent)
             for side in range(2):
                 w_tan[k - 2, side, 0], w_tan[k - 2, side, 1], _, _, _ = project_point(
                     params, tangent[side, 0], tangent[side, 1], tangent[side, 2])
@@ -138,7 +140,7 @@ def links_kernel(gray, params, view, perspective, shapes, rows, lengths, radii, 
                 pts[s, 0] = w_slices[i, s, 0] + position[side, s] * nx
                 pts[s, 1] = w_slices[i, s, 1] + position[side, s] * ny
                 unused[s] = np.isfinite(position[side, s])
-            count[side], rms[side] = fit_one(pts, unused, normal[i], loss, 4, 0.3,
+            count[side], rms[side] = fit_one(pts, unused, normal[i], loss, np.int64(4), 0.3,
                                              fit_line[side], edge_inlier[i, side], work[0],
                                              work[1], work[2])
             n_edges[i, side] = count[side]
@@ -169,8 +171,8 @@ def links_kernel(gray, params, view, perspective, shapes, rows, lengths, radii, 
                 shift = position[side, s] - contour[i, s, side]
                 moved[s, 0] = w_slices[i, s, 0] + shift * nx
                 moved[s, 1] = w_slices[i, s, 1] + shift * ny
-            fit_one(moved, edge_inlier[i, side], normal[i], 0, 0, 0.3, shifted, unused,
-                    work[0], work[1], work[2])
+            fit_one(moved, edge_inlier[i, side], normal[i], np.int64(0), np.int64(0), 0.3,
+                    shifted, unused, work[0], work[1], work[2])
             la, lb, lr = shifted[0], shifted[1], shifted[2]
             # ... accepted if the missing side's ranges show the finger, not background.
             finger = background = seen = 0.0
@@ -227,7 +229,7 @@ def tips_kernel(gray, params, view, perspective, shapes, rows, axis_rows, radii,
         T, A = shapes[rows[i]], shapes[axis_rows[i]]
         cx, cy, cz = T[0, 3], T[1, 3], T[2, 3]
         sin_view = tangent_pair(cx, cy, cz, A[0, 0], A[1, 0], A[2, 0], radii[i], view,
-                                perspective, True, tangent)
+                                perspective, np.bool_(True), tangent)
         wx, wy, _, _, z = project_point(params, cx, cy, cz)
         predicted[i, 0], predicted[i, 1] = wx, wy
         u1, v1, _, _, _ = project_point(params, tangent[0, 0], tangent[0, 1], tangent[0, 2])

@@ -151,7 +151,8 @@ def contour_points_kernel(shapes, rows, at, radii, view, perspective, params, no
         ox, oy, oz = T[0, 3], T[1, 3], T[2, 3]
         ex, ey, ez = T[0, 0], T[1, 0], T[2, 0]
         cx, cy, cz = ox + at[k] * ex, oy + at[k] * ey, oz + at[k] * ez
-        tangent_pair(cx, cy, cz, ex, ey, ez, radii[k], view, perspective, False, tangent)
+        tangent_pair(cx, cy, cz, ex, ey, ez, radii[k], view, perspective, np.bool_(False),
+                     tangent)
         # circle basis: u towards the first contour point, w = e x u
         ux, uy, uz = tangent[0, 0] - cx, tangent[0, 1] - cy, tangent[0, 2] - cz
         norm = np.sqrt(ux * ux + uy * uy + uz * uz)

@@ -131,6 +131,7 @@ def forward_kinematics(model: KinematicModel, q: np.ndarray) -> Kinematics:
     :class:`~digiteyes.errors.StateError` for a wrong size or non-finite values.
     """
     Q, batched = as_state_batch(model, q)
+    Q = np.require(Q, requirements=("C", "W"))  # one kernel specialisation, not a read-only one
     if model.base_state is not None:
         k = model.base_state
         if not np.all(np.abs(Q[:, k:k + 4]).max(axis=1) > 1e-150):

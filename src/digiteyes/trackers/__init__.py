@@ -6,7 +6,7 @@ stabilised Gauss-Newton, several cameras stacked in one system; registered as
 ``"templates+features"``. :func:`create_tracker` builds any registered tracker by name.
 """
 
-from digiteyes.trackers.base import Tracker, TrackResult
+from digiteyes.trackers.base import Tracker, TrackResult, warm_up
 from digiteyes.trackers.feature_tracker import (
     THESIS_EXCLUDED_LINKS,
     FeatureDetails,
@@ -50,5 +50,5 @@ __all__ = [
     "LayeredTemplateTracker", "StateParameterisation", "StatePredictor", "TemplateDetails",
     "TrackResult", "Tracker", "TrackerEntry", "TrackerError", "all_features",
     "create_tracker", "register_tracker", "thesis_whole_hand_links", "tracker_entry",
-    "tracker_names",
+    "tracker_names", "warm_up",
 ]

@@ -10,6 +10,7 @@ FeatureDetails` for the feature tracker). The run loop, the state log, ``summary
 
 from __future__ import annotations
 
+import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, Protocol, runtime_checkable
@@ -83,3 +84,14 @@ class Tracker(Protocol):
     def step(self, frames: Sequence[np.ndarray]) -> TrackResult:
         """Estimate the state for the next set of frames."""
         ...
+
+
+def warm_up(tracker: Tracker, images: Sequence[np.ndarray], initial_state: np.ndarray
+            ) -> float:
+    """Step ``tracker`` once on ``images`` from ``initial_state`` and discard the result
+    (compiles or loads every kernel the tracker uses); the caller resets the tracker
+    before tracking. Returns the seconds it took."""
+    start = time.perf_counter()
+    tracker.reset(np.asarray(initial_state, dtype=float))
+    tracker.step(list(images))
+    return time.perf_counter() - start
