@@ -50,7 +50,7 @@ from digiteyes.trackers import tracker_entry, tracker_names
 
 FRAMES = 120
 """Frames per sequence of the full run."""
-QUICK_FRAMES = 6
+QUICK_FRAMES = 3
 """Frames per sequence of ``--quick`` (a smoke run)."""
 SCALED_HAND = 0.9
 """Size of the ``scaled`` hand relative to Appendix A (the tracking model stays at 1.0)."""
