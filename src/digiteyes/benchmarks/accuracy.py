@@ -163,7 +163,7 @@ def run(json_path: str | None = None, quick: bool = False,
         name: {a: _totals([r for r in rows if r["tracker"] == name and r["appearance"] == a])
                for a in APPEARANCES} for name in names}
     result["wall_seconds"] = time.perf_counter() - started
-    lines = ["", format_rows(rows), "", format_totals(result),
+    lines = ["", format_rows(rows), "", format_side_by_side(rows), "", format_totals(result),
              f"benchmark wall time {result['wall_seconds']:.0f} s"]
     return emit(result, "\n".join(lines), json_path)
 
@@ -203,3 +203,35 @@ def format_totals(result: dict[str, Any]) -> str:
                       "precision >= 80 %)",
                       *_table(["tracker", "appearance", "precision", "recall", "TP", "FP",
                                "FN", "TN"], cells)])
+
+
+SIDE_FIGURES = (("tip mean", "fingertip_err_mm_mean"), ("tip median", "fingertip_err_mm_median"),
+                ("joint RMS", "joint_angle_err_deg_rms"), ("palm mm", "palm_pos_err_mm_mean"),
+                ("palm deg", "palm_rot_err_deg_mean"))
+
+
+def format_side_by_side(rows: Sequence[dict[str, Any]], markdown: bool = False) -> str:
+    """The table with the two appearances side by side (``model | flesh`` in each cell):
+    a row per tracker, setup and hand; ``markdown`` for docs/accuracy.md."""
+    by_key = {(r["tracker"], r["setup"], r["hand"], r["appearance"]): r for r in rows}
+    keys = list(dict.fromkeys((r["tracker"], r["setup"], r["hand"]) for r in rows))
+    header = ["tracker", "setup", "hand", *(label for label, _ in SIDE_FIGURES), "life",
+              "lost: truly / flagged / caught"]
+    cells = []
+    for tracker, setup, hand in keys:
+        pair = [by_key.get((tracker, setup, hand, a)) for a in APPEARANCES]
+        row = [tracker, setup, hand]
+        for _, key in SIDE_FIGURES:
+            row.append(" | ".join(_f(r[key]) if r else "-" for r in pair))
+        row.append(" | ".join(f"{r['track_life_frames']}/{r['frames']}" if r else "-"
+                              for r in pair))
+        row.append(" | ".join(f"{r['truly_lost_frames']}/{r['flag']['flagged_frames']}/"
+                              f"{r['flag']['true_positive']}" if r else "-" for r in pair))
+        cells.append(row)
+    if markdown:
+        return "\n".join(["| " + " | ".join(header) + " |",
+                          "|" + "---|" * len(header),
+                          *("| " + " | ".join(c.replace(" | ", " \\| ") for c in row) + " |"
+                            for row in cells)])
+    return "\n".join(["figures as model | flesh appearance (mm, degrees, frames)",
+                      *_table(header, cells)])
