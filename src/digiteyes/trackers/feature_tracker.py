@@ -11,7 +11,10 @@ Track loss (thesis Sec. 4.1, 4.3.2: the search windows no longer contain the fea
 a frame is flagged ``lost`` when
 
 * no feature could be measured at all;
-* more than ``max_invalid_fraction`` of the requested features are invalid;
+* more than ``max_invalid_fraction`` of the requested features are invalid, and more
+  than in the first frame (at the true initial state) by over ``invalid_margin`` (a hand
+  that looks unlike the model, thinner or tapered fingers, fails the width check on many
+  features even where the pose is right);
 * the residual RMS exceeds ``max_residual_rms_px`` (default: half the feature window,
   where the features start falling out of their windows);
 * the residual RMS has grown in each of the last ``growth_frames`` frames to more than
@@ -19,7 +22,8 @@ a frame is flagged ``lost`` when
 * (``silhouette_check``, a plain backdrop) the model drawn at the estimate leaves more
   than ``max_unexplained`` of its own area of the hand's silhouette unexplained, beyond
   what it left at the true first state, or puts more than ``max_finger_outside`` of a
-  finger over the backdrop (that finger is flagged in ``finger_lost``;
+  finger over the backdrop beyond that finger's share at the first state (that finger
+  is flagged in ``finger_lost``;
   :mod:`digiteyes.features.foreground`). The feature residual alone cannot see a
   finger that has snapped onto its neighbour's edges: each measured edge is then close
   to some predicted line (docs/accuracy.md).
@@ -69,6 +73,8 @@ from digiteyes.trackers.base import TrackResult
 from digiteyes.trackers.parameterisation import StateParameterisation
 from digiteyes.trackers.prediction import PREDICTIONS, PredictionKind, StatePredictor
 
+NO_FEATURES = "no features measured"
+"""The loss reason of a frame without any valid feature (given alone)."""
 THESIS_EXCLUDED_LINKS = ("middle.proximal", "ring.proximal")
 """Links the thesis's whole-hand experiment did not measure (Sec. 4.3.3: the proximal
 phalanges of the middle two fingers, which were always occluded). In the Appendix A model
@@ -139,7 +145,8 @@ class FeatureTrackerOptions:
         thesis's quaternion form (n_q); the spellings ``"tangent"``/``"quaternion"`` are
         accepted and turned into the object.
     max_invalid_fraction : lost when more than this fraction of requested features is
-        invalid.
+        invalid (and more than ``invalid_margin`` above the first frame's fraction).
+    invalid_margin : see ``max_invalid_fraction``.
     max_residual_rms_px : lost when the final residual RMS exceeds this; ``None`` means
         half the feature window (``features.window_px / 2``).
     growth_frames, growth_factor, growth_min_px : lost when the residual RMS rose in each
@@ -151,8 +158,9 @@ class FeatureTrackerOptions:
         ignored, px.
     max_unexplained : lost when the hand pixels beyond the tolerance of the model, per
         model pixel, exceed their first-frame value by more than this.
-    max_finger_outside : a finger is lost when more than this fraction of its model pixels
-        lies beyond the tolerance of the hand's silhouette.
+    max_finger_outside : a finger is lost when the fraction of its model pixels beyond the
+        tolerance of the hand's silhouette exceeds its first-frame value by more than
+        this.
     """
 
     iterations_per_frame: int = 5
@@ -175,6 +183,7 @@ class FeatureTrackerOptions:
     prediction: PredictionKind = "none"
     form: StepForm = StepForm.TANGENT
     max_invalid_fraction: float = 0.5
+    invalid_margin: float = 0.2
     max_residual_rms_px: float | None = None
     growth_frames: int = 5
     growth_factor: float = 2.0
@@ -223,7 +232,8 @@ class FeatureTrackerOptions:
         if not (np.isfinite(self.width_weight) and self.width_weight >= 0):
             raise ValueError(f"width_weight must be >= 0, got {self.width_weight!r}")
         positive = ["robust_scale_px", "growth_factor", "max_width_error",
-                    "max_backdrop_texture", "max_unexplained", "max_finger_outside"]
+                    "max_backdrop_texture", "max_unexplained", "max_finger_outside",
+                    "invalid_margin"]
         if self.max_residual_rms_px is not None:
             positive.append("max_residual_rms_px")
         for name in positive:
@@ -423,6 +433,8 @@ class FeatureTracker:
         self.edge_bias: list[EdgeBias] = []
         self.foreground: list[Foreground | None] | None = None
         self._unexplained_baseline: list[float] = []
+        self._outside_baseline: list[dict[str, float]] = []
+        self._invalid_baseline: float | None = None
 
     @staticmethod
     def _split_features(model: KinematicModel, names: tuple[str, ...] | None
@@ -468,6 +480,8 @@ class FeatureTracker:
         self.edge_bias = []
         self.foreground = None
         self._unexplained_baseline = []
+        self._outside_baseline = []
+        self._invalid_baseline = None
 
     def step(self, frames: Sequence[np.ndarray]) -> TrackResult:
         """Estimate the state for one set of frames (one image per camera, rig order).
@@ -545,6 +559,7 @@ class FeatureTracker:
                   if fg is not None]
         if not self._unexplained_baseline:
             self._unexplained_baseline = [c.unexplained for c in checks]
+            self._outside_baseline = [dict(c.finger_outside) for c in checks]
         return checks
 
     def _silhouette_reasons(self, checks: list[SilhouetteCheck]
@@ -553,13 +568,14 @@ class FeatureTracker:
         opts = self.options
         reasons: list[str] = []
         fingers: dict[str, bool] = {}
-        for camera, (check, base) in enumerate(zip(checks, self._unexplained_baseline,
-                                                   strict=True)):
+        for camera, (check, base, outside_base) in enumerate(zip(
+                checks, self._unexplained_baseline, self._outside_baseline, strict=True)):
             if check.unexplained - base > opts.max_unexplained:
                 reasons.append(f"camera {camera}: {check.unexplained:.0%} of the model's area "
                                f"of the hand unexplained (first frame {base:.0%})")
             for finger, outside in check.finger_outside.items():
-                fingers[finger] = fingers.get(finger, False) or outside > opts.max_finger_outside
+                excess = outside - outside_base.get(finger, 0.0)
+                fingers[finger] = fingers.get(finger, False) or excess > opts.max_finger_outside
         off = [finger for finger, lost in fingers.items() if lost]
         if off:
             reasons.append(f"off the hand's silhouette: {', '.join(off)}")
@@ -572,10 +588,14 @@ class FeatureTracker:
         rms = float(np.sqrt(np.mean(r * r))) if len(r) else float("nan")
         n_links = int(sum(int(np.sum(m.link_valid)) for m in final.measurements))
         n_tips = int(sum(int(np.sum(m.tip_valid)) for m in final.measurements))
+        if self._invalid_baseline is None:
+            self._invalid_baseline = 1.0 - (n_links + n_tips) / self.n_features
         reasons = track_loss_reasons(rms, n_links + n_tips, self.n_features,
-                                     list(self._rms_history), self.options)
+                                     list(self._rms_history), self.options,
+                                     self._invalid_baseline)
         silhouette_reasons, finger_lost = self._silhouette_reasons(checks)
-        reasons += silhouette_reasons
+        if reasons != [NO_FEATURES]:
+            reasons += silhouette_reasons
         if np.isfinite(rms):
             self._rms_history.append(rms)
         else:
@@ -592,7 +612,8 @@ class FeatureTracker:
 
 
 def track_loss_reasons(rms: float, n_valid: int, n_features: int, previous_rms: Sequence[float],
-                       options: FeatureTrackerOptions) -> list[str]:
+                       options: FeatureTrackerOptions, first_invalid: float = 0.0
+                       ) -> list[str]:
     """The track-loss rules (module docstring) for one frame; empty when the track holds.
 
     Parameters
@@ -603,12 +624,13 @@ def track_loss_reasons(rms: float, n_valid: int, n_features: int, previous_rms: 
     previous_rms : residual RMS of the preceding frames, oldest first (the growth rule
         looks at the last ``options.growth_frames`` of them).
     options : the thresholds.
+    first_invalid : fraction of the features invalid in the first frame of the track.
     """
     if n_valid == 0 or not np.isfinite(rms):
-        return ["no features measured"]
+        return [NO_FEATURES]
     reasons = []
     invalid = 1.0 - n_valid / n_features
-    if invalid > options.max_invalid_fraction:
+    if invalid > max(options.max_invalid_fraction, first_invalid + options.invalid_margin):
         reasons.append(f"{invalid:.0%} of the features invalid "
                        f"(limit {options.max_invalid_fraction:.0%})")
     if rms > options.residual_limit_px:
