@@ -25,7 +25,10 @@ def test_quick_accuracy_bench_writes_every_row(tmp_path):
         assert flag["true_positive"] + flag["false_negative"] == row["truly_lost_frames"]
         for key in ("precision", "recall"):
             assert flag[key] is None or 0.0 <= flag[key] <= 1.0
+        fingers = row["finger_flag"]  # the feature tracker judges the five digits
+        assert fingers["judged"] == 5 * row["frames"]
     totals = data["flag_totals"]["features"]
     assert set(totals) == set(accuracy.APPEARANCES)
     assert sum(t["frames"] for t in totals.values()) == len(rows) * accuracy.QUICK_FRAMES
+    assert set(data["finger_flag_totals"]["features"]) == set(accuracy.APPEARANCES)
     assert result["rows"] == rows

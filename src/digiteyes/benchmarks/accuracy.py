@@ -30,6 +30,8 @@ from collections.abc import Sequence
 from dataclasses import replace
 from typing import Any
 
+import numpy as np
+
 from digiteyes.benchmarks._machine import emit, machine_info, machine_lines
 from digiteyes.benchmarks.tracker import (
     SEED,
@@ -92,13 +94,33 @@ def row_figures(sequence: RenderedSequence, outcome: Any) -> dict[str, Any]:
                        sequence.truth_model)
     out["truly_lost_frames"] = int(truth.lost.sum())
     out["flag"] = flag_scores(outcome.log.lost, truth.lost)
+    out["finger_flag"] = finger_scores(outcome.finger_lost, truth.tip_names,
+                                       truth.finger_lost)
     return out
 
 
-def _totals(rows: list[dict[str, Any]]) -> dict[str, Any]:
-    keys = ("true_positive", "false_positive", "false_negative")
-    tp, fp, fn = (sum(r["flag"][k] for r in rows) for k in keys)
-    frames = sum(r["frames"] for r in rows)
+def finger_scores(flags: Sequence[dict[str, bool]], tip_names: Sequence[str],
+                  lost: np.ndarray) -> dict[str, Any] | None:
+    """The per-finger loss flags (one dict digit -> bool per frame) scored against the
+    per-finger truth (T, F) over every (frame, finger) the tracker judged; None when it
+    judged none (a tracker without per-finger flags)."""
+    digits = [name.split(".")[0] for name in tip_names]
+    pairs = [(bool(frame[d]), bool(lost[t, f])) for t, frame in enumerate(flags)
+             for f, d in enumerate(digits) if d in frame]
+    if not pairs:
+        return None
+    flagged, truth = np.array(pairs).T
+    return flag_scores(flagged, truth) | {"judged": len(pairs)}
+
+
+def _totals(rows: list[dict[str, Any]], key: str = "flag") -> dict[str, Any] | None:
+    scored = [r[key] for r in rows if r.get(key)]
+    if not scored:
+        return None
+    tp, fp, fn = (sum(s[k] for s in scored)
+                  for k in ("true_positive", "false_positive", "false_negative"))
+    frames = sum(r["frames"] for r in rows) if key == "flag" \
+        else sum(s["judged"] for s in scored)
     return {"precision": tp / (tp + fp) if tp + fp else None,
             "recall": tp / (tp + fn) if tp + fn else None, "true_positive": tp,
             "false_positive": fp, "false_negative": fn,
@@ -116,7 +138,10 @@ def run(json_path: str | None = None, quick: bool = False,
 
     JSON: ``rows`` (a list; each row ``tracker``, ``appearance``, ``setup``, ``hand`` and
     the figures of :func:`row_figures`), ``flag_totals`` [tracker][appearance], and
-    ``settings``, ``machine``, ``threads``, ``wall_seconds``.
+    ``finger_flag_totals`` [tracker][appearance] (the per-finger flags over every
+    (frame, finger) judged; None for a tracker without them), ``settings``, ``machine``,
+    ``threads``, ``wall_seconds``. A row's ``finger_flag`` scores
+    ``TrackResult.finger_lost`` against the per-finger truth (tip error above 50 mm).
     """
     names = list(tracker_names()) if trackers is None else list(trackers)
     for name in names:
@@ -159,9 +184,10 @@ def run(json_path: str | None = None, quick: bool = False,
                               f"{row['flag']['flagged_frames']} flagged, "
                               f"{row['truly_lost_frames']} truly lost", flush=True)
     result["rows"] = rows
-    result["flag_totals"] = {
-        name: {a: _totals([r for r in rows if r["tracker"] == name and r["appearance"] == a])
-               for a in APPEARANCES} for name in names}
+    result["flag_totals"], result["finger_flag_totals"] = (
+        {name: {a: _totals([r for r in rows if r["tracker"] == name
+                            and r["appearance"] == a], key) for a in APPEARANCES}
+         for name in names} for key in ("flag", "finger_flag"))
     result["wall_seconds"] = time.perf_counter() - started
     lines = ["", format_rows(rows), "", format_side_by_side(rows), "", format_totals(result),
              f"benchmark wall time {result['wall_seconds']:.0f} s"]
@@ -193,12 +219,15 @@ def _pct(value: float | None) -> str:
 
 
 def format_totals(result: dict[str, Any]) -> str:
-    """The loss flag over all rows of each tracker and appearance (confusion counts)."""
-    cells = [[name, appearance, _pct(t["precision"]), _pct(t["recall"]),
+    """The loss flag over all rows of each tracker and appearance (confusion counts), and
+    the per-finger flags over every (frame, finger) judged."""
+    cells = [[name + (" (per finger)" if key.startswith("finger") else ""), appearance,
+              _pct(t["precision"]), _pct(t["recall"]),
               str(t["true_positive"]), str(t["false_positive"]), str(t["false_negative"]),
               str(t["true_negative"])]
-             for name, by_appearance in result["flag_totals"].items()
-             for appearance, t in by_appearance.items()]
+             for key in ("flag_totals", "finger_flag_totals")
+             for name, by_appearance in result[key].items()
+             for appearance, t in by_appearance.items() if t]
     return "\n".join(["loss flag against truth, all rows (targets on flesh: recall >= 90 %, "
                       "precision >= 80 %)",
                       *_table(["tracker", "appearance", "precision", "recall", "TP", "FP",
