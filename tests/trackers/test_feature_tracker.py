@@ -173,7 +173,7 @@ def test_result_fields_and_timings(rig, true_states, frames):
         assert d.n_valid_tips == sum(int(m.tip_valid.sum()) for m in d.measurements)
         assert result.residual_rms_px == pytest.approx(np.sqrt(np.mean(d.residuals**2)))
         assert result.cost == pytest.approx(0.5 * d.residuals @ d.residuals)
-        assert result.finger_lost == {}
+        assert result.finger_lost and not any(result.finger_lost.values())
         assert set(result.timings) == {*FeatureTracker.stages, "total"}
         stages = [result.timings[k] for k in FeatureTracker.stages]
         assert all(t > 0 for t in stages)
@@ -204,6 +204,9 @@ def test_track_loss_rules():
     assert track_loss_reasons(2.5, 30, 40, [1.2, 1.6, 1.5], options) == []  # not monotone
     assert track_loss_reasons(0.9, 30, 40, [0.1, 0.2, 0.4], options) == []  # under 1 px
     assert len(track_loss_reasons(11.0, 10, 40, [], options)) == 2
+    # a hand that fails the width check on 45 % of the features at its true first state
+    assert track_loss_reasons(0.8, 19, 40, [], options, first_invalid=0.45) == []
+    assert track_loss_reasons(0.8, 10, 40, [], options, first_invalid=0.45)
 
 
 def test_errors(rig, true_states, frames):

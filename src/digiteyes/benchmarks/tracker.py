@@ -69,7 +69,7 @@ import contextlib
 import tempfile
 import time
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -248,13 +248,15 @@ def render_sequence(scenario: Scenario, background: str = "black", perturbed: bo
 # --------------------------------------------------------------------------- tracking
 @dataclass
 class TrackOutcome:
-    """A tracker run over a rendered sequence: the log and the time spent per stage."""
+    """A tracker run over a rendered sequence: the log, the time spent per stage and the
+    per-finger loss flags of every frame (``TrackResult.finger_lost``)."""
 
     log: StateLog
     stage_seconds: dict[str, float]
     tracker_seconds: float
     iterations: int
     features_per_frame: float
+    finger_lost: list[dict[str, bool]] = field(default_factory=list)
 
 
 def track_sequence(sequence: RenderedSequence, options: Any, label: str = "track",
@@ -274,6 +276,7 @@ def track_sequence(sequence: RenderedSequence, options: Any, label: str = "track
     seconds = np.zeros(n)
     stage = dict.fromkeys(runner.stages, 0.0)
     features = 0
+    finger_lost: list[dict[str, bool]] = []
     frames = tqdm(sequence.images, desc=label, unit="frame", leave=False,
                   disable=not progress)
     for t, _, result, step_seconds in step_frames(runner, frames,
@@ -281,12 +284,13 @@ def track_sequence(sequence: RenderedSequence, options: Any, label: str = "track
         seconds[t] = step_seconds
         states[t], lost[t], rms[t] = result.state, result.lost, result.residual_rms_px
         iterations[t] = result.iterations
+        finger_lost.append(dict(result.finger_lost))
         features += getattr(result.details, "n_features", 0)
         for key in stage:
             stage[key] += result.timings.get(key, 0.0)
     log = StateLog(np.arange(n), states, lost, rms, iterations, seconds)
     return TrackOutcome(log, stage, float(seconds.sum()), int(iterations.sum()),
-                        features / max(n, 1))
+                        features / max(n, 1), finger_lost)
 
 
 def _number(value: Any) -> float | None:

@@ -15,7 +15,10 @@ SUITES = {
     "templates": "digiteyes.benchmarks.templates",
     "mouse": "digiteyes.benchmarks.mouse",
     "track-many": "digiteyes.benchmarks.track_many",
+    "accuracy": "digiteyes.benchmarks.accuracy",
 }
+TRACKER_SUITES = ("accuracy",)
+"""Suites that take ``--trackers``."""
 
 
 @click.command()
@@ -24,12 +27,20 @@ SUITES = {
               help="Write the figures to this JSON file (with 'all': one file per suite, "
                    "suffixed by the suite name).")
 @click.option("--quick", is_flag=True, help="Fewer repeats and frames (for a smoke run).")
-def bench(suite: str, json_path: str | None, quick: bool) -> None:
+@click.option("--trackers", help="Comma-separated registered tracker names (suite "
+                                 "'accuracy'; default: every registered tracker).")
+def bench(suite: str, json_path: str | None, quick: bool, trackers: str | None) -> None:
     """Run benchmark SUITE (one of the names above) or all."""
     names = list(SUITES) if suite == "all" else [suite]
+    extra = {}
+    if trackers is not None:
+        if suite not in TRACKER_SUITES:
+            raise click.UsageError(f"--trackers applies to {', '.join(TRACKER_SUITES)}, "
+                                   f"not {suite!r}")
+        extra["trackers"] = [t.strip() for t in trackers.split(",") if t.strip()]
     for name in names:
         path = json_path
         if json_path and suite == "all":
             stem, dot, ext = json_path.rpartition(".")
             path = f"{stem}-{name}.{ext}" if dot else f"{json_path}-{name}"
-        importlib.import_module(SUITES[name]).run(json_path=path, quick=quick)
+        importlib.import_module(SUITES[name]).run(json_path=path, quick=quick, **extra)

@@ -11,11 +11,22 @@ Track loss (thesis Sec. 4.1, 4.3.2: the search windows no longer contain the fea
 a frame is flagged ``lost`` when
 
 * no feature could be measured at all;
-* more than ``max_invalid_fraction`` of the requested features are invalid;
+* more than ``max_invalid_fraction`` of the requested features are invalid, and more
+  than in the first frame (at the true initial state) by over ``invalid_margin`` (a hand
+  that looks unlike the model, thinner or tapered fingers, fails the width check on many
+  features even where the pose is right);
 * the residual RMS exceeds ``max_residual_rms_px`` (default: half the feature window,
   where the features start falling out of their windows);
 * the residual RMS has grown in each of the last ``growth_frames`` frames to more than
-  ``growth_factor`` times its value before them (and above ``growth_min_px``).
+  ``growth_factor`` times its value before them (and above ``growth_min_px``);
+* (``silhouette_check``, a plain backdrop) the model drawn at the estimate leaves more
+  than ``max_unexplained`` of its own area of the hand's silhouette unexplained, beyond
+  what it left at the true first state, or puts more than ``max_finger_outside`` of a
+  finger over the backdrop beyond that finger's share at the first state (that finger
+  is flagged in ``finger_lost``;
+  :mod:`digiteyes.features.foreground`). The feature residual alone cannot see a
+  finger that has snapped onto its neighbour's edges: each measured edge is then close
+  to some predicted line (docs/accuracy.md).
 
 A lost frame is reported, not acted on: tracking continues from the estimate, and the
 constant-velocity prediction drops its velocity.
@@ -35,6 +46,13 @@ from digiteyes.camera import Rig
 from digiteyes.errors import StateError
 from digiteyes.features import FeatureOptions, feature_residuals, measure_features
 from digiteyes.features.appearance import EdgeBias, ShadingModel, edge_bias, fit_shading
+from digiteyes.features.foreground import (
+    Foreground,
+    SilhouetteCheck,
+    fit_foreground,
+    model_labels,
+    silhouette_check,
+)
 from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import (
     STEP_FORMS,
@@ -55,6 +73,8 @@ from digiteyes.trackers.base import TrackResult
 from digiteyes.trackers.parameterisation import StateParameterisation
 from digiteyes.trackers.prediction import PREDICTIONS, PredictionKind, StatePredictor
 
+NO_FEATURES = "no features measured"
+"""The loss reason of a frame without any valid feature (given alone)."""
 THESIS_EXCLUDED_LINKS = ("middle.proximal", "ring.proximal")
 """Links the thesis's whole-hand experiment did not measure (Sec. 4.3.3: the proximal
 phalanges of the middle two fingers, which were always occluded). In the Appendix A model
@@ -125,12 +145,22 @@ class FeatureTrackerOptions:
         thesis's quaternion form (n_q); the spellings ``"tangent"``/``"quaternion"`` are
         accepted and turned into the object.
     max_invalid_fraction : lost when more than this fraction of requested features is
-        invalid.
+        invalid (and more than ``invalid_margin`` above the first frame's fraction).
+    invalid_margin : see ``max_invalid_fraction``.
     max_residual_rms_px : lost when the final residual RMS exceeds this; ``None`` means
         half the feature window (``features.window_px / 2``).
     growth_frames, growth_factor, growth_min_px : lost when the residual RMS rose in each
         of the last ``growth_frames`` frames, to more than ``growth_factor`` times its value
         before them and above ``growth_min_px``.
+    silhouette_check : compare the model's silhouette at the estimate with the hand's
+        (a grey threshold fitted on the first frame; off over a textured backdrop).
+    silhouette_tolerance_px : differences of the two silhouettes within this distance are
+        ignored, px.
+    max_unexplained : lost when the hand pixels beyond the tolerance of the model, per
+        model pixel, exceed their first-frame value by more than this.
+    max_finger_outside : a finger is lost when the fraction of its model pixels beyond the
+        tolerance of the hand's silhouette exceeds its first-frame value by more than
+        this.
     """
 
     iterations_per_frame: int = 5
@@ -153,10 +183,15 @@ class FeatureTrackerOptions:
     prediction: PredictionKind = "none"
     form: StepForm = StepForm.TANGENT
     max_invalid_fraction: float = 0.5
+    invalid_margin: float = 0.2
     max_residual_rms_px: float | None = None
     growth_frames: int = 5
     growth_factor: float = 2.0
     growth_min_px: float = 3.0
+    silhouette_check: bool = True
+    silhouette_tolerance_px: int = 5
+    max_unexplained: float = 0.08
+    max_finger_outside: float = 0.35
 
     def __post_init__(self) -> None:
         if isinstance(self.iterations_per_frame, bool) or not isinstance(
@@ -197,7 +232,8 @@ class FeatureTrackerOptions:
         if not (np.isfinite(self.width_weight) and self.width_weight >= 0):
             raise ValueError(f"width_weight must be >= 0, got {self.width_weight!r}")
         positive = ["robust_scale_px", "growth_factor", "max_width_error",
-                    "max_backdrop_texture"]
+                    "max_backdrop_texture", "max_unexplained", "max_finger_outside",
+                    "invalid_margin"]
         if self.max_residual_rms_px is not None:
             positive.append("max_residual_rms_px")
         for name in positive:
@@ -218,6 +254,11 @@ class FeatureTrackerOptions:
                              f"{self.growth_frames!r}")
         if not (np.isfinite(self.growth_min_px) and self.growth_min_px >= 0):
             raise ValueError(f"growth_min_px must be >= 0, got {self.growth_min_px!r}")
+        if isinstance(self.silhouette_tolerance_px, bool) or not isinstance(
+                self.silhouette_tolerance_px, int | np.integer) or \
+                self.silhouette_tolerance_px < 0:
+            raise ValueError(f"silhouette_tolerance_px must be an integer >= 0, got "
+                             f"{self.silhouette_tolerance_px!r}")
 
     @property
     def residual_limit_px(self) -> float:
@@ -362,10 +403,11 @@ class FeatureTracker:
     """
 
     stages = ("prediction", "shading", "forward_kinematics", "feature_detection",
-              "jacobian", "linear_solve")
+              "jacobian", "linear_solve", "silhouette")
     """Timing stages of :attr:`TrackResult.timings` (thesis Table 4.1 rows, plus the
     prediction and the shading prediction): ``"jacobian"`` is residual and Jacobian
-    assembly, ``"linear_solve"`` the normal equations, solve and state update."""
+    assembly, ``"linear_solve"`` the normal equations, solve and state update,
+    ``"silhouette"`` the silhouette check of the loss rules."""
 
     def __init__(self, model: KinematicModel, rig: Rig,
                  options: FeatureTrackerOptions | None = None) -> None:
@@ -389,6 +431,10 @@ class FeatureTracker:
         self.state: np.ndarray | None = None
         self.shading: ShadingModel | None = None
         self.edge_bias: list[EdgeBias] = []
+        self.foreground: list[Foreground | None] | None = None
+        self._unexplained_baseline: list[float] = []
+        self._outside_baseline: list[dict[str, float]] = []
+        self._invalid_baseline: float | None = None
 
     @staticmethod
     def _split_features(model: KinematicModel, names: tuple[str, ...] | None
@@ -432,6 +478,10 @@ class FeatureTracker:
         self._frame_index = 0
         self.shading = shading
         self.edge_bias = []
+        self.foreground = None
+        self._unexplained_baseline = []
+        self._outside_baseline = []
+        self._invalid_baseline = None
 
     def step(self, frames: Sequence[np.ndarray]) -> TrackResult:
         """Estimate the state for one set of frames (one image per camera, rig order).
@@ -462,7 +512,10 @@ class FeatureTracker:
         q, summary = gauss_newton(problem, predicted, self.solver_options)
         timings["linear_solve"] = summary.timings["linear_solve"]
         final = problem.evaluation_at(q)
-        result = self._result(q, predicted, summary, final, timings)
+        start = time.perf_counter()
+        checks = self._silhouette(images, predicted, q)
+        timings["silhouette"] = time.perf_counter() - start
+        result = self._result(q, predicted, summary, final, timings, checks)
         self.state = q
         self.predictor.update(q, reliable=not result.lost)
         self._frame_index += 1
@@ -487,14 +540,62 @@ class FeatureTracker:
                           max_width_error=opts.max_width_error)
                 for camera in self.rig]
 
+    def _silhouette(self, images: list[np.ndarray], predicted: np.ndarray,
+                    q: np.ndarray) -> list[SilhouetteCheck]:
+        """The silhouette check of ``q`` in every camera with a plain backdrop; fits the
+        foreground thresholds on the first frame (at the predicted, i.e. initial, state)
+        and keeps that frame's unexplained fractions as the baseline."""
+        opts = self.options
+        if not opts.silhouette_check:
+            return []
+        if self.foreground is None:
+            kin0 = forward_kinematics(self.model, predicted)
+            self.foreground = [fit_foreground(image, model_labels(self.model, kin0, camera))
+                               for image, camera in zip(images, self.rig, strict=True)]
+        kin = forward_kinematics(self.model, q)
+        checks = [silhouette_check(self.model, kin, camera, fg.mask(image),
+                                   opts.silhouette_tolerance_px)
+                  for image, camera, fg in zip(images, self.rig, self.foreground, strict=True)
+                  if fg is not None]
+        if not self._unexplained_baseline:
+            self._unexplained_baseline = [c.unexplained for c in checks]
+            self._outside_baseline = [dict(c.finger_outside) for c in checks]
+        return checks
+
+    def _silhouette_reasons(self, checks: list[SilhouetteCheck]
+                            ) -> tuple[list[str], dict[str, bool]]:
+        """Loss reasons and per-finger flags of the silhouette checks."""
+        opts = self.options
+        reasons: list[str] = []
+        fingers: dict[str, bool] = {}
+        for camera, (check, base, outside_base) in enumerate(zip(
+                checks, self._unexplained_baseline, self._outside_baseline, strict=True)):
+            if check.unexplained - base > opts.max_unexplained:
+                reasons.append(f"camera {camera}: {check.unexplained:.0%} of the model's area "
+                               f"of the hand unexplained (first frame {base:.0%})")
+            for finger, outside in check.finger_outside.items():
+                excess = outside - outside_base.get(finger, 0.0)
+                fingers[finger] = fingers.get(finger, False) or excess > opts.max_finger_outside
+        off = [finger for finger, lost in fingers.items() if lost]
+        if off:
+            reasons.append(f"off the hand's silhouette: {', '.join(off)}")
+        return reasons, fingers
+
     def _result(self, q: np.ndarray, predicted: np.ndarray, summary: SolverSummary,
-                final: _Evaluation, timings: dict[str, float]) -> TrackResult:
+                final: _Evaluation, timings: dict[str, float],
+                checks: list[SilhouetteCheck]) -> TrackResult:
         r = final.residuals
         rms = float(np.sqrt(np.mean(r * r))) if len(r) else float("nan")
         n_links = int(sum(int(np.sum(m.link_valid)) for m in final.measurements))
         n_tips = int(sum(int(np.sum(m.tip_valid)) for m in final.measurements))
+        if self._invalid_baseline is None:
+            self._invalid_baseline = 1.0 - (n_links + n_tips) / self.n_features
         reasons = track_loss_reasons(rms, n_links + n_tips, self.n_features,
-                                     list(self._rms_history), self.options)
+                                     list(self._rms_history), self.options,
+                                     self._invalid_baseline)
+        silhouette_reasons, finger_lost = self._silhouette_reasons(checks)
+        if reasons != [NO_FEATURES]:
+            reasons += silhouette_reasons
         if np.isfinite(rms):
             self._rms_history.append(rms)
         else:
@@ -507,11 +608,12 @@ class FeatureTracker:
             state=q, cost=summary.cost_final, residual_rms_px=rms, lost=bool(reasons),
             loss_reason="; ".join(reasons), iterations=summary.iterations,
             predicted_state=predicted, frame_index=self._frame_index, timings=timings,
-            details=details)
+            finger_lost=finger_lost, details=details)
 
 
 def track_loss_reasons(rms: float, n_valid: int, n_features: int, previous_rms: Sequence[float],
-                       options: FeatureTrackerOptions) -> list[str]:
+                       options: FeatureTrackerOptions, first_invalid: float = 0.0
+                       ) -> list[str]:
     """The track-loss rules (module docstring) for one frame; empty when the track holds.
 
     Parameters
@@ -522,12 +624,13 @@ def track_loss_reasons(rms: float, n_valid: int, n_features: int, previous_rms: 
     previous_rms : residual RMS of the preceding frames, oldest first (the growth rule
         looks at the last ``options.growth_frames`` of them).
     options : the thresholds.
+    first_invalid : fraction of the features invalid in the first frame of the track.
     """
     if n_valid == 0 or not np.isfinite(rms):
-        return ["no features measured"]
+        return [NO_FEATURES]
     reasons = []
     invalid = 1.0 - n_valid / n_features
-    if invalid > options.max_invalid_fraction:
+    if invalid > max(options.max_invalid_fraction, first_invalid + options.invalid_margin):
         reasons.append(f"{invalid:.0%} of the features invalid "
                        f"(limit {options.max_invalid_fraction:.0%})")
     if rms > options.residual_limit_px:

@@ -1,0 +1,152 @@
+"""The hand's silhouette in an image of a static camera over a plain backdrop, and the
+silhouette check of a pose: the signal that sees a finger the feature residual misses.
+
+**Foreground** (:func:`fit_foreground`): on the first frame, where the pose is known, the
+model's silhouette splits the image into hand and backdrop. The backdrop level ``b`` and
+its spread ``s`` come from the pixels more than :data:`MARGIN_PX` outside the silhouette,
+the hand's dark end ``h`` (the 5th percentile) from those more than :data:`MARGIN_PX`
+inside. A pixel is foreground when its grey level exceeds
+``threshold = max(b + 5 s, b + (h - b) / 2)`` (``b`` the median, ``s`` 1.4826 times the
+median absolute deviation: robust to the parts of the real hand that the model's
+silhouette does not cover) (a dark hand on a bright backdrop is the
+mirror image). A textured backdrop (``s`` above ``max_backdrop_std``) gives None: the
+check then stays off.
+
+**Silhouette check** (:func:`silhouette_check`): draw the model's labels at the estimate
+(:func:`digiteyes.render.raster.rasterise`) and compare with the foreground mask
+(:func:`digiteyes.features.silhouette.silhouette_mismatch`), both grown by
+``tolerance_px`` so that the differences of an exact hand and the model's capsules (a
+fleshier palm, tapered fingers, a 10 % size difference) stay inside:
+
+* ``unexplained``: foreground pixels beyond ``tolerance_px`` of the model silhouette, as
+  a fraction of the model's pixels (a finger the pose has put elsewhere, or curled into
+  the palm while the real one is out);
+* per finger: the fraction of the finger's model pixels (its phalanges and tip) lying
+  beyond ``tolerance_px`` of any foreground (a finger drawn over the backdrop).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from digiteyes.camera import Camera
+from digiteyes.features.silhouette import silhouette_mismatch
+from digiteyes.kinematics import KinematicModel, Kinematics
+from digiteyes.kinematics.anatomy import DIGITS
+from digiteyes.render.distortion import camera_canvas
+from digiteyes.render.raster import rasterise
+from digiteyes.render.scene import build_scene
+
+MARGIN_PX = 6
+"""Distance (px) from the first frame's silhouette of the pixels that fit the levels."""
+_LIGHT = np.array([0.0, 0.0, -1.0])
+
+
+@dataclass(frozen=True)
+class Foreground:
+    """A grey-level threshold between hand and a plain backdrop.
+
+    Attributes
+    ----------
+    threshold : grey level (0-255) between backdrop and hand.
+    bright_hand : True when the hand is brighter than the backdrop.
+    backdrop_level, backdrop_std : the backdrop's mean grey level and spread.
+    """
+
+    threshold: float
+    bright_hand: bool
+    backdrop_level: float
+    backdrop_std: float
+
+    def mask(self, image: np.ndarray) -> np.ndarray:
+        """Bool (H, W): the hand's pixels of a grey ``image``."""
+        grey = np.asarray(image)
+        return grey > self.threshold if self.bright_hand else grey < self.threshold
+
+
+def model_labels(model: KinematicModel, kin: Kinematics, camera: Camera,
+                 index: int = 0) -> np.ndarray:
+    """Label image (H, W) int16 of state ``index`` of ``kin`` in ``camera``: the link
+    index of the model surface seen by each pixel, -1 off the model."""
+    scene = build_scene(model, kin, index).transformed(camera.T_cam_world)
+    grid, _ = camera_canvas(camera)
+    return rasterise(scene, grid, _LIGHT).labels
+
+
+def fit_foreground(image: np.ndarray, labels: np.ndarray,
+                   max_backdrop_std: float = 8.0) -> Foreground | None:
+    """Fit the threshold on a grey ``image`` (H, W) whose model ``labels`` (H, W) are
+    known (the first frame at its true state); None for a textured backdrop or an image
+    without enough hand or backdrop pixels."""
+    hit = (np.asarray(labels) >= 0).astype(np.uint8)
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * MARGIN_PX + 1,) * 2)
+    inside = cv2.erode(hit, kernel).astype(bool)
+    outside = ~cv2.dilate(hit, kernel).astype(bool)
+    grey = np.asarray(image, dtype=np.float32)
+    if inside.sum() < 50 or outside.sum() < 50:
+        return None
+    back = grey[outside]
+    level = float(np.median(back))
+    spread = 1.4826 * float(np.median(np.abs(back - level)))  # robust: the real hand
+    # reaches beyond the model's silhouette (a wrist, a fleshier palm)
+    if spread > max_backdrop_std:
+        return None
+    hand = grey[inside]
+    bright = float(np.median(hand)) > level
+    dark_end = float(np.percentile(hand, 5 if bright else 95))
+    if bright:
+        threshold = max(level + 5.0 * spread, level + 0.5 * (dark_end - level))
+    else:
+        threshold = min(level - 5.0 * spread, level + 0.5 * (dark_end - level))
+    return Foreground(threshold, bright, level, spread)
+
+
+@dataclass(frozen=True)
+class SilhouetteCheck:
+    """One camera's silhouette check of a pose (fractions in [0, 1]).
+
+    ``unexplained``: foreground beyond the tolerance of the model silhouette, per model
+    pixel; ``finger_outside``: digit name -> fraction of its model pixels beyond the
+    tolerance of the foreground (digits with fewer than ``min_pixels`` model pixels are
+    left out); ``model_pixels``: the model's pixels.
+    """
+
+    unexplained: float
+    finger_outside: dict[str, float]
+    model_pixels: int
+
+
+def _digit_links(model: KinematicModel) -> dict[str, np.ndarray]:
+    out: dict[str, list[int]] = {}
+    for i, link in enumerate(model.links):
+        digit = link.name.split(".")[0]
+        if digit in DIGITS:
+            out.setdefault(digit, []).append(i)
+    return {d: np.array(v) for d, v in out.items()}
+
+
+def silhouette_check(model: KinematicModel, kin: Kinematics, camera: Camera,
+                     foreground: np.ndarray, tolerance_px: int = 5,
+                     min_pixels: int = 150) -> SilhouetteCheck:
+    """Compare the model drawn at the pose ``kin`` (one state) in ``camera`` with the
+    ``foreground`` mask (H, W) bool of the same camera's image (module docstring)."""
+    labels = model_labels(model, kin, camera)
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * tolerance_px + 1,) * 2)
+    fg = foreground.astype(np.uint8)
+    grown_fg = cv2.dilate(fg, kernel).astype(bool)
+    grown_model = cv2.dilate((labels >= 0).astype(np.uint8), kernel)
+    n_links = len(model.links)
+    against_fg = silhouette_mismatch(grown_fg, labels, n_links)
+    open_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
+    extra = cv2.morphologyEx(fg & (1 - grown_model), cv2.MORPH_OPEN, open_kernel)
+    model_pixels = against_fg.model_pixels
+    unexplained = float(extra.sum()) / model_pixels if model_pixels else 1.0
+    fingers = {}
+    for digit, links in _digit_links(model).items():
+        pixels = int(against_fg.per_label_pixels[links].sum())
+        if pixels >= min_pixels:
+            fingers[digit] = int(against_fg.per_label_outside[links].sum()) / pixels
+    return SilhouetteCheck(unexplained, fingers, model_pixels)
