@@ -59,10 +59,11 @@ from digiteyes.smc.proposal import (
     random_walk_log_prior,
 )
 from digiteyes.smc.resample import effective_sample_size, normalised_weights, systematic_resample
-from digiteyes.solvers import SolverSummary
 from digiteyes.trackers.base import TrackResult
 
 SAMPLERS = ("manifold", "condensation", "random-search")
+OVERLAY_SAMPLE = 24
+"""Hypotheses kept in :attr:`DivideConquerDetails.sample_states` for the overlay."""
 
 
 @dataclass(frozen=True)
@@ -113,6 +114,8 @@ class DivideConquerDetails:
     palm_model_points : (P, 3) palm outline points used (palm frame, mm).
     palm_pixels : (P, 2) their matched edge pixels; palm_rms_px : reprojection RMS.
     em_rounds : palm/finger alternations done; em_stop : why they stopped.
+    sample_states : (S, n_q) full states of a sample of the hypotheses (S at most
+        ``OVERLAY_SAMPLE``, at evenly spaced weight ranks from the best), for drawing.
     """
 
     particles: np.ndarray
@@ -126,22 +129,36 @@ class DivideConquerDetails:
     palm_rms_px: float
     em_rounds: int
     em_stop: str
+    sample_states: np.ndarray
 
 
-@dataclass
-class DivideConquerResult(TrackResult):
-    """:class:`TrackResult` plus the tracker's :class:`DivideConquerDetails`."""
+@dataclass(frozen=True)
+class CondensationOptions(DivideConquerOptions):
+    """:class:`DivideConquerOptions` with the CONDENSATION baseline's defaults (Huang
+    Sec. 6: 3000 samples, random-walk dynamics)."""
 
-    details: DivideConquerDetails | None = None
+    sampler: str = "condensation"
+    n_particles: int = 3000
 
 
-def _cameras(rig: Rig | Camera | Sequence[Camera]) -> tuple[Camera, ...]:
+@dataclass(frozen=True)
+class RandomSearchOptions(DivideConquerOptions):
+    """:class:`DivideConquerOptions` with the random-search baseline's defaults (Huang
+    Sec. 6: 5000 samples per frame around the last estimate)."""
+
+    sampler: str = "random-search"
+    n_particles: int = 5000
+
+
+def _as_rig(rig: Rig | Camera | Sequence[Camera]) -> Rig:
+    if isinstance(rig, Rig):
+        return rig
     if isinstance(rig, Camera):
-        return (rig,)
-    cams = tuple(rig.cameras if isinstance(rig, Rig) else rig)
+        return Rig((rig,))
+    cams = tuple(rig)
     if not cams:
         raise DigitEyesError("the tracker needs at least one camera")
-    return cams
+    return Rig(cams)
 
 
 def _rotation_deg(Ra: np.ndarray, Rb: np.ndarray) -> float:
@@ -155,26 +172,28 @@ class DivideConquerTracker:
     ----------
     model : ``cardboard-hand`` or ``hand`` (any model with a root pose, a palm box and
         finger links).
-    rig : cameras; the palm step uses the first, the likelihood all of them.
+    rig : cameras (a :class:`Rig`, or one camera or a list of them); the palm step uses
+        the first, the likelihood all of them.
+    options : :class:`DivideConquerOptions` (default: :attr:`options_type` ()).
     space : the configuration space (default: :func:`default_configuration_space`).
-    options : :class:`DivideConquerOptions`.
     """
 
-    default_sampler = "manifold"
-    default_particles = 300
+    stages = ("edges", "proposal", "palm_icp", "likelihood", "resampling")
+    """Timing stages of :attr:`TrackResult.timings`."""
+    options_type: type[DivideConquerOptions] = DivideConquerOptions
 
     def __init__(self, model: KinematicModel, rig: Rig | Camera | Sequence[Camera],
-                 space: ConfigurationSpace | None = None,
-                 options: DivideConquerOptions | None = None) -> None:
+                 options: DivideConquerOptions | None = None,
+                 space: ConfigurationSpace | None = None) -> None:
         if options is None:
-            options = DivideConquerOptions(sampler=self.default_sampler,
-                                           n_particles=self.default_particles)
+            options = self.options_type()
         if options.sampler not in SAMPLERS:
             raise DigitEyesError(f"sampler must be one of {', '.join(SAMPLERS)}, got "
                                  f"{options.sampler!r}")
         if model.base_state is None:
             raise DigitEyesError(f"model {model.name!r} has no palm pose (pose:q row)")
-        self.model, self.cameras, self.options = model, _cameras(rig), options
+        self.model, self.rig, self.options = model, _as_rig(rig), options
+        self.cameras = self.rig.cameras
         self.space = space or default_configuration_space(model)
         self.joint_index = self.space.joint_indices(model)
         self.geometry = FingerGeometry.of(model)
@@ -207,15 +226,13 @@ class DivideConquerTracker:
                                                options=self.options.icp)
         return self.palm_scale
 
-    def step(self, frames: Sequence[np.ndarray]) -> DivideConquerResult:
-        """Track one set of frames (one image per camera)."""
+    def step(self, frames: Sequence[np.ndarray]) -> TrackResult:
+        """Track one set of frames (one image per camera, in rig order)."""
         if self.state is None:
             raise DigitEyesError("call reset(initial_state) before step()")
-        if len(frames) != len(self.cameras):
-            raise DigitEyesError(f"step needs {len(self.cameras)} frame(s), got {len(frames)}")
+        self.rig.check_images(frames)
         t_start = time.perf_counter()
-        timings = dict.fromkeys(("edges", "proposal", "palm_icp", "likelihood", "resampling",
-                                 "total"), 0.0)
+        timings = dict.fromkeys((*self.stages, "total"), 0.0)
         opt = self.options
         self.frame_index += 1
         t = time.perf_counter()
@@ -293,17 +310,19 @@ class DivideConquerTracker:
         lost = bool(visible == 0 or hits < opt.min_edge_fraction * visible)
         timings["total"] = time.perf_counter() - t_start
         cost = float(-lik.log_likelihood[best])
+        ranks = np.argsort(-weights, kind="stable")
+        shown = ranks[np.unique(np.linspace(0, len(X) - 1, min(OVERLAY_SAMPLE, len(X)))
+                                .astype(int))]
         details = DivideConquerDetails(X, weights, X[best].copy(), best, lik.log_likelihood,
                                        effective_sample_size(weights), palm_points,
-                                       palm_pixels, palm_rms, rounds, stop)
-        return DivideConquerResult(
+                                       palm_pixels, palm_rms, rounds, stop,
+                                       self.space.states(self.model, q, X[shown]))
+        return TrackResult(
             state=q.copy(), residual_rms_px=float(lik.rms_px[best]), cost=cost, lost=lost,
             loss_reason=(f"only {int(hits)} of {int(visible)} finger sample points found an "
                          "edge") if lost else "",
-            iterations=rounds,
-            summary=SolverSummary(iterations=rounds, cost_final=cost, termination=stop),
-            predicted_state=predicted, frame_index=self.frame_index, timings=timings,
-            details=details)
+            iterations=rounds, predicted_state=predicted, frame_index=self.frame_index,
+            timings=timings, details=details)
 
     # ------------------------------------------------------------------ samplers
     def _draw(self) -> tuple[np.ndarray, np.ndarray]:
@@ -326,13 +345,11 @@ class DivideConquerTracker:
 class CondensationTracker(DivideConquerTracker):
     """Baseline of Huang Sec. 6: CONDENSATION in the PCA space, 3000 samples."""
 
-    default_sampler = "condensation"
-    default_particles = 3000
+    options_type = CondensationOptions
 
 
 class RandomSearchTracker(DivideConquerTracker):
     """Baseline of Huang Sec. 6: random search in the PCA space, 5000 samples per frame."""
 
-    default_sampler = "random-search"
-    default_particles = 5000
+    options_type = RandomSearchOptions
 
