@@ -23,7 +23,12 @@ import numpy as np
 
 from digiteyes.benchmarks._machine import emit, kernel_threads, machine_info, seconds_per_call
 from digiteyes.kinematics import forward_kinematics, load_model
-from digiteyes.smc.likelihood import FingerGeometry, finger_log_likelihood, observe_edges
+from digiteyes.smc.likelihood import (
+    FingerGeometry,
+    edge_lookup,
+    finger_log_likelihood,
+    observe_edges,
+)
 from digiteyes.smc.palm import palm_pose_from_state
 from digiteyes.smc.prior import default_configuration_space
 from digiteyes.synth import render_views
@@ -56,9 +61,10 @@ def _likelihood_rates(repeat: int, min_time: float) -> dict:
         idx = default_configuration_space(model).joint_indices(model)
         Q = np.repeat(q[None], BATCH, axis=0)
         Q[:, idx] += np.random.default_rng(0).normal(0, 0.2, (BATCH, len(idx)))
+        lookup = [edge_lookup(edges)]
         full = min(seconds_per_call(
-            lambda m=model, g=geometry, Q=Q, e=edges: finger_log_likelihood(m, g, Q, [cam], [e]),
-            repeat, min_time))
+            lambda m=model, g=geometry, Q=Q, e=edges, k=lookup: finger_log_likelihood(
+                m, g, Q, [cam], [e], lookups=k), repeat, min_time))
         fk = min(seconds_per_call(lambda m=model, Q=Q: forward_kinematics(m, Q).T_world_shape,
                                   repeat, min_time))
         out[name] = {"likelihoods_per_s": BATCH / full, "us_per_likelihood": 1e6 * full / BATCH,

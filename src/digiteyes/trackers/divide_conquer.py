@@ -36,6 +36,7 @@ from digiteyes.smc.configuration import ConfigurationSpace
 from digiteyes.smc.likelihood import (
     FingerGeometry,
     LikelihoodOptions,
+    edge_lookup,
     finger_log_likelihood,
     observe_edges,
 )
@@ -51,6 +52,7 @@ from digiteyes.smc.palm import (
     palm_pose_from_state,
     with_palm_pose,
 )
+from digiteyes.smc.palm_search import PalmSearchOptions, search_palm_pose
 from digiteyes.smc.prior import default_configuration_space
 from digiteyes.smc.proposal import (
     ProposalOptions,
@@ -79,8 +81,15 @@ class DivideConquerOptions:
         above 1 flattens them and keeps the particle set diverse).
     condensation_sigma : random-walk std of the CONDENSATION dynamics, PCA units.
     search_sigma : std of the random search around the last estimate, PCA units.
+    walk_fraction : share of the manifold sampler's particles drawn instead by the
+        CONDENSATION random walk (``condensation_sigma``) from their parent, so that the
+        set can follow motion off the manifolds (weights: ``f / g`` with ``g`` that walk).
+    anneal_layers : extra layers per frame (annealed particle filter): resample by the
+        weights, perturb by a random walk half as wide as the last, reweight.
     min_edge_fraction : the track is reported lost when fewer visible sample points than
         this fraction find an edge.
+    palm_search : the palm refinement after the EM rounds (:mod:`digiteyes.smc.palm_search`;
+        ``rounds=0`` turns it off).
     proposal, likelihood, icp : options of the parts.
     seed : seed of the tracker's Generator (every draw comes from it).
     """
@@ -95,10 +104,13 @@ class DivideConquerOptions:
     temperature: float = 1.0
     condensation_sigma: float = 0.08
     search_sigma: float = 0.15
+    walk_fraction: float = 0.3
+    anneal_layers: int = 0
     min_edge_fraction: float = 0.3
     proposal: ProposalOptions = field(default_factory=ProposalOptions)
     likelihood: LikelihoodOptions = field(default_factory=LikelihoodOptions)
     icp: IcpOptions = field(default_factory=IcpOptions)
+    palm_search: PalmSearchOptions = field(default_factory=PalmSearchOptions)
     seed: int = 0
 
 
@@ -237,6 +249,7 @@ class DivideConquerTracker:
         self.frame_index += 1
         t = time.perf_counter()
         edge_maps = [observe_edges(f, opt.likelihood) for f in frames]
+        lookups = [edge_lookup(e, opt.likelihood) for e in edge_maps]
         nearest = nearest_edge_field(edge_maps[0]) if opt.track_palm else None
         timings["edges"] = time.perf_counter() - t
 
@@ -251,13 +264,23 @@ class DivideConquerTracker:
             t0 = time.perf_counter()
             result = finger_log_likelihood(self.model, self.geometry,
                                            self.space.states(self.model, q_palm, X),
-                                           self.cameras, edge_maps, opt.likelihood)
+                                           self.cameras, edge_maps, opt.likelihood,
+                                           lookups)
             log_weights = result.log_likelihood / opt.temperature + (
                 log_fg if opt.importance_correction else 0.0)
             timings["likelihood"] += time.perf_counter() - t0
             return result, log_weights
 
         lik, log_w = weigh(q)
+        sigma = opt.condensation_sigma
+        for _ in range(opt.anneal_layers):
+            t = time.perf_counter()
+            sigma *= 0.5
+            parents = systematic_resample(normalised_weights(log_w), self.rng, len(X))
+            X = X[parents] + sigma * self.rng.standard_normal(X[parents].shape)
+            log_fg = np.zeros(len(X))
+            timings["proposal"] += time.perf_counter() - t
+            lik, log_w = weigh(q)
         best = int(np.argmax(log_w))
         palm_points, palm_pixels, palm_rms = np.zeros((0, 3)), np.zeros((0, 2)), np.nan
         stop, rounds = "max_iterations", 0
@@ -295,6 +318,19 @@ class DivideConquerTracker:
                     < opt.em_tolerance_deg):
                 stop = "converged"
                 break
+        if opt.track_palm and opt.palm_search.rounds > 0:
+            t = time.perf_counter()
+            q_best = self.space.states(self.model, q, X[best])[0]
+            q_new, new_score, old_score = search_palm_pose(
+                self.model, self.geometry, q_best, self.cameras, edge_maps, lookups,
+                self.rng, opt.palm_search, opt.likelihood)
+            timings["palm_icp"] += time.perf_counter() - t
+            if new_score > old_score:
+                i = self.model.base_state
+                q = q.copy()
+                q[i:i + 7] = q_new[i:i + 7]
+                lik, log_w = weigh(q)
+                best = int(np.argmax(log_w))
         weights = normalised_weights(log_w)
 
         t = time.perf_counter()
@@ -331,8 +367,15 @@ class DivideConquerTracker:
         if opt.sampler == "manifold":
             prop = propose_on_manifolds(prev, self.space.basis, self.rng, opt.proposal,
                                         self.pairs)
-            log_f = random_walk_log_prior(prop.X, prev, opt.proposal.prior_sigma)
-            return prop.X, importance_log_weights(0.0, log_f, prop.log_g)
+            X, log_g = prop.X.copy(), prop.log_g.copy()
+            walk = self.rng.random(len(X)) < opt.walk_fraction
+            if walk.any():
+                step = opt.condensation_sigma * self.rng.standard_normal((walk.sum(), X.shape[1]))
+                X[walk] = prev[walk] + step
+                log_g[walk] = (-0.5 * np.sum((step / opt.condensation_sigma) ** 2, axis=1)
+                               - X.shape[1] * np.log(opt.condensation_sigma))
+            log_f = random_walk_log_prior(X, prev, opt.proposal.prior_sigma)
+            return X, importance_log_weights(0.0, log_f, log_g)
         if opt.sampler == "condensation":
             X = prev + opt.condensation_sigma * self.rng.standard_normal(prev.shape)
             return X, np.zeros(len(X))
