@@ -41,7 +41,7 @@ class PalmSearchOptions:
     rounds: int = 3
     samples: int = 48
     sigma_deg: float = 2.0
-    sigma_mm: float = 3.0
+    sigma_mm: float = 1.5
     outline_points: int = 40
 
 

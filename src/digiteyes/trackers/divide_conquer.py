@@ -104,7 +104,7 @@ class DivideConquerOptions:
     temperature: float = 1.0
     condensation_sigma: float = 0.08
     search_sigma: float = 0.15
-    walk_fraction: float = 0.3
+    walk_fraction: float = 0.1
     anneal_layers: int = 0
     min_edge_fraction: float = 0.3
     proposal: ProposalOptions = field(default_factory=ProposalOptions)
