@@ -15,3 +15,14 @@ def test_likelihood_rates_and_a_short_track(monkeypatch):
     track = smc._track(DivideConquerTracker, n_frames=3)
     assert track["particles"] == 300 and math.isfinite(track["ms_per_frame_median"])
     assert track["finger_rms_deg_max"] < 8.0
+
+
+def test_fig3_records_per_frame_errors_and_plots(monkeypatch, tmp_path):
+    monkeypatch.setattr(smc, "FIG3_SCENARIOS", ("natural", "no-such-scenario"))
+    monkeypatch.setattr(smc, "FIG3_TRACKERS", (DivideConquerTracker,))
+    fig3 = smc._fig3(n_frames=3)
+    assert "skipped" in fig3["no-such-scenario"]
+    errors = fig3["natural"]["DivideConquerTracker"]["finger_rms_deg_per_frame"]
+    assert len(errors) == 3 and max(errors) < 8.0
+    path = smc.plot_fig3(fig3, tmp_path / "fig3.png")
+    assert (tmp_path / "fig3.png").stat().st_size > 10_000 and path.endswith("fig3.png")

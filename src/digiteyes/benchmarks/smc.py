@@ -9,7 +9,10 @@ the ``natural`` scenario:
 * ``trackers``: per-frame time and accuracy (finger joint-angle RMS, palm orientation and
   position error, against the scenario's truth) of :class:`DivideConquerTracker` (300
   particles), :class:`CondensationTracker` (3000) and :class:`RandomSearchTracker` (5000)
-  on the first frames of ``natural`` rendered with the cardboard hand.
+  on the first frames of ``natural`` rendered with the cardboard hand;
+* ``fig3``: Huang Fig. 3 with truth: the three trackers' finger joint-angle RMS per frame
+  on ``natural`` and on the CyberGlove-driven ``glove-desk-1cam`` (skipped, with the
+  reason, when the glove data are absent), one camera, plotted to ``--plot``.
 
 Run with ``digiteyes bench smc [--json FILE] [--quick]``.
 """
@@ -18,12 +21,19 @@ from __future__ import annotations
 
 import statistics
 import time
+from pathlib import Path
 
 import numpy as np
 
 from digiteyes.benchmarks._machine import emit, kernel_threads, machine_info, seconds_per_call
+from digiteyes.errors import DigitEyesError
 from digiteyes.kinematics import forward_kinematics, load_model
-from digiteyes.smc.likelihood import FingerGeometry, finger_log_likelihood, observe_edges
+from digiteyes.smc.likelihood import (
+    FingerGeometry,
+    edge_lookup,
+    finger_log_likelihood,
+    observe_edges,
+)
 from digiteyes.smc.palm import palm_pose_from_state
 from digiteyes.smc.prior import default_configuration_space
 from digiteyes.synth import render_views
@@ -35,6 +45,8 @@ from digiteyes.trackers.divide_conquer import (
 )
 
 BATCH = 3000
+FIG3_SCENARIOS = ("natural", "glove-desk-1cam")
+FIG3_TRACKERS = (DivideConquerTracker, CondensationTracker, RandomSearchTracker)
 
 
 def _scenario_states(model, scenario) -> np.ndarray:
@@ -56,9 +68,10 @@ def _likelihood_rates(repeat: int, min_time: float) -> dict:
         idx = default_configuration_space(model).joint_indices(model)
         Q = np.repeat(q[None], BATCH, axis=0)
         Q[:, idx] += np.random.default_rng(0).normal(0, 0.2, (BATCH, len(idx)))
+        lookup = [edge_lookup(edges)]
         full = min(seconds_per_call(
-            lambda m=model, g=geometry, Q=Q, e=edges: finger_log_likelihood(m, g, Q, [cam], [e]),
-            repeat, min_time))
+            lambda m=model, g=geometry, Q=Q, e=edges, k=lookup: finger_log_likelihood(
+                m, g, Q, [cam], [e], lookups=k), repeat, min_time))
         fk = min(seconds_per_call(lambda m=model, Q=Q: forward_kinematics(m, Q).T_world_shape,
                                   repeat, min_time))
         out[name] = {"likelihoods_per_s": BATCH / full, "us_per_likelihood": 1e6 * full / BATCH,
@@ -66,8 +79,9 @@ def _likelihood_rates(repeat: int, min_time: float) -> dict:
     return out
 
 
-def _track(cls, n_frames: int) -> dict:
-    scenario = build_scenario("natural", n_frames=max(n_frames, 20))
+def _track(cls, n_frames: int, scenario_name: str = "natural") -> dict:
+    scenario = build_scenario(scenario_name, n_frames=max(n_frames, 20))
+    n_frames = min(n_frames, len(scenario.states))
     cam = scenario.rig.cameras[0]
     model = load_model("cardboard-hand")
     states = _scenario_states(model, scenario)
@@ -90,17 +104,57 @@ def _track(cls, n_frames: int) -> dict:
             "frames_per_s": 1.0 / statistics.median(times[1:] or times),
             "finger_rms_deg_mean": float(np.mean(joint)),
             "finger_rms_deg_max": float(np.max(joint)),
-            "palm_deg_mean": float(np.mean(palm_deg)), "palm_mm_mean": float(np.mean(palm_mm))}
+            "palm_deg_mean": float(np.mean(palm_deg)), "palm_mm_mean": float(np.mean(palm_mm)),
+            "finger_rms_deg_per_frame": [float(e) for e in joint]}
 
 
-def run(json_path: str | None = None, quick: bool = False) -> dict:
-    """Measure likelihood throughput and tracker frames; print a table, optionally JSON."""
+def _fig3(n_frames: int) -> dict:
+    """Per scenario of :data:`FIG3_SCENARIOS`: each tracker's :func:`_track` record, or
+    ``{"skipped": reason}`` when the scenario cannot be built (no glove data)."""
+    out = {}
+    for name in FIG3_SCENARIOS:
+        try:
+            build_scenario(name, n_frames=2)
+        except DigitEyesError as exc:
+            out[name] = {"skipped": str(exc)}
+            continue
+        out[name] = {cls.__name__: _track(cls, n_frames, name) for cls in FIG3_TRACKERS}
+    return out
+
+
+def plot_fig3(fig3: dict, path: str) -> str:
+    """Huang Fig. 3 with truth: finger joint-angle RMS per frame, one panel per scenario."""
+    from digiteyes.viz.plots import new_figure, save_figure
+
+    shown = {k: v for k, v in fig3.items() if "skipped" not in v}
+    fig = new_figure(6.0 * max(len(shown), 1), 3.8)
+    axes = fig.subplots(1, max(len(shown), 1), squeeze=False)[0]
+    fig.subplots_adjust(left=0.08, right=0.98, bottom=0.14, top=0.9, wspace=0.2)
+    labels = {"DivideConquerTracker": "proposed (300)", "CondensationTracker":
+              "CONDENSATION (3000)", "RandomSearchTracker": "random search (5000)"}
+    for ax, (name, runs) in zip(axes, shown.items(), strict=False):
+        for tracker, record in runs.items():
+            ax.plot(record["finger_rms_deg_per_frame"], label=labels.get(tracker, tracker))
+        ax.set_title(f"{name}, one camera")
+        ax.set_xlabel("frame")
+        ax.set_ylabel("finger joint-angle RMS error, deg")
+        ax.legend()
+    return str(save_figure(fig, path))
+
+
+def run(json_path: str | None = None, quick: bool = False,
+        plot_path: str | None = None) -> dict:
+    """Measure likelihood throughput, tracker frames and the Fig. 3 comparison; print a
+    table, optionally write JSON and the plot (``plot_path``; by default next to the JSON
+    file, ``<json stem>-fig3.png``)."""
+    if plot_path is None and json_path:
+        plot_path = str(Path(json_path).with_suffix("")) + "-fig3.png"
     repeat, min_time = (2, 0.05) if quick else (5, 0.3)
     n_frames = 6 if quick else 40
     with kernel_threads(1, 1):
         rates = _likelihood_rates(repeat, min_time)
-        trackers = {cls.__name__: _track(cls, n_frames)
-                    for cls in (DivideConquerTracker, CondensationTracker, RandomSearchTracker)}
+        trackers = {cls.__name__: _track(cls, n_frames) for cls in FIG3_TRACKERS}
+        fig3 = _fig3(10 if quick else 60)
     lines = ["Divide and conquer (Huang et al.), one core, 640x480 (provisional)",
              f"{'model':<16}{'likelihoods/s':>15}{'us each':>10}{'FK share':>10}"]
     for name, r in rates.items():
@@ -112,6 +166,16 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
         lines.append(f"{name:<24}{r['particles']:>6}{r['ms_per_frame_median']:>10.0f}"
                      f"{r['finger_rms_deg_mean']:>12.1f}{r['finger_rms_deg_max']:>7.1f}"
                      f"{r['palm_deg_mean']:>10.1f}{r['palm_mm_mean']:>9.1f}")
-    result = {"likelihood": rates, "trackers": trackers, "batch": BATCH,
+    lines.append("\nFig. 3 (finger joint-angle RMS per frame, deg: mean / max)")
+    for name, runs in fig3.items():
+        if "skipped" in runs:
+            lines.append(f"{name}: skipped ({runs['skipped']})")
+            continue
+        lines.append(f"{name} ({next(iter(runs.values()))['frames']} frames): " + ", ".join(
+            f"{t} {r['finger_rms_deg_mean']:.1f} / {r['finger_rms_deg_max']:.1f}"
+            for t, r in runs.items()))
+    if plot_path:
+        plot_fig3(fig3, plot_path)
+    result = {"likelihood": rates, "trackers": trackers, "fig3": fig3, "batch": BATCH,
               "frames": n_frames, "quick": quick, "machine": machine_info()}
     return emit(result, "\n".join(lines), json_path)

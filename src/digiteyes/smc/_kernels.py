@@ -34,15 +34,18 @@ def _palm_depth(px, py, pu, pv, pz):  # pragma: no cover - compiled
 
 @njit(cache=True, fastmath=True)
 def edge_likelihood_kernel(starts, ends, radii, ts, skip, palm, params, edges, half_window,
-                           sigma, inv_c, margin, log_l, stats):  # pragma: no cover - compiled
+                           sigma, inv_c, margin, score, distance, use_lookup, log_l, stats
+                           ):  # pragma: no cover - compiled
     """Huang Sec. 5.2 for N particles.
 
     ``starts``/``ends`` (N, L, 3) link axes (world mm), ``radii`` (L,) patch half-widths
     (mm), ``ts`` (K,) positions along each axis, ``skip`` (L, L) pairs never tested for
     occlusion (a link and its neighbours in the chain), ``palm`` (N, 4, 3) palm outline,
     ``params`` the camera (:attr:`Camera.projection_params`), ``edges`` (H, W) uint8 edge
-    map. Writes ``log_l`` (N,) and ``stats`` (N, 3): visible points, points with an edge,
-    sum of squared offset of the nearest edge (px^2).
+    map. With ``use_lookup``, each visible point reads its factor from ``score`` (H, W)
+    and the nearest-edge distance from ``distance`` (H, W) (:func:`edge_lookup`) instead of
+    searching along the normal. Writes ``log_l`` (N,) and ``stats`` (N, 3): visible
+    points, points with an edge, sum of squared offset of the nearest edge (px^2).
     """
     n_particles, n_links = starts.shape[0], starts.shape[1]
     n_t = ts.shape[0]
@@ -123,6 +126,15 @@ def edge_likelihood_kernel(starts, ends, radii, ts, skip, palm, params, edges, h
                     if hidden:
                         continue
                     n_vis += 1.0
+                    if use_lookup:
+                        ix = int(px + 0.5)
+                        iy = int(py + 0.5)
+                        d = distance[iy, ix]
+                        if d <= half_window:
+                            n_hit += 1.0
+                            sq += d * d
+                        total += score[iy, ix]
+                        continue
                     acc = 0.0
                     best = 1e30
                     for o in range(-half_window, half_window + 1):

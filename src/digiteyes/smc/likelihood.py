@@ -28,6 +28,7 @@ import cv2
 import numpy as np
 
 from digiteyes.camera import Camera
+from digiteyes.errors import DigitEyesError
 from digiteyes.features import prepare_image
 from digiteyes.kinematics import KinematicModel, forward_kinematics
 from digiteyes.smc._kernels import edge_likelihood_kernel
@@ -45,6 +46,11 @@ class LikelihoodOptions:
     occlusion_margin_mm : a patch hides a point only if it is this much nearer, mm.
     canny_low, canny_high : Canny thresholds on the grey image (0..255).
     blur_sigma_px : Gaussian blur before Canny, px.
+    search : ``"normal"`` (default): Huang's search along the normal, every edge found
+        counted; ``"distance"``: each lateral point reads a per-frame table built from the
+        distance transform of the edge map (:func:`edge_lookup`): the nearest edge within
+        ``search_px`` only, at its Euclidean distance (about 3 times faster, less
+        accurate in tracking: see docs/divide-and-conquer.md).
     """
 
     points_per_link: int = 3
@@ -56,6 +62,12 @@ class LikelihoodOptions:
     canny_low: float = 20.0
     canny_high: float = 60.0
     blur_sigma_px: float = 1.0
+    search: str = "normal"
+
+    def __post_init__(self) -> None:
+        if self.search not in ("distance", "normal"):
+            raise DigitEyesError(f"LikelihoodOptions.search must be 'distance' or 'normal', "
+                                 f"got {self.search!r}")
 
     @property
     def inverse_clutter(self) -> float:
@@ -73,6 +85,28 @@ def observe_edges(frame: np.ndarray, options: LikelihoodOptions = LikelihoodOpti
     if options.blur_sigma_px > 0:
         grey = cv2.GaussianBlur(grey, (0, 0), options.blur_sigma_px)
     return cv2.Canny(grey, options.canny_low, options.canny_high, L2gradient=True)
+
+
+@dataclass(frozen=True)
+class EdgeLookup:
+    """Per-frame tables of the ``"distance"`` likelihood: ``distance`` (H, W) float32, px
+    to the nearest edge pixel; ``score`` (H, W) float32, the point's log factor
+    ``log(1 + exp(-d^2 / (2 sigma_e^2)) / (sqrt(2 pi) sigma_e q lambda))`` (Huang
+    Sec. 5.2 with the nearest edge only), 0 beyond ``search_px``."""
+
+    distance: np.ndarray
+    score: np.ndarray
+
+
+def edge_lookup(edges: np.ndarray, options: LikelihoodOptions = LikelihoodOptions()
+                ) -> EdgeLookup:
+    """The tables of :class:`EdgeLookup` for an edge map (H, W) (255 on edges)."""
+    distance = cv2.distanceTransform((edges == 0).astype(np.uint8), cv2.DIST_L2,
+                                     cv2.DIST_MASK_PRECISE)
+    score = np.log1p(options.inverse_clutter
+                     * np.exp(-distance.astype(np.float64) ** 2 / (2 * options.sigma_px ** 2)))
+    score[distance > options.search_px] = 0.0
+    return EdgeLookup(distance.astype(np.float32), score.astype(np.float32))
 
 
 @dataclass(frozen=True)
@@ -138,12 +172,22 @@ class LikelihoodResult:
 def finger_log_likelihood(model: KinematicModel, geometry: FingerGeometry, q: np.ndarray,
                           cameras: list[Camera] | tuple[Camera, ...],
                           edge_maps: list[np.ndarray] | tuple[np.ndarray, ...],
-                          options: LikelihoodOptions = LikelihoodOptions()
+                          options: LikelihoodOptions = LikelihoodOptions(),
+                          lookups: list[EdgeLookup] | tuple[EdgeLookup, ...] | None = None
                           ) -> LikelihoodResult:
     """``log p(Z | X)`` (Huang Sec. 5.2) of states ``q`` (N, n_q), summed over cameras.
 
     Batched forward kinematics for all N states, then one compiled pass per camera.
+    ``lookups`` (one :class:`EdgeLookup` per camera) are the ``"distance"`` search's
+    tables; computed from ``edge_maps`` when not given (pass them to reuse them within a
+    frame).
     """
+    use_lookup = options.search == "distance"
+    if use_lookup and lookups is None:
+        lookups = [edge_lookup(e, options) for e in edge_maps]
+    if not use_lookup:
+        lookups = [EdgeLookup(np.zeros((1, 1), np.float32), np.zeros((1, 1), np.float32))
+                   ] * len(edge_maps)
     kin = forward_kinematics(model, np.atleast_2d(q))
     T = kin.T_world_shape[:, geometry.link_rows]
     starts = np.ascontiguousarray(T[..., :3, 3])
@@ -155,13 +199,14 @@ def finger_log_likelihood(model: KinematicModel, geometry: FingerGeometry, q: np
     n = len(starts)
     log_l = np.zeros(n)
     stats = np.zeros((n, 3))
-    for camera, edges in zip(cameras, edge_maps, strict=True):
+    for camera, edges, lookup in zip(cameras, edge_maps, lookups, strict=True):
         out_l = np.empty(n)
         out_s = np.empty((n, 3))
         edge_likelihood_kernel(starts, ends, geometry.radii, ts, geometry.skip, palm,
                                camera.projection_params, edges, int(options.search_px),
                                float(options.sigma_px), float(options.inverse_clutter),
-                               float(options.occlusion_margin_mm), out_l, out_s)
+                               float(options.occlusion_margin_mm), lookup.score,
+                               lookup.distance, use_lookup, out_l, out_s)
         log_l += out_l
         stats += out_s
     with np.errstate(invalid="ignore", divide="ignore"):

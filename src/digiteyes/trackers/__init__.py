@@ -3,10 +3,21 @@
 :class:`FeatureTracker` is DigitEyes (thesis Sec. 2.5, 4.3): point and line features,
 stabilised Gauss-Newton, several cameras stacked in one system; registered as
 ``"features"``. The layered template trackers (thesis Ch. 3) are ``"templates"`` and
-``"templates+features"``. :func:`create_tracker` builds any registered tracker by name.
+``"templates+features"``; :class:`DivideConquerTracker` is Huang, Wu & Lin's divide and
+conquer (``"divide-conquer"``), with its baselines ``"condensation"`` and
+``"random-search"``. :func:`create_tracker` builds any registered tracker by name.
 """
 
 from digiteyes.trackers.base import Tracker, TrackResult, warm_up
+from digiteyes.trackers.divide_conquer import (
+    CondensationOptions,
+    CondensationTracker,
+    DivideConquerDetails,
+    DivideConquerOptions,
+    DivideConquerTracker,
+    RandomSearchOptions,
+    RandomSearchTracker,
+)
 from digiteyes.trackers.feature_tracker import (
     THESIS_EXCLUDED_LINKS,
     FeatureDetails,
@@ -44,11 +55,20 @@ register_tracker("templates+features", LayeredFeatureTracker, LayeredTemplateOpt
                  "layered templates plus edge features of unoccluded links (thesis Ch. 3 "
                  "and Sec. 2.5)")
 
+register_tracker("divide-conquer", DivideConquerTracker, DivideConquerOptions,
+                 "Huang, Wu & Lin: palm by ICP, fingers by SMC on the manifolds between "
+                 "basis configurations")
+register_tracker("condensation", CondensationTracker, CondensationOptions,
+                 "baseline (Huang Sec. 6): CONDENSATION in the PCA space, 3000 samples")
+register_tracker("random-search", RandomSearchTracker, RandomSearchOptions,
+                 "baseline (Huang Sec. 6): random search in the PCA space, 5000 samples")
+
 __all__ = [
-    "DEFAULT_TRACKER", "THESIS_EXCLUDED_LINKS", "FeatureDetails", "FeatureTracker",
-    "FeatureTrackerOptions", "LayeredFeatureTracker", "LayeredTemplateOptions",
-    "LayeredTemplateTracker", "StateParameterisation", "StatePredictor", "TemplateDetails",
-    "TrackResult", "Tracker", "TrackerEntry", "TrackerError", "all_features",
-    "create_tracker", "register_tracker", "thesis_whole_hand_links", "tracker_entry",
-    "tracker_names", "warm_up",
+    "DEFAULT_TRACKER", "THESIS_EXCLUDED_LINKS", "CondensationOptions", "CondensationTracker",
+    "DivideConquerDetails", "DivideConquerOptions", "DivideConquerTracker", "FeatureDetails",
+    "FeatureTracker", "FeatureTrackerOptions", "LayeredFeatureTracker", "LayeredTemplateOptions",
+    "LayeredTemplateTracker", "RandomSearchOptions", "RandomSearchTracker",
+    "StateParameterisation", "StatePredictor", "TemplateDetails", "TrackResult", "Tracker",
+    "TrackerEntry", "TrackerError", "all_features", "create_tracker", "register_tracker",
+    "thesis_whole_hand_links", "tracker_entry", "tracker_names", "warm_up",
 ]

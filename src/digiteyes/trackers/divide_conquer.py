@@ -36,6 +36,7 @@ from digiteyes.smc.configuration import ConfigurationSpace
 from digiteyes.smc.likelihood import (
     FingerGeometry,
     LikelihoodOptions,
+    edge_lookup,
     finger_log_likelihood,
     observe_edges,
 )
@@ -51,6 +52,7 @@ from digiteyes.smc.palm import (
     palm_pose_from_state,
     with_palm_pose,
 )
+from digiteyes.smc.palm_search import PalmSearchOptions, search_palm_pose
 from digiteyes.smc.prior import default_configuration_space
 from digiteyes.smc.proposal import (
     ProposalOptions,
@@ -59,10 +61,11 @@ from digiteyes.smc.proposal import (
     random_walk_log_prior,
 )
 from digiteyes.smc.resample import effective_sample_size, normalised_weights, systematic_resample
-from digiteyes.solvers import SolverSummary
 from digiteyes.trackers.base import TrackResult
 
 SAMPLERS = ("manifold", "condensation", "random-search")
+OVERLAY_SAMPLE = 24
+"""Hypotheses kept in :attr:`DivideConquerDetails.sample_states` for the overlay."""
 
 
 @dataclass(frozen=True)
@@ -78,8 +81,15 @@ class DivideConquerOptions:
         above 1 flattens them and keeps the particle set diverse).
     condensation_sigma : random-walk std of the CONDENSATION dynamics, PCA units.
     search_sigma : std of the random search around the last estimate, PCA units.
+    walk_fraction : share of the manifold sampler's particles drawn instead by the
+        CONDENSATION random walk (``condensation_sigma``) from their parent, so that the
+        set can follow motion off the manifolds (weights: ``f / g`` with ``g`` that walk).
+    anneal_layers : extra layers per frame (annealed particle filter): resample by the
+        weights, perturb by a random walk half as wide as the last, reweight.
     min_edge_fraction : the track is reported lost when fewer visible sample points than
         this fraction find an edge.
+    palm_search : the palm refinement after the EM rounds (:mod:`digiteyes.smc.palm_search`;
+        ``rounds=0`` turns it off).
     proposal, likelihood, icp : options of the parts.
     seed : seed of the tracker's Generator (every draw comes from it).
     """
@@ -94,10 +104,13 @@ class DivideConquerOptions:
     temperature: float = 1.0
     condensation_sigma: float = 0.08
     search_sigma: float = 0.15
+    walk_fraction: float = 0.1
+    anneal_layers: int = 0
     min_edge_fraction: float = 0.3
     proposal: ProposalOptions = field(default_factory=ProposalOptions)
     likelihood: LikelihoodOptions = field(default_factory=LikelihoodOptions)
     icp: IcpOptions = field(default_factory=IcpOptions)
+    palm_search: PalmSearchOptions = field(default_factory=PalmSearchOptions)
     seed: int = 0
 
 
@@ -113,6 +126,8 @@ class DivideConquerDetails:
     palm_model_points : (P, 3) palm outline points used (palm frame, mm).
     palm_pixels : (P, 2) their matched edge pixels; palm_rms_px : reprojection RMS.
     em_rounds : palm/finger alternations done; em_stop : why they stopped.
+    sample_states : (S, n_q) full states of a sample of the hypotheses (S at most
+        ``OVERLAY_SAMPLE``, at evenly spaced weight ranks from the best), for drawing.
     """
 
     particles: np.ndarray
@@ -126,22 +141,36 @@ class DivideConquerDetails:
     palm_rms_px: float
     em_rounds: int
     em_stop: str
+    sample_states: np.ndarray
 
 
-@dataclass
-class DivideConquerResult(TrackResult):
-    """:class:`TrackResult` plus the tracker's :class:`DivideConquerDetails`."""
+@dataclass(frozen=True)
+class CondensationOptions(DivideConquerOptions):
+    """:class:`DivideConquerOptions` with the CONDENSATION baseline's defaults (Huang
+    Sec. 6: 3000 samples, random-walk dynamics)."""
 
-    details: DivideConquerDetails | None = None
+    sampler: str = "condensation"
+    n_particles: int = 3000
 
 
-def _cameras(rig: Rig | Camera | Sequence[Camera]) -> tuple[Camera, ...]:
+@dataclass(frozen=True)
+class RandomSearchOptions(DivideConquerOptions):
+    """:class:`DivideConquerOptions` with the random-search baseline's defaults (Huang
+    Sec. 6: 5000 samples per frame around the last estimate)."""
+
+    sampler: str = "random-search"
+    n_particles: int = 5000
+
+
+def _as_rig(rig: Rig | Camera | Sequence[Camera]) -> Rig:
+    if isinstance(rig, Rig):
+        return rig
     if isinstance(rig, Camera):
-        return (rig,)
-    cams = tuple(rig.cameras if isinstance(rig, Rig) else rig)
+        return Rig((rig,))
+    cams = tuple(rig)
     if not cams:
         raise DigitEyesError("the tracker needs at least one camera")
-    return cams
+    return Rig(cams)
 
 
 def _rotation_deg(Ra: np.ndarray, Rb: np.ndarray) -> float:
@@ -155,26 +184,28 @@ class DivideConquerTracker:
     ----------
     model : ``cardboard-hand`` or ``hand`` (any model with a root pose, a palm box and
         finger links).
-    rig : cameras; the palm step uses the first, the likelihood all of them.
+    rig : cameras (a :class:`Rig`, or one camera or a list of them); the palm step uses
+        the first, the likelihood all of them.
+    options : :class:`DivideConquerOptions` (default: :attr:`options_type` ()).
     space : the configuration space (default: :func:`default_configuration_space`).
-    options : :class:`DivideConquerOptions`.
     """
 
-    default_sampler = "manifold"
-    default_particles = 300
+    stages = ("edges", "proposal", "palm_icp", "likelihood", "resampling")
+    """Timing stages of :attr:`TrackResult.timings`."""
+    options_type: type[DivideConquerOptions] = DivideConquerOptions
 
     def __init__(self, model: KinematicModel, rig: Rig | Camera | Sequence[Camera],
-                 space: ConfigurationSpace | None = None,
-                 options: DivideConquerOptions | None = None) -> None:
+                 options: DivideConquerOptions | None = None,
+                 space: ConfigurationSpace | None = None) -> None:
         if options is None:
-            options = DivideConquerOptions(sampler=self.default_sampler,
-                                           n_particles=self.default_particles)
+            options = self.options_type()
         if options.sampler not in SAMPLERS:
             raise DigitEyesError(f"sampler must be one of {', '.join(SAMPLERS)}, got "
                                  f"{options.sampler!r}")
         if model.base_state is None:
             raise DigitEyesError(f"model {model.name!r} has no palm pose (pose:q row)")
-        self.model, self.cameras, self.options = model, _cameras(rig), options
+        self.model, self.rig, self.options = model, _as_rig(rig), options
+        self.cameras = self.rig.cameras
         self.space = space or default_configuration_space(model)
         self.joint_index = self.space.joint_indices(model)
         self.geometry = FingerGeometry.of(model)
@@ -207,19 +238,18 @@ class DivideConquerTracker:
                                                options=self.options.icp)
         return self.palm_scale
 
-    def step(self, frames: Sequence[np.ndarray]) -> DivideConquerResult:
-        """Track one set of frames (one image per camera)."""
+    def step(self, frames: Sequence[np.ndarray]) -> TrackResult:
+        """Track one set of frames (one image per camera, in rig order)."""
         if self.state is None:
             raise DigitEyesError("call reset(initial_state) before step()")
-        if len(frames) != len(self.cameras):
-            raise DigitEyesError(f"step needs {len(self.cameras)} frame(s), got {len(frames)}")
+        self.rig.check_images(frames)
         t_start = time.perf_counter()
-        timings = dict.fromkeys(("edges", "proposal", "palm_icp", "likelihood", "resampling",
-                                 "total"), 0.0)
+        timings = dict.fromkeys((*self.stages, "total"), 0.0)
         opt = self.options
         self.frame_index += 1
         t = time.perf_counter()
         edge_maps = [observe_edges(f, opt.likelihood) for f in frames]
+        lookups = [edge_lookup(e, opt.likelihood) for e in edge_maps]
         nearest = nearest_edge_field(edge_maps[0]) if opt.track_palm else None
         timings["edges"] = time.perf_counter() - t
 
@@ -234,13 +264,23 @@ class DivideConquerTracker:
             t0 = time.perf_counter()
             result = finger_log_likelihood(self.model, self.geometry,
                                            self.space.states(self.model, q_palm, X),
-                                           self.cameras, edge_maps, opt.likelihood)
+                                           self.cameras, edge_maps, opt.likelihood,
+                                           lookups)
             log_weights = result.log_likelihood / opt.temperature + (
                 log_fg if opt.importance_correction else 0.0)
             timings["likelihood"] += time.perf_counter() - t0
             return result, log_weights
 
         lik, log_w = weigh(q)
+        sigma = opt.condensation_sigma
+        for _ in range(opt.anneal_layers):
+            t = time.perf_counter()
+            sigma *= 0.5
+            parents = systematic_resample(normalised_weights(log_w), self.rng, len(X))
+            X = X[parents] + sigma * self.rng.standard_normal(X[parents].shape)
+            log_fg = np.zeros(len(X))
+            timings["proposal"] += time.perf_counter() - t
+            lik, log_w = weigh(q)
         best = int(np.argmax(log_w))
         palm_points, palm_pixels, palm_rms = np.zeros((0, 3)), np.zeros((0, 2)), np.nan
         stop, rounds = "max_iterations", 0
@@ -278,6 +318,19 @@ class DivideConquerTracker:
                     < opt.em_tolerance_deg):
                 stop = "converged"
                 break
+        if opt.track_palm and opt.palm_search.rounds > 0:
+            t = time.perf_counter()
+            q_best = self.space.states(self.model, q, X[best])[0]
+            q_new, new_score, old_score = search_palm_pose(
+                self.model, self.geometry, q_best, self.cameras, edge_maps, lookups,
+                self.rng, opt.palm_search, opt.likelihood)
+            timings["palm_icp"] += time.perf_counter() - t
+            if new_score > old_score:
+                i = self.model.base_state
+                q = q.copy()
+                q[i:i + 7] = q_new[i:i + 7]
+                lik, log_w = weigh(q)
+                best = int(np.argmax(log_w))
         weights = normalised_weights(log_w)
 
         t = time.perf_counter()
@@ -293,17 +346,19 @@ class DivideConquerTracker:
         lost = bool(visible == 0 or hits < opt.min_edge_fraction * visible)
         timings["total"] = time.perf_counter() - t_start
         cost = float(-lik.log_likelihood[best])
+        ranks = np.argsort(-weights, kind="stable")
+        shown = ranks[np.unique(np.linspace(0, len(X) - 1, min(OVERLAY_SAMPLE, len(X)))
+                                .astype(int))]
         details = DivideConquerDetails(X, weights, X[best].copy(), best, lik.log_likelihood,
                                        effective_sample_size(weights), palm_points,
-                                       palm_pixels, palm_rms, rounds, stop)
-        return DivideConquerResult(
+                                       palm_pixels, palm_rms, rounds, stop,
+                                       self.space.states(self.model, q, X[shown]))
+        return TrackResult(
             state=q.copy(), residual_rms_px=float(lik.rms_px[best]), cost=cost, lost=lost,
             loss_reason=(f"only {int(hits)} of {int(visible)} finger sample points found an "
                          "edge") if lost else "",
-            iterations=rounds,
-            summary=SolverSummary(iterations=rounds, cost_final=cost, termination=stop),
-            predicted_state=predicted, frame_index=self.frame_index, timings=timings,
-            details=details)
+            iterations=rounds, predicted_state=predicted, frame_index=self.frame_index,
+            timings=timings, details=details)
 
     # ------------------------------------------------------------------ samplers
     def _draw(self) -> tuple[np.ndarray, np.ndarray]:
@@ -312,8 +367,15 @@ class DivideConquerTracker:
         if opt.sampler == "manifold":
             prop = propose_on_manifolds(prev, self.space.basis, self.rng, opt.proposal,
                                         self.pairs)
-            log_f = random_walk_log_prior(prop.X, prev, opt.proposal.prior_sigma)
-            return prop.X, importance_log_weights(0.0, log_f, prop.log_g)
+            X, log_g = prop.X.copy(), prop.log_g.copy()
+            walk = self.rng.random(len(X)) < opt.walk_fraction
+            if walk.any():
+                step = opt.condensation_sigma * self.rng.standard_normal((walk.sum(), X.shape[1]))
+                X[walk] = prev[walk] + step
+                log_g[walk] = (-0.5 * np.sum((step / opt.condensation_sigma) ** 2, axis=1)
+                               - X.shape[1] * np.log(opt.condensation_sigma))
+            log_f = random_walk_log_prior(X, prev, opt.proposal.prior_sigma)
+            return X, importance_log_weights(0.0, log_f, log_g)
         if opt.sampler == "condensation":
             X = prev + opt.condensation_sigma * self.rng.standard_normal(prev.shape)
             return X, np.zeros(len(X))
@@ -326,13 +388,11 @@ class DivideConquerTracker:
 class CondensationTracker(DivideConquerTracker):
     """Baseline of Huang Sec. 6: CONDENSATION in the PCA space, 3000 samples."""
 
-    default_sampler = "condensation"
-    default_particles = 3000
+    options_type = CondensationOptions
 
 
 class RandomSearchTracker(DivideConquerTracker):
     """Baseline of Huang Sec. 6: random search in the PCA space, 5000 samples per frame."""
 
-    default_sampler = "random-search"
-    default_particles = 5000
+    options_type = RandomSearchOptions
 

@@ -94,3 +94,15 @@ def _draw_template_details(image: np.ndarray, camera_index: int, camera: Camera,
 
 
 register_overlay(TemplateDetails, _draw_template_details)
+
+
+def _register_tracker_drawers() -> None:
+    """Register the drawers that live in their own modules (imported here, after
+    :func:`register_overlay` exists, so that importing this module registers them all)."""
+    from digiteyes.trackers import DivideConquerDetails
+    from digiteyes.viz.smc_overlay import draw_divide_conquer
+
+    register_overlay(DivideConquerDetails, draw_divide_conquer)
+
+
+_register_tracker_drawers()
