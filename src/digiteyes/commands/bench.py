@@ -15,6 +15,7 @@ SUITES = {
     "templates": "digiteyes.benchmarks.templates",
     "mouse": "digiteyes.benchmarks.mouse",
     "track-many": "digiteyes.benchmarks.track_many",
+    "auto-start": "digiteyes.benchmarks.auto_start",
 }
 
 
