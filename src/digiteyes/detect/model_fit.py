@@ -51,7 +51,7 @@ from digiteyes.solvers import GaussNewtonOptions, gauss_newton, robust_cost
 
 PLANAR_PALM = (0, 5, 9, 13, 17)
 """Wrist and the four MCPs: coplanar in the palm frame (z = 0)."""
-SCOUT_ITERATIONS = 6
+SCOUT_ITERATIONS = 3
 """Iterations of each scouting fit (extended and curled fingers) before the refinement."""
 DIGIT_KEYPOINTS = {d: [1 + 4 * i + j for j in range(4)] for i, d in enumerate(DIGITS)}
 """The four keypoints of each digit (base to tip)."""
@@ -79,7 +79,7 @@ class FitOptions:
     scale: float = 1.0
     sigma_scale: float = 0.15
     fit_scale: bool | None = None
-    iterations: int = 15
+    iterations: int = 10
 
 
 @dataclass
