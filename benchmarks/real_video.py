@@ -84,7 +84,7 @@ def measure(data: Path, frames: int | None, detector: str, out_dir: Path) -> dic
     return {
         "benchmark": "real_video", "machine": machine_info(), "video": str(VIDEO),
         "detector": summary["start"]["detector"], "camera": "default, 60 deg horizontal",
-        "video_frames": video_frames, "frames_tracked": run.n_frames,
+        "frames_limit": frames, "video_frames": video_frames, "frames_tracked": run.n_frames,
         "first_frame": start, "frames_without_state": video_frames - run.n_frames,
         "lost_frames": run.n_lost, "re_detections": len(run.reinitialised_frames),
         "re_detected_frames": [start + f for f in run.reinitialised_frames],

@@ -5,11 +5,14 @@ and, after a frame the tracker flags lost, again (the recovery of
 :func:`digiteyes.pipeline.run_tracker`). It calls :func:`~digiteyes.detect.pose.estimate_pose`
 (the detector in every camera, then :func:`~digiteyes.detect.model_fit.fit_keypoints`) with
 the hand scale held at the model's (``fit_scale=False``), so the state belongs to the very
-model the tracker uses (a personal model from ``calibrate-hand`` sets the size).
+model the tracker uses (a personal model from ``calibrate-hand`` sets the size). When the
+joint fit to all cameras does not match the detections, the best fit to one camera alone
+is taken (the tracker, seeing every camera, corrects its depth).
 """
 
 from __future__ import annotations
 
+import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from itertools import chain
@@ -17,7 +20,7 @@ from itertools import chain
 import numpy as np
 
 from digiteyes.camera import Rig
-from digiteyes.detect.model_fit import FitOptions
+from digiteyes.detect.model_fit import FitOptions, KeypointObservation, PoseFit, fit_keypoints
 from digiteyes.detect.pose import PoseResult, estimate_pose, make_detector
 from digiteyes.errors import DatasetError
 from digiteyes.kinematics import KinematicModel
@@ -69,13 +72,34 @@ class AutoInitialiser:
         self.seconds += sum(result.seconds.values())
         self.last = result
         fit = result.fit
+        if fit is not None and not self._accepted(fit.reprojection_px):
+            fit = self._best_single_camera(result)
         if fit is None:
-            return None
-        errors = fit.reprojection_px[np.isfinite(fit.reprojection_px)]
-        if errors.size == 0 or np.mean(errors <= self.max_error_px) < MIN_DETECTED_FRACTION:
             return None
         self.found += 1
         return np.array(fit.q, dtype=float)
+
+    def _accepted(self, reprojection_px: np.ndarray) -> bool:
+        errors = reprojection_px[np.isfinite(reprojection_px)]
+        return bool(errors.size
+                    and np.mean(errors <= self.max_error_px) >= MIN_DETECTED_FRACTION)
+
+    def _best_single_camera(self, result: PoseResult) -> PoseFit | None:
+        """When the cameras' detections disagree (a detector labels a hand seen from the
+        palm in one view and from the back in another), the best fit to one camera alone
+        that matches its detection; the depth then comes from the hand's size."""
+        started = time.perf_counter()
+        fits = []
+        for camera, candidate in zip(self.rig, result.candidates, strict=True):
+            if candidate is None or len(self.rig) == 1:
+                continue
+            observation = KeypointObservation(camera, candidate.keypoints,
+                                              candidate.keypoint_confidence)
+            fit = fit_keypoints(self.model, [observation], options=self._options)
+            if self._accepted(fit.reprojection_px):
+                fits.append(fit)
+        self.seconds += time.perf_counter() - started
+        return min(fits, key=lambda f: float(np.median(f.reprojection_px)), default=None)
 
 
 def start_automatically(initialiser: AutoInitialiser, frames: Iterator[list[np.ndarray]],

@@ -173,8 +173,8 @@ class KeypointFitProblem:
             parts.append(((uv - obs.keypoints) * w[:, None]).ravel())
             if jacobian:
                 block = np.empty((21, 2, n + 1))
-                block[..., :n] = s * np.einsum("kab,kbn->kan", Jw, Jp)
-                block[..., n] = np.einsum("kab,kb->ka", Jw, p)
+                block[..., :n] = s * (Jw @ Jp)  # batched (2, 3) @ (3, n) per keypoint
+                block[..., n] = (Jw @ p[..., None])[..., 0]
                 jac.append((block * w[:, None, None]).reshape(42, n + 1))
         if self.target_3d is not None:
             sigma = self.options.sigma_mm
