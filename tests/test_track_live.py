@@ -186,3 +186,30 @@ def test_show_without_display_says_so_and_tracks(webcam, tmp_path, capsys, monke
     out = capsys.readouterr().out
     assert "--show skipped: no display" in out and "tracked 2 frame(s)" in out
     assert time.perf_counter() - started < 120
+
+
+def test_auto_start_on_an_uncalibrated_video_uses_the_default_camera(webcam, tmp_path,
+                                                                     capsys):
+    video = tmp_path / "clip.mkv"
+    seq = open_sequence(webcam)
+    with VideoWriter(video, 10.0) as writer:
+        for images in list(seq)[:3]:
+            writer.write(images[0])
+    out = tmp_path / "v"
+    assert main(["track", str(video), "--init", "auto", "--detector", "classic", "-o",
+                 str(out), "--no-overlay", "--quiet"]) == 0
+    assert "--init auto: hand found in frame 0" in capsys.readouterr().out
+    with open(out / "keypoints.csv", newline="", encoding="utf-8") as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == 3
+    depth = float(rows[0]["camera.palm.z_mm"])  # the default camera is named "camera"
+    assert 100.0 < depth < 2000.0
+
+
+def test_video_without_any_start_is_one_line_error(webcam, tmp_path, capsys):
+    video = tmp_path / "clip.mkv"
+    with VideoWriter(video, 10.0) as writer:
+        writer.write(next(iter(open_sequence(webcam)))[0])
+    assert main(["track", str(video), "-o", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--init auto" in err[0]
