@@ -40,9 +40,9 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from digiteyes.benchmarks._machine import machine_info  # noqa: E402
-from digiteyes.commands._video_lengths import count_frames  # noqa: E402
 from digiteyes.detect.hand21 import model_anchors  # noqa: E402
 from digiteyes.io import read_state_log  # noqa: E402
+from digiteyes.io.video_lengths import count_frames  # noqa: E402
 from digiteyes.kinematics import forward_kinematics, load_model  # noqa: E402
 from digiteyes.kinematics.procrustes import kabsch  # noqa: E402
 from digiteyes.track_job import AUTO, TrackJob, run_track_job  # noqa: E402

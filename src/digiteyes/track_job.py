@@ -33,6 +33,7 @@ from digiteyes.io.frame_sinks import KEYPOINTS_FILE, JsonLinesStream, KeypointLo
 from digiteyes.io.safe_paths import atomic_write_json
 from digiteyes.io.track_extras import write_track_extras
 from digiteyes.io.video import open_capture_frames
+from digiteyes.io.video_lengths import check_lengths, record_missing
 from digiteyes.jsonfile import read_json_object
 from digiteyes.kinematics import KinematicModel, State, load_model
 from digiteyes.pipeline import FrameSink, TrackingRun, run_tracker
@@ -167,8 +168,6 @@ def _open_source(job: TrackJob) -> _Source:
                        dataset.n_frames)
     if any(Path(p).is_dir() for p in inputs):
         raise DatasetError("give one dataset folder, or one video file per camera")
-    from digiteyes.commands._video_lengths import check_lengths
-
     lengths = check_lengths(list(inputs), job.strict)
     source = _with_files(job, open_video_frames(list(inputs)), None, 10.0, auto, live=False)
     source.lengths = lengths
@@ -260,8 +259,6 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
     run.files["keypoints"] = out / KEYPOINTS_FILE
     _record_start(run, start_note, initialiser)
     if source.lengths is not None and not run.interrupted and job.max_frames is None:
-        from digiteyes.commands._video_lengths import record_missing
-
         record_missing(run.files["summary"], source.lengths[0], run.n_frames,
                        source.lengths[1])
     run.files.update(write_track_extras(out, model, source.rate, job.smooth))

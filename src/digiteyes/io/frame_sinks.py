@@ -20,7 +20,7 @@ import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TextIO
+from typing import Protocol, TextIO
 
 import numpy as np
 
@@ -28,9 +28,17 @@ from digiteyes.camera import Rig
 from digiteyes.errors import DatasetError
 from digiteyes.kinematics import KinematicModel, forward_kinematics
 from digiteyes.kinematics.keypoints import keypoint_names, keypoints
-from digiteyes.trackers import TrackResult
 
 KEYPOINTS_FILE = "keypoints.csv"
+
+
+class TrackResult(Protocol):
+    """What the sinks read of a :class:`digiteyes.trackers.TrackResult` (named here so
+    that ``io`` stays below the trackers in the import graph)."""
+
+    state: np.ndarray
+    lost: bool
+    residual_rms_px: float
 
 
 def camera_keypoints(model: KinematicModel, rig: Rig, q: np.ndarray
