@@ -16,6 +16,17 @@ This is the layer between :mod:`digiteyes.io` (frames in, logs out) and
 * ``summary.json``: the tracker, the frame rate of the input (``fps``, which
   ``digiteyes export`` reads), frames, losses, timings per stage (the stages the tracker
   declares in ``Tracker.stages``; thesis Table 4.1 rows for the feature tracker).
+  With a ``recover`` function, also the re-initialisations.
+
+**Recovery.** With ``recover`` (e.g. :class:`digiteyes.detect.initialiser.AutoInitialiser`),
+a frame the tracker flags lost is handed to it; when it returns a state (re-detection and
+model fit), that state replaces the tracker's estimate for the frame, the tracker restarts
+from it, and the state log's ``reinitialised`` column is 1 for the frame (its ``lost`` flag
+stays the tracker's). The recovery's time counts in the frame's ``time_s``.
+
+**Frame sinks.** Every object of ``sinks`` (:class:`FrameSink`: the keypoint log, the
+JSON-lines stream, the live window) receives each frame's images and result as soon as
+it is tracked and is closed at the end.
 
 Any :class:`~digiteyes.trackers.Tracker` runs through :func:`run_tracker`;
 :func:`step_frames` is the bare loop (reset, then one timed ``step`` per frame) that the
@@ -28,10 +39,11 @@ other outputs are written before the interruption is reported (``interrupted=Tru
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable, Iterator, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from dataclasses import dataclass, field, replace
 from itertools import chain
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 from tqdm import tqdm
@@ -50,6 +62,19 @@ OVERLAY_PRESET = "veryfast"
 """H.264 settings of ``overlay.mp4``: x264's default quality and a fast preset, a video to
 look at (about 2.5 KB and 5 ms per 640x480 frame, where the near-lossless CRF 12 of the
 dataset videos at the medium preset took 60 KB and 45 ms)."""
+
+Recover = Callable[[list[np.ndarray]], "np.ndarray | None"]
+"""A function from one frame's images (rig order) to a fresh state, or None when it finds
+no hand: the re-initialisation after a lost frame."""
+
+
+class FrameSink(Protocol):
+    """Receives every tracked frame (``reinitialised``: the state came from ``recover``)."""
+
+    def write(self, index: int, images: Sequence[np.ndarray], result: TrackResult,
+              reinitialised: bool) -> None: ...
+
+    def close(self) -> None: ...
 
 
 @dataclass
@@ -79,6 +104,7 @@ class TrackingRun:
     iterations: int = 0
     stage_seconds: dict[str, float] = field(default_factory=dict)
     finger_lost_frames: dict[str, int] = field(default_factory=dict)
+    reinitialised_frames: list[int] = field(default_factory=list)
     files: dict[str, Path] = field(default_factory=dict)
 
     @property
@@ -122,6 +148,8 @@ class TrackingRun:
             "ms_per_frame_by_stage": {k: 1e3 * v / self.n_frames if self.n_frames else None
                                       for k, v in self.stage_seconds.items()},
             "lost_frames_per_finger": dict(self.finger_lost_frames),
+            "reinitialisations": len(self.reinitialised_frames),
+            "reinitialised_frames": list(self.reinitialised_frames),
             "files": {k: str(v) for k, v in self.files.items()},
         }
 
@@ -156,13 +184,16 @@ def run_tracker(
     progress: bool = True,
     tracker_name: str | None = None,
     warm: bool = True,
+    recover: Recover | None = None,
+    sinks: Sequence[FrameSink] = (),
 ) -> TrackingRun:
     """Track ``frames`` (one list of images per time step, rig order) from
     ``initial_state`` with any :class:`~digiteyes.trackers.Tracker` and write the outputs
     listed in the module docstring. ``tracker_name`` goes into ``summary.json`` (default:
     the tracker's class name). With ``warm`` the tracker first steps once on the first
     frame, untimed, and is reset (:func:`digiteyes.trackers.warm_up`): compiling the
-    kernels on a first run stays out of the figures."""
+    kernels on a first run stays out of the figures. ``recover`` and ``sinks``: see the
+    module docstring."""
     out = Path(out_dir)
     (out / "views").mkdir(parents=True, exist_ok=True)
     stages = tuple(tracker.stages)
@@ -182,12 +213,23 @@ def run_tracker(
                         preset=OVERLAY_PRESET) if overlay else None
     bar = tqdm(frames, total=total, unit="frame", desc="tracking", disable=not progress)
     try:
-        with StateLogWriter(log_path, model) as log:
+        with StateLogWriter(log_path, model, reinitialised=recover is not None) as log:
             for index, images, result, seconds in step_frames(tracker, bar, initial_state):
+                fresh = None
+                if result.lost and recover is not None:
+                    start = time.perf_counter()
+                    fresh = recover(images)
+                    if fresh is not None:
+                        tracker.reset(np.asarray(fresh, dtype=float))
+                        result = replace(result, state=np.asarray(fresh, dtype=float))
+                        run.reinitialised_frames.append(index)
+                    seconds += time.perf_counter() - start
                 log.append(index, result.state, time_s=seconds, lost=result.lost,
                            residual_rms_px=result.residual_rms_px,
-                           iterations=result.iterations)
+                           iterations=result.iterations, reinitialised=fresh is not None)
                 _account(run, result, index, seconds)
+                for sink in sinks:
+                    sink.write(index, images, result, fresh is not None)
                 states.append(result.state)
                 if video is not None:
                     video.write(overlay_image(images, result, rig, model))
@@ -199,6 +241,8 @@ def run_tracker(
     finally:
         run.loop_seconds = time.perf_counter() - started
         bar.close()
+        for sink in sinks:
+            sink.close()
         if video is not None:
             video.close()
             if video.n_written:

@@ -1,38 +1,60 @@
-"""One tracking job: an input (a dataset folder, or one video per camera), the settings of
-``digiteyes track``, and the function that runs it (:func:`run_track_job`).
+"""One tracking job and the one function that runs it (:func:`run_track_job`).
 
-``digiteyes track`` runs one job; ``digiteyes track-many`` (:mod:`digiteyes.track_many`)
-runs one per input, each as a Ray task. Both call :func:`run_track_job`, which opens the
-input, builds the :class:`~digiteyes.trackers.FeatureTracker` and hands the frames to
-:func:`digiteyes.pipeline.run_tracker` (the outputs are listed there).
+A :class:`TrackJob` holds what ``digiteyes track`` was asked to do: the input (a dataset
+folder, one video per camera, or a live camera), the tracker and its options, the start
+(the dataset's state, a state file, or ``"auto"``: detect and fit), and the outputs.
+``digiteyes track`` is a command line over :func:`run_track_job`; ``digiteyes track-many``
+(:mod:`digiteyes.track_many`) runs one job per input as a Ray task, and the mouse app reads
+live cameras through the same :func:`~digiteyes.io.video.open_capture_frames`.
+
+:func:`run_track_job` opens the input, resolves the model, rig and initial state, creates
+the tracker from the registry, and hands the frames to
+:func:`digiteyes.pipeline.run_tracker` (outputs listed there) with the frame sinks asked
+for (``keypoints.csv`` always; the JSON-lines stream; the live window), then writes the
+joint angles, the smoothed states and the report page.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from itertools import chain, islice
+from itertools import islice
 from pathlib import Path
 
 import numpy as np
 
-from digiteyes.camera import load_rig
+from digiteyes.camera import Rig, load_rig
+from digiteyes.camera.default import DEFAULT_HFOV_DEG, default_camera
 from digiteyes.errors import CameraError, DatasetError
 from digiteyes.features import FeatureOptions
+from digiteyes.filters import OneEuroOptions
 from digiteyes.io import open_sequence, open_video_frames
+from digiteyes.io.frame_sinks import KEYPOINTS_FILE, JsonLinesStream, KeypointLog
+from digiteyes.io.safe_paths import atomic_write_json
+from digiteyes.io.track_extras import write_track_extras
+from digiteyes.io.video import open_capture_frames
+from digiteyes.io.video_lengths import check_lengths, record_missing
+from digiteyes.jsonfile import read_json_object
 from digiteyes.kinematics import KinematicModel, State, load_model
-from digiteyes.pipeline import TrackingRun, run_tracker
+from digiteyes.pipeline import FrameSink, TrackingRun, run_tracker
 from digiteyes.trackers import (
-    FeatureTracker,
+    DEFAULT_TRACKER,
     FeatureTrackerOptions,
     all_features,
+    create_tracker,
     thesis_whole_hand_links,
 )
+
+AUTO = "auto"
+"""``init_path`` value that starts from a detection and model fit (``--init auto``)."""
+DEFAULT_MODEL = "hand"
+"""Model of videos and cameras when none is named."""
 
 
 def tracker_options(iterations: int, window: float, links: str, model: KinematicModel,
                     robust: str | None, prediction: str, shading: bool = True
                     ) -> FeatureTrackerOptions:
-    """Tracker settings from the command-line choices (shared with ``digiteyes demo``).
+    """Feature-tracker settings from the command-line choices (shared with ``demo``).
 
     ``links`` is ``"default"``, ``"all"`` or ``"thesis"`` (thesis Sec. 4.3.3's set);
     ``window`` the feature search window (px); ``robust`` None, ``"huber"`` or ``"tukey"``.
@@ -55,15 +77,29 @@ class TrackJob:
 
     Attributes
     ----------
-    inputs : one dataset folder, or one video file per camera of the rig, in rig order.
+    inputs : one dataset folder, or one video file per camera of the rig, in rig order
+        (empty with ``camera``).
     output : output folder.
-    model_name, rig_path, init_path : override the dataset's model, rig and initial state
-        (all three required for videos).
-    iterations : Gauss-Newton iterations per frame; window : search window, px; links,
-        robust, prediction, shading : as :func:`tracker_options`.
+    model_name, rig_path : override the dataset's model and rig; for videos and cameras
+        the model defaults to :data:`DEFAULT_MODEL` and the rig to one
+        :func:`~digiteyes.camera.default.default_camera` of field of view ``hfov``.
+    init_path : a state JSON, :data:`AUTO` (detect and fit), or None (the dataset's).
+    iterations, window, links, robust, prediction, shading : the feature tracker's flags
+        (:func:`tracker_options`).
     max_frames : track at most this many frames (None: all).
-    fps : overlay video frame rate (None: the dataset's, or 10).
+    fps : overlay video and smoothing frame rate (None: the dataset's, or 10).
     overlay : write the overlay video; progress : show a progress bar.
+    tracker_name : a registered tracker; options : ``(key, value)`` pairs of its options
+        (on top of the flags for the feature tracker).
+    strict : refuse videos of different lengths.
+    smooth : One Euro settings of the smoothed outputs (None: none written).
+    camera : a live camera index to read instead of ``inputs``.
+    show : show the overlay in a window; stream : ``"-"`` or ``"tcp://HOST:PORT"`` for
+        the JSON-lines stream (None: none).
+    detector : detector of the automatic start and the recovery (``auto``, ``mediapipe``,
+        ``classic``); hfov : field of view of the default camera (deg).
+    recover : re-detect after lost frames (None: exactly when ``init_path`` is ``auto``).
+    init_frames : frames the automatic start may try before giving up.
     """
 
     inputs: tuple[str, ...]
@@ -81,51 +117,189 @@ class TrackJob:
     fps: float | None = None
     overlay: bool = True
     progress: bool = True
+    tracker_name: str = DEFAULT_TRACKER
+    options: tuple[tuple[str, object], ...] = ()
+    strict: bool = False
+    smooth: OneEuroOptions | None = None
+    camera: int | None = None
+    show: bool = False
+    stream: str | None = None
+    detector: str = "auto"
+    hfov: float = DEFAULT_HFOV_DEG
+    recover: bool | None = None
+    init_frames: int = 10
 
 
-def run_track_job(job: TrackJob) -> TrackingRun:
-    """Open ``job.inputs``, track them with the feature tracker and write the outputs of
-    :func:`digiteyes.pipeline.run_tracker` into ``job.output``.
+@dataclass
+class _Source:
+    """An opened input: frames, model, rig, the initial state (None: automatic), the
+    frame rate, frame count when known, and the video lengths to check afterwards."""
 
-    Raises :class:`DatasetError` for a missing or empty input, :class:`CameraError` when
-    the videos do not match the rig, and ``ValueError``-style digiteyes errors for bad
-    model, rig or state files (each naming the file).
-    """
+    frames: Iterator[list[np.ndarray]]
+    model: KinematicModel
+    rig: Rig | None
+    initial: np.ndarray | None
+    rate: float
+    total: int | None
+    lengths: tuple[int, str | None] | None = None
+
+
+def _open_source(job: TrackJob) -> _Source:
     inputs = job.inputs
-    dataset = None
+    auto = job.init_path == AUTO
+    if job.camera is not None:
+        if inputs:
+            raise DatasetError("give either --camera or input files, not both")
+        frames = open_capture_frames(job.camera)
+        return _with_files(job, frames, None, 30.0, auto, live=True)
+    if not inputs:
+        raise DatasetError("nothing to track: give a dataset folder, videos or --camera")
     if len(inputs) == 1 and Path(inputs[0]).is_dir():
         dataset = open_sequence(inputs[0])
-    elif any(Path(p).is_dir() for p in inputs):
+        model = load_model(job.model_name) if job.model_name else dataset.model
+        rig = load_rig(job.rig_path) if job.rig_path else dataset.rig
+        if auto:
+            initial = None
+        elif job.init_path:
+            initial = State.load_json(model, job.init_path).q
+        else:
+            initial = State(model, dataset.initial_state).q
+        return _Source(iter(dataset), model, rig, initial, job.fps or dataset.fps,
+                       dataset.n_frames)
+    if any(Path(p).is_dir() for p in inputs):
         raise DatasetError("give one dataset folder, or one video file per camera")
-    if dataset is None and not (job.model_name and job.rig_path and job.init_path):
-        raise DatasetError(f"{inputs[0]}: tracking videos needs --model, --rig and --init")
-    model = load_model(job.model_name) if job.model_name else dataset.model
-    rig = load_rig(job.rig_path) if job.rig_path else dataset.rig
-    if job.init_path:
-        initial = State.load_json(model, job.init_path).q
-    else:
-        initial = State(model, dataset.initial_state).q
-    if dataset is not None:
-        frames = iter(dataset)
-        total = dataset.n_frames
-        rate = job.fps or dataset.fps
-    else:
-        if len(inputs) != len(rig):
-            raise CameraError(f"the rig has {len(rig)} camera(s) ({', '.join(rig.names)}) but "
-                              f"{len(inputs)} video(s) were given")
-        frames = open_video_frames(list(inputs))
-        total = None
-        rate = job.fps or 10.0
+    lengths = check_lengths(list(inputs), job.strict)
+    source = _with_files(job, open_video_frames(list(inputs)), None, 10.0, auto, live=False)
+    source.lengths = lengths
+    return source
+
+
+def _with_files(job: TrackJob, frames: Iterator[list[np.ndarray]], total: int | None,
+                rate: float, auto: bool, live: bool) -> _Source:
+    """Videos or a camera: model, rig and start from the job's files or defaults."""
+    model = load_model(job.model_name or DEFAULT_MODEL)
+    rig = load_rig(job.rig_path) if job.rig_path else None
+    n_sources = 1 if live else len(job.inputs)
+    if rig is None and n_sources != 1:
+        raise CameraError(f"{n_sources} videos need a --rig (the default camera serves one)")
+    if rig is not None and len(rig) != n_sources:
+        raise CameraError(f"the rig has {len(rig)} camera(s) ({', '.join(rig.names)}) but "
+                          f"{n_sources} {'camera' if live else 'video(s)'} were given")
+    if not auto and not job.init_path:
+        what = "a camera" if live else job.inputs[0]
+        raise DatasetError(f"{what}: tracking videos or cameras needs --init FILE or "
+                           "--init auto")
+    initial = None if auto else State.load_json(model, job.init_path).q
+    return _Source(frames, model, rig, initial, job.fps or rate, total)
+
+
+def _tracker_options(job: TrackJob, model: KinematicModel) -> dict[str, object]:
+    options = dict(job.options)
+    if job.tracker_name == DEFAULT_TRACKER:
+        flags = tracker_options(job.iterations, job.window, job.links, model, job.robust,
+                                job.prediction, job.shading)
+        options = {**vars(flags), **options}
+    return options
+
+
+def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> TrackingRun:
+    """Run ``job``: track its input and write every output into ``job.output``.
+
+    ``echo`` receives one-line notes (the automatic start, a window that cannot be shown).
+    Raises :class:`DatasetError` for a missing or empty input or when the automatic start
+    finds no hand, :class:`CameraError` when the videos do not match the rig, and digiteyes
+    errors naming the file for bad model, rig or state files.
+    """
+    say = echo or (lambda line: None)
+    source = _open_source(job)
+    frames = source.frames
+    total = source.total
     if job.max_frames is not None:
         frames = islice(frames, job.max_frames)
         total = job.max_frames if total is None else min(total, job.max_frames)
     first = next(frames, None)
     if first is None:
-        raise DatasetError(f"{inputs[0]}: no frames to track")
+        name = job.inputs[0] if job.inputs else f"camera {job.camera}"
+        raise DatasetError(f"{name}: no frames to track")
+    first = list(first)
+    rig = source.rig or Rig((default_camera(first[0].shape[1], first[0].shape[0],
+                                            job.hfov),))
     rig.check_images(first)
-    options = tracker_options(job.iterations, job.window, job.links, model, job.robust,
-                              job.prediction, job.shading)
-    tracker = FeatureTracker(model, rig, options)
-    return run_tracker(tracker, model, rig, chain([first], frames), np.asarray(initial),
-                       job.output, fps=rate, total=total, overlay=job.overlay,
-                       progress=job.progress)
+    frames = _prepend(first, frames)
+    model = source.model
+    auto = source.initial is None
+    initialiser = None
+    start_note: dict[str, object] = {"init": "auto" if auto else "given"}
+    if auto or job.recover:
+        from digiteyes.detect.initialiser import AutoInitialiser, start_automatically
+
+        initialiser = AutoInitialiser(model, rig, job.detector)
+        start_note["detector"] = initialiser.detector_class
+    if auto:
+        initial, skipped, frames = start_automatically(initialiser, frames, job.init_frames)
+        start_note["first_frame"] = skipped
+        if total is not None:
+            total -= skipped
+        say(f"--init auto: hand found in frame {skipped} "
+            f"({start_note['detector']} + model fit)")
+    else:
+        initial = np.asarray(source.initial)
+    recover = initialiser if (job.recover if job.recover is not None else auto) else None
+    tracker = create_tracker(job.tracker_name, model, rig, **_tracker_options(job, model))
+    out = Path(job.output)
+    out.mkdir(parents=True, exist_ok=True)
+    sinks = _open_sinks(job, model, rig, out, say)
+    try:
+        run = run_tracker(tracker, model, rig, frames, initial, out, fps=source.rate,
+                          total=total, overlay=job.overlay, progress=job.progress,
+                          tracker_name=job.tracker_name, recover=recover, sinks=sinks)
+    finally:
+        for sink in sinks:
+            sink.close()
+    run.files["keypoints"] = out / KEYPOINTS_FILE
+    _record_start(run, start_note, initialiser)
+    if source.lengths is not None and not run.interrupted and job.max_frames is None:
+        record_missing(run.files["summary"], source.lengths[0], run.n_frames,
+                       source.lengths[1])
+    run.files.update(write_track_extras(out, model, source.rate, job.smooth))
+    from digiteyes.evaluate.report_page import write_report_page
+
+    run.files["report"] = write_report_page(out)
+    return run
+
+
+def _open_sinks(job: TrackJob, model: KinematicModel, rig: Rig, out: Path,
+                say: Callable[[str], None]) -> list[FrameSink]:
+    """``keypoints.csv`` always; the stream and the window when asked for."""
+    sinks: list[FrameSink] = [KeypointLog(out / KEYPOINTS_FILE, model, rig)]
+    try:
+        if job.stream is not None:
+            sinks.append(JsonLinesStream(job.stream, model, rig))
+        if job.show:
+            from digiteyes.viz.live_window import open_live_window
+
+            window, note = open_live_window(model, rig)
+            say(note)
+            if window is not None:
+                sinks.append(window)
+    except BaseException:
+        for sink in sinks:
+            sink.close()
+        raise
+    return sinks
+
+
+def _prepend(first: list[np.ndarray], frames: Iterator) -> Iterator[list[np.ndarray]]:
+    yield first
+    yield from frames
+
+
+def _record_start(run: TrackingRun, note: dict[str, object], initialiser) -> None:
+    """Add how the run started and the detector's work to ``summary.json``."""
+    path = run.files["summary"]
+    summary = read_json_object(path, DatasetError, "summary file")
+    if initialiser is not None:
+        note.update(detections_tried=initialiser.calls, detections_found=initialiser.found,
+                    detection_seconds=initialiser.seconds)
+    summary["start"] = note
+    atomic_write_json(path, summary)

@@ -21,7 +21,6 @@ from digiteyes import forward_kinematics, load_model
 from digiteyes._signals import sigterm_as_interrupt
 from digiteyes.camera import Camera, load_rig
 from digiteyes.cli import main
-from digiteyes.commands._video_lengths import check_lengths, record_missing
 from digiteyes.errors import (
     CameraError,
     DatasetError,
@@ -31,6 +30,7 @@ from digiteyes.errors import (
 )
 from digiteyes.io import StateLogWriter, VideoReader, VideoWriter, open_sequence, read_state_log
 from digiteyes.io.safe_paths import atomic_path
+from digiteyes.io.video_lengths import check_lengths, record_missing
 from digiteyes.kinematics import State
 
 K_YAML = "  rows: 3\n  cols: 3\n  dt: d\n  data: [500, 0, 20, 0, 500, 15, 0, 0, 1]\n"

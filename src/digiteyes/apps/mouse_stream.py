@@ -35,6 +35,7 @@ from digiteyes.apps.mouse3d import buttons_from_state, pole_from_state
 from digiteyes.camera import Rig, load_rig
 from digiteyes.errors import CameraError, DatasetError
 from digiteyes.io import VideoReader, open_sequence, open_video_frames, read_state_log
+from digiteyes.io.video import open_capture_frames
 from digiteyes.kinematics import KinematicModel, State, load_model
 from digiteyes.synth import RenderOptions, render_views
 from digiteyes.synth.scenarios import build_scenario
@@ -222,21 +223,11 @@ def paced(frames: Iterable[list[np.ndarray]], fps: float) -> Iterator[list[np.nd
 
 
 def camera_frames(index: int, rig: Rig) -> Iterator[list[np.ndarray]]:
-    """Grey frames of live camera ``index`` (OpenCV ``VideoCapture``), checked against
-    the one-camera ``rig``."""
-    capture = cv2.VideoCapture(index)
-    if not capture.isOpened():
-        raise CameraError(f"camera {index}: cannot be opened")
-    try:
-        while True:
-            ok, frame = capture.read()
-            if not ok:
-                return
-            images = [cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)]
-            rig.check_images(images)
-            yield images
-    finally:
-        capture.release()
+    """Grey frames of live camera ``index`` (:func:`digiteyes.io.video.open_capture_frames`,
+    the reader of ``digiteyes track --camera``), checked against the one-camera ``rig``."""
+    for images in open_capture_frames(index, gray=True):
+        rig.check_images(images)
+        yield images
 
 
 def open_mouse_stream(source: str | None = None, *, replay: str | Path | None = None,

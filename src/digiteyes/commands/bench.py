@@ -16,6 +16,7 @@ SUITES = {
     "mouse": "digiteyes.benchmarks.mouse",
     "track-many": "digiteyes.benchmarks.track_many",
     "accuracy": "digiteyes.benchmarks.accuracy",
+    "auto-start": "digiteyes.benchmarks.auto_start",
 }
 TRACKER_SUITES = ("accuracy",)
 """Suites that take ``--trackers``."""

@@ -1,60 +1,36 @@
-"""``digiteyes track``: run a registered tracker (default: the DigitEyes feature tracker)
-on a dataset folder or videos."""
+"""``digiteyes track``: the command line over :func:`digiteyes.track_job.run_track_job`
+(a registered tracker, default the DigitEyes feature tracker, on a dataset folder, videos
+or a live camera)."""
 
 from __future__ import annotations
 
 import json
 from dataclasses import replace
-from itertools import chain, islice
-from pathlib import Path
 
 import click
-import numpy as np
 
-from digiteyes.camera import load_rig
-from digiteyes.commands._video_lengths import check_lengths, record_missing
-from digiteyes.errors import CameraError, DatasetError
-from digiteyes.evaluate.report_page import write_report_page
-from digiteyes.features import FeatureOptions
+from digiteyes.camera.default import DEFAULT_HFOV_DEG
 from digiteyes.filters import OneEuroOptions
-from digiteyes.io import open_sequence, open_video_frames
-from digiteyes.io.track_extras import write_track_extras
-from digiteyes.kinematics import State, load_model
-from digiteyes.pipeline import TrackingRun, run_tracker
-from digiteyes.trackers import (
-    DEFAULT_TRACKER,
-    FeatureTrackerOptions,
-    all_features,
-    create_tracker,
-    thesis_whole_hand_links,
-    tracker_entry,
-    tracker_names,
-)
+from digiteyes.io.frame_sinks import parse_stream_target
+from digiteyes.pipeline import TrackingRun
+from digiteyes.track_job import TrackJob, run_track_job, tracker_options
+from digiteyes.trackers import DEFAULT_TRACKER, tracker_entry, tracker_names
 from digiteyes.warmup import COMPILE_MESSAGE, cold_kernels
+
+__all__ = ["parse_tracker_options", "print_run", "smoothing_options", "track",
+           "tracker_options"]
 
 HELP = """Track INPUT with a registered tracker (--tracker; default: the DigitEyes feature
 tracker, thesis Sec. 4.3).
 
 INPUT is a dataset folder (see docs/dataset.md; its model, rig and initial state are used
-unless overridden) or one video file per camera of the rig, in rig order (then --model,
---rig and --init are required). Writes states.csv, joint_angles.csv, overlay.mp4, views/,
-trajectory plots, summary.json and report.html into OUT. Ctrl-C keeps every frame tracked so far.
+unless overridden), one video file per camera of the rig, in rig order, or nothing with
+--camera N (a live camera). Videos and cameras use --model (default: hand), --rig (default:
+one camera of --hfov field of view) and --init FILE or --init auto (detect the hand and fit
+the model; lost frames are then re-detected). Writes states.csv, keypoints.csv,
+joint_angles.csv, overlay.mp4, views/, trajectory plots, summary.json and report.html into
+OUT. Ctrl-C keeps every frame tracked so far.
 """
-
-
-def tracker_options(iterations: int, window: float, links: str, model, robust: str | None,
-                    prediction: str, shading: bool = True) -> FeatureTrackerOptions:
-    """Tracker settings from the command-line choices (shared with ``digiteyes demo``)."""
-    chosen = {"default": None, "all": all_features(model),
-              "thesis": thesis_whole_hand_links(model)}[links]
-    return FeatureTrackerOptions(
-        iterations_per_frame=iterations,
-        features=FeatureOptions(window_px=window),
-        links=chosen,
-        robust_loss=robust,
-        prediction=prediction,
-        shading_correction=shading,
-    )
 
 
 def parse_tracker_options(pairs: tuple[str, ...]) -> dict[str, object]:
@@ -120,37 +96,61 @@ def smoothing_options(smooth: bool, min_cutoff: float | None,
     return replace(defaults, **changes)
 
 
-def print_run(run: TrackingRun) -> None:
-    """Headline figures of a run and where its files are."""
+def print_run(run: TrackingRun, err: bool = False) -> None:
+    """Headline figures of a run and where its files are (on standard error with
+    ``err``)."""
+
+    def echo(line: str) -> None:
+        click.echo(line, err=err)
+
     per_iteration = (f", {run.ms_per_iteration:.2f} ms per iteration"
                      if run.iterations else "")
-    click.echo(f"tracked {run.n_frames} frame(s) with {run.tracker} in "
-               f"{run.tracker_seconds:.2f} s of tracker time ({run.tracker_fps:.1f} frames/s"
-               f"{per_iteration})")
+    echo(f"tracked {run.n_frames} frame(s) with {run.tracker} in "
+         f"{run.tracker_seconds:.2f} s of tracker time ({run.tracker_fps:.1f} frames/s"
+         f"{per_iteration})")
     if run.warm_up_seconds >= 1.0:
-        click.echo(f"  (kernels compiled or loaded in a first, untimed step: "
-                   f"{run.warm_up_seconds:.1f} s, not counted above)")
+        echo(f"  (kernels compiled or loaded in a first, untimed step: "
+             f"{run.warm_up_seconds:.1f} s, not counted above)")
     if run.n_lost:
-        click.echo(f"track flagged lost in {run.n_lost} frame(s), first at frame "
-                   f"{run.first_lost_frame}")
-    for key in ("states", "states-smoothed", "joint-angles", "overlay", "trajectory-palm",
-                "trajectory-joints", "summary", "report"):
+        echo(f"track flagged lost in {run.n_lost} frame(s), first at frame "
+             f"{run.first_lost_frame}")
+    if run.reinitialised_frames:
+        echo(f"re-initialised from a detection in {len(run.reinitialised_frames)} frame(s)")
+    for key in ("states", "keypoints", "states-smoothed", "joint-angles", "overlay",
+                "trajectory-palm", "trajectory-joints", "summary", "report"):
         if key in run.files:
-            click.echo(f"  {key:<18} {run.files[key]}")
+            echo(f"  {key:<18} {run.files[key]}")
     views = sorted(k for k in run.files if k.startswith("view-"))
     if views:
-        click.echo(f"  {'3D views':<18} {run.files[views[0]].parent}/ ({len(views)} PNGs)")
+        echo(f"  {'3D views':<18} {run.files[views[0]].parent}/ ({len(views)} PNGs)")
 
 
 @click.command(help=HELP)
-@click.argument("inputs", nargs=-1, required=True, metavar="INPUT...")
-@click.option("--model", "model_name", help="Model name or .dh file (default: the dataset's).")
+@click.argument("inputs", nargs=-1, required=False, metavar="[INPUT...]")
+@click.option("--model", "model_name",
+              help="Model name or .dh file (default: the dataset's, else hand).")
 @click.option("--rig", "rig_path", type=click.Path(dir_okay=False),
-              help="Rig file (JSON or OpenCV YAML; default: the dataset's).")
-@click.option("--init", "init_path", type=click.Path(dir_okay=False),
-              help="Initial state JSON (default: the dataset's).")
+              help="Rig file (JSON or OpenCV YAML; default: the dataset's, else a default "
+                   "camera of --hfov).")
+@click.option("--init", "init_path", metavar="FILE|auto",
+              help="Initial state JSON, or 'auto' to detect the hand and fit the model "
+                   "(default: the dataset's).")
 @click.option("-o", "--output", required=True, type=click.Path(file_okay=False),
               help="Output folder.")
+@click.option("--camera", type=click.IntRange(min=0), default=None,
+              help="Track live camera N (OpenCV index) instead of files.")
+@click.option("--show", is_flag=True, help="Show the overlay in a window while tracking.")
+@click.option("--stream", metavar="-|tcp://HOST:PORT", default=None,
+              help="Send each frame's state and keypoints as a JSON line to standard "
+                   "output (-) or a listening TCP socket.")
+@click.option("--detector", type=click.Choice(["auto", "mediapipe", "classic"]),
+              default="auto", show_default=True,
+              help="Detector of --init auto and of the recovery after loss.")
+@click.option("--recover/--no-recover", default=None,
+              help="Re-detect and re-fit after a lost frame (default: with --init auto).")
+@click.option("--hfov", type=click.FloatRange(min=1, max=179, min_open=True, max_open=True),
+              default=DEFAULT_HFOV_DEG, show_default=True,
+              help="Horizontal field of view (deg) of the default camera (no --rig).")
 @click.option("--tracker", "tracker_name", cls=TrackerOption, type=TrackerChoice(),
               default=DEFAULT_TRACKER, show_default=True)
 @click.option("--option", "option_pairs", multiple=True, metavar="KEY=VALUE",
@@ -191,58 +191,26 @@ def print_run(run: TrackingRun) -> None:
 @click.option("--strict", is_flag=True,
               help="Refuse videos of different lengths instead of tracking the shortest.")
 def track(inputs: tuple[str, ...], model_name: str | None, rig_path: str | None,
-          init_path: str | None, output: str, tracker_name: str,
-          option_pairs: tuple[str, ...], iterations: int, window: float, links: str,
-          robust: str | None, prediction: str, shading: bool, max_frames: int | None,
-          fps: float | None, no_overlay: bool, smooth: bool, min_cutoff: float | None,
-          beta: float | None, quiet: bool, strict: bool = False) -> None:
-    dataset = None
-    lengths = None
-    if len(inputs) == 1 and Path(inputs[0]).is_dir():
-        dataset = open_sequence(inputs[0])
-    elif any(Path(p).is_dir() for p in inputs):
-        raise DatasetError("give one dataset folder, or one video file per camera")
-    if dataset is None and not (model_name and rig_path and init_path):
-        raise click.UsageError("tracking videos needs --model, --rig and --init")
-    model = load_model(model_name) if model_name else dataset.model
-    rig = load_rig(rig_path) if rig_path else dataset.rig
-    if init_path:
-        initial = State.load_json(model, init_path).q
-    else:
-        initial = State(model, dataset.initial_state).q
-    if dataset is not None:
-        frames = iter(dataset)
-        total = dataset.n_frames
-        rate = fps or dataset.fps
-    else:
-        if len(inputs) != len(rig):
-            raise CameraError(f"the rig has {len(rig)} camera(s) ({', '.join(rig.names)}) but "
-                              f"{len(inputs)} video(s) were given")
-        lengths = check_lengths(list(inputs), strict)
-        frames = open_video_frames(list(inputs))
-        total = None
-        rate = fps or 10.0
-    if max_frames is not None:
-        frames = islice(frames, max_frames)
-        total = max_frames if total is None else min(total, max_frames)
-    first = next(frames, None)
-    if first is None:
-        raise DatasetError(f"{inputs[0]}: no frames to track")
-    options = parse_tracker_options(option_pairs)
-    if tracker_name == DEFAULT_TRACKER:
-        flags = tracker_options(iterations, window, links, model, robust, prediction, shading)
-        options = {**vars(flags), **options}
-    tracker = create_tracker(tracker_name, model, rig, **options)
+          init_path: str | None, output: str, camera: int | None, show: bool,
+          stream: str | None, detector: str, recover: bool | None, hfov: float,
+          tracker_name: str, option_pairs: tuple[str, ...], iterations: int, window: float,
+          links: str, robust: str | None, prediction: str, shading: bool,
+          max_frames: int | None, fps: float | None, no_overlay: bool, smooth: bool,
+          min_cutoff: float | None, beta: float | None, quiet: bool,
+          strict: bool = False) -> None:
+    if stream is not None:
+        parse_stream_target(stream)
+    # with --stream - the JSON lines own standard output; messages go to standard error
+    err = stream == "-"
+    job = TrackJob(
+        inputs, output, model_name, rig_path, init_path, iterations, window, links, robust,
+        prediction, shading, max_frames, fps, overlay=not no_overlay, progress=not quiet,
+        tracker_name=tracker_name, options=tuple(parse_tracker_options(option_pairs).items()),
+        strict=strict, smooth=smoothing_options(smooth, min_cutoff, beta), camera=camera,
+        show=show, stream=stream, detector=detector, hfov=hfov, recover=recover)
     if cold_kernels():
-        click.echo(COMPILE_MESSAGE)
-    run = run_tracker(tracker, model, rig, chain([first], frames), np.asarray(initial),
-                      output, fps=rate, total=total, overlay=not no_overlay,
-                      progress=not quiet, tracker_name=tracker_name)
-    if lengths is not None and not run.interrupted and max_frames is None:
-        record_missing(run.files["summary"], lengths[0], run.n_frames, lengths[1])
-    run.files.update(write_track_extras(output, model, rate,
-                                        smoothing_options(smooth, min_cutoff, beta)))
-    run.files["report"] = write_report_page(output)
-    print_run(run)
+        click.echo(COMPILE_MESSAGE, err=err)
+    run = run_track_job(job, echo=lambda line: click.echo(line, err=err))
+    print_run(run, err=err)
     if run.interrupted:
         raise KeyboardInterrupt

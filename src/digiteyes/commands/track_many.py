@@ -28,7 +28,7 @@ CPUs, or on the cluster at --address. Needs Ray: pip install 'digiteyes[cluster]
 @click.option("--model", "model_name", help="Model for videos (datasets bring their own).")
 @click.option("--rig", "rig_path", type=click.Path(dir_okay=False), help="Rig for videos.")
 @click.option("--init", "init_path", type=click.Path(dir_okay=False),
-              help="Initial state JSON for videos.")
+              help="Initial state JSON for videos, or auto (detect and fit).")
 @click.option("--iterations", type=click.IntRange(min=1), default=5, show_default=True,
               help="Gauss-Newton iterations per frame.")
 @click.option("--shading/--no-shading", default=True, show_default=True,

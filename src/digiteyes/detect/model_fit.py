@@ -51,7 +51,7 @@ from digiteyes.solvers import GaussNewtonOptions, gauss_newton, robust_cost
 
 PLANAR_PALM = (0, 5, 9, 13, 17)
 """Wrist and the four MCPs: coplanar in the palm frame (z = 0)."""
-SCOUT_ITERATIONS = 6
+SCOUT_ITERATIONS = 3
 """Iterations of each scouting fit (extended and curled fingers) before the refinement."""
 DIGIT_KEYPOINTS = {d: [1 + 4 * i + j for j in range(4)] for i, d in enumerate(DIGITS)}
 """The four keypoints of each digit (base to tip)."""
@@ -79,7 +79,7 @@ class FitOptions:
     scale: float = 1.0
     sigma_scale: float = 0.15
     fit_scale: bool | None = None
-    iterations: int = 15
+    iterations: int = 10
 
 
 @dataclass
@@ -173,8 +173,8 @@ class KeypointFitProblem:
             parts.append(((uv - obs.keypoints) * w[:, None]).ravel())
             if jacobian:
                 block = np.empty((21, 2, n + 1))
-                block[..., :n] = s * np.einsum("kab,kbn->kan", Jw, Jp)
-                block[..., n] = np.einsum("kab,kb->ka", Jw, p)
+                block[..., :n] = s * (Jw @ Jp)  # batched (2, 3) @ (3, n) per keypoint
+                block[..., n] = (Jw @ p[..., None])[..., 0]
                 jac.append((block * w[:, None, None]).reshape(42, n + 1))
         if self.target_3d is not None:
             sigma = self.options.sigma_mm

@@ -111,12 +111,16 @@ def hand_mask(image: np.ndarray, background: BackgroundModel | None = None) -> n
       given. The border colours are not used: a hand's highlights and shadows reach the
       greys of a wall within a histogram bin, which cut fingers off on real footage, while
       the skin box alone already rejects a grey or white wall;
-    * grey: not background (``background`` when given, else the border colours).
+    * grey (also an RGB image whose three channels are equal): not background
+      (``background`` when given, else the border colours).
     """
     image = np.asarray(image)
     if image.dtype != np.uint8 or image.ndim not in (2, 3):
         raise DigitEyesError(f"hand segmentation: expected a uint8 grey or RGB image, got "
                              f"{image.dtype} {image.shape}")
+    if (image.ndim == 3 and background is None and image.shape[2] == 3
+            and (image[..., 0] == image[..., 1]).all() and (image[..., 0] == image[..., 2]).all()):
+        image = image[..., 0]  # a grey video decoded as RGB: no chrominance for the skin box
     if image.ndim == 3:
         fg = skin_mask(image)
         if background is not None:

@@ -27,6 +27,10 @@ from digiteyes.errors import DatasetError, StateError
 from digiteyes.kinematics import KinematicModel, validate_state
 
 LOG_COLUMNS = ("frame", "time_s", "lost", "residual_rms_px", "iterations")
+OPTIONAL_COLUMNS = ("reinitialised",)
+"""Columns a log may carry after :data:`LOG_COLUMNS`: ``reinitialised`` (0 or 1) is
+written when the run re-detects after a loss (``digiteyes track --init auto``); 1 marks a
+frame whose state came from the detector and the model fit."""
 
 
 @dataclass(frozen=True)
@@ -56,9 +60,11 @@ class StateLogWriter:
     :class:`DatasetError` naming the file.
     """
 
-    def __init__(self, path: str | Path, model: KinematicModel) -> None:
+    def __init__(self, path: str | Path, model: KinematicModel, *,
+                 reinitialised: bool = False) -> None:
         self.path = Path(path)
         self.model = model
+        self.reinitialised = reinitialised
         self.n_rows = 0
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -68,7 +74,8 @@ class StateLogWriter:
                                ) from None
         self._buffer = io.StringIO()
         self._writer = csv.writer(self._buffer)
-        self._write([*LOG_COLUMNS, *model.state_names])
+        self._write([*LOG_COLUMNS, *OPTIONAL_COLUMNS[:int(reinitialised)],
+                     *model.state_names])
 
     def _write(self, row: list[str]) -> None:
         try:
@@ -82,8 +89,9 @@ class StateLogWriter:
                                ) from None
 
     def append(self, frame: int, state: np.ndarray, *, time_s: float, lost: bool,
-               residual_rms_px: float, iterations: int) -> None:
-        """Write one row: the estimate of ``frame`` (0-based) and how it was obtained."""
+               residual_rms_px: float, iterations: int, reinitialised: bool = False) -> None:
+        """Write one row: the estimate of ``frame`` (0-based) and how it was obtained
+        (``reinitialised`` is written only by a writer created with that column)."""
         if self._handle.closed:
             raise DatasetError(f"{self.path}: state log is closed")
         state = np.asarray(state, dtype=float)
@@ -92,6 +100,7 @@ class StateLogWriter:
                              f"{self.model.n_q}, got shape {state.shape}")
         self._write([str(int(frame)), repr(float(time_s)), str(int(bool(lost))),
                      repr(float(residual_rms_px)), str(int(iterations)),
+                     *([str(int(bool(reinitialised)))] if self.reinitialised else []),
                      *(repr(float(x)) for x in state)])
         self.n_rows += 1
 

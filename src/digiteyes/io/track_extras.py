@@ -12,7 +12,13 @@ import numpy as np
 
 from digiteyes.errors import DatasetError, DigitEyesError
 from digiteyes.filters import OneEuroOptions, one_euro_filter
-from digiteyes.io.state_log import LOG_COLUMNS, StateLog, StateLogWriter, read_state_log
+from digiteyes.io.state_log import (
+    LOG_COLUMNS,
+    OPTIONAL_COLUMNS,
+    StateLog,
+    StateLogWriter,
+    read_state_log,
+)
 from digiteyes.kinematics import KinematicModel, load_model
 from digiteyes.kinematics.joint_angles import write_joint_angles_csv
 from digiteyes.models import shipped_models
@@ -69,7 +75,7 @@ def model_of_log(path: str | Path) -> KinematicModel:
             header = next(csv.reader(handle), [])
     except OSError as exc:
         raise DatasetError(f"{path}: cannot read state log ({exc.strerror or exc})") from None
-    names = tuple(h for h in header if h not in LOG_COLUMNS)
+    names = tuple(h for h in header if h not in LOG_COLUMNS + OPTIONAL_COLUMNS)
     fits = [m for m in shipped_models() if load_model(m).state_names == names]
     if len(fits) != 1:
         raise DatasetError(f"{path}: cannot tell the model from the header "

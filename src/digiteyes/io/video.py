@@ -283,3 +283,61 @@ def _zip_frames(readers: list[VideoReader]) -> Iterator[list[np.ndarray]]:
     finally:
         for reader in readers:
             reader.close()
+
+
+class CaptureReader:
+    """Frames of a live camera (OpenCV ``VideoCapture``), read like :class:`VideoReader`.
+
+    ``source`` is a camera index (``0`` the first camera) or a video file path (the same
+    code path, which is how it is tested without a camera). ``read()`` returns the next
+    image, ``uint8`` (H, W) if ``gray`` else (H, W, 3) RGB, or None when the camera stops.
+    Raises :class:`DatasetError` when the camera or file cannot be opened.
+    """
+
+    def __init__(self, source: int | str | Path, *, gray: bool = False) -> None:
+        self.source = source
+        self.gray = gray
+        self.n_read = 0
+        self._capture = cv2.VideoCapture(source if isinstance(source, int) else str(source))
+        if not self._capture.isOpened():
+            self._capture.release()
+            what = f"camera {source}" if isinstance(source, int) else str(source)
+            raise DatasetError(f"{what}: cannot be opened for capture")
+
+    def read(self) -> np.ndarray | None:
+        """The next frame, or None when the camera or file has no more."""
+        if self._capture is None:
+            return None
+        ok, frame = self._capture.read()
+        if not ok:
+            self.close()
+            return None
+        self.n_read += 1
+        code = cv2.COLOR_BGR2GRAY if self.gray else cv2.COLOR_BGR2RGB
+        return cv2.cvtColor(frame, code)
+
+    def __iter__(self) -> Iterator[np.ndarray]:
+        while (image := self.read()) is not None:
+            yield image
+
+    def close(self) -> None:
+        """Release the camera (idempotent)."""
+        if self._capture is not None:
+            self._capture.release()
+            self._capture = None
+
+
+def open_capture_frames(source: int | str | Path, *, gray: bool = False
+                        ) -> Iterator[list[np.ndarray]]:
+    """One-camera frames of :class:`CaptureReader` as lists of one image, the shape of
+    :func:`open_video_frames` (so ``digiteyes track --camera N`` runs the same loop)."""
+    reader = CaptureReader(source, gray=gray)
+
+    def frames() -> Iterator[list[np.ndarray]]:
+        try:
+            for image in reader:
+                yield [image]
+        finally:
+            reader.close()
+
+    return frames()

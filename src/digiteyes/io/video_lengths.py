@@ -9,10 +9,10 @@ warning in ``summary.json``; ``--strict`` refuses such inputs.
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import av
-import click
 
 from digiteyes.errors import DatasetError
 from digiteyes.io.safe_paths import atomic_write_json
@@ -50,7 +50,7 @@ def check_lengths(paths: list[str], strict: bool) -> tuple[int, str | None]:
                f"{min(lengths)} frames can be tracked with every camera")
     if strict:
         raise DatasetError(f"{warning} (--strict)")
-    click.echo(f"digiteyes track: warning: {warning}", err=True)
+    print(f"digiteyes track: warning: {warning}", file=sys.stderr)
     return longest, warning
 
 
@@ -66,6 +66,6 @@ def record_missing(summary: Path, longest: int, tracked: int, warning: str | Non
     payload["warnings"] = [w for w in (warning,) if w]
     atomic_write_json(summary, payload)
     if missing and warning is None:
-        click.echo(f"digiteyes track: warning: {missing} frame(s) of the videos could not be "
-                   "read (a file ends early or is damaged)", err=True)
+        print(f"digiteyes track: warning: {missing} frame(s) of the videos could not be "
+              "read (a file ends early or is damaged)", file=sys.stderr)
     return missing

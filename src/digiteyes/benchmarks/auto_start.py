@@ -1,0 +1,137 @@
+"""Benchmark ``auto-start``: the desk and webcam setups started automatically vs from truth.
+
+For each setup (``desk-2cam``, ``webcam-1cam``; seed :data:`SEED`) the frames are
+rendered once (grey, black cloth, the tracker benchmark's noise) and tracked twice by the
+feature tracker with the settings of ``digiteyes track``:
+
+* from the true first state (the scenario's initial state);
+* automatically: the classic detector (:class:`~digiteyes.detect.classic.ClassicDetector`;
+  MediaPipe finds no hand on these renders) and the model fit on the first frame with a
+  hand (:func:`~digiteyes.detect.initialiser.start_automatically`), with the recovery of
+  ``--init auto`` after lost frames.
+
+Figures: the mean model keypoint error (mm, against the true keypoints) per frame of each
+run, the mean over frames :data:`SETTLE_FRAMES` onwards, and the first frame from which
+the automatic run stays within :data:`TOLERANCE_MM` of the run from truth (the issue's
+target: the same accuracy after at most 10 frames).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from digiteyes.benchmarks._machine import emit, machine_info, machine_lines
+from digiteyes.benchmarks.tracker import render_sequence
+from digiteyes.detect.initialiser import AutoInitialiser, start_automatically
+from digiteyes.kinematics import forward_kinematics
+from digiteyes.kinematics.keypoints import keypoints
+from digiteyes.pipeline import step_frames
+from digiteyes.synth.scenarios import build_scenario
+from digiteyes.track_job import tracker_options
+from digiteyes.trackers import FeatureTracker
+
+SETUPS = ("desk-2cam", "webcam-1cam")
+SEED = 0
+SETTLE_FRAMES = 10
+"""The issue's budget: frames after which the automatic start must match the true one."""
+TOLERANCE_MM = 1.0
+"""Mean keypoint error the automatic run may exceed the run from truth by, mm."""
+
+
+def keypoint_error_mm(model, states: np.ndarray, truth, first: int = 0) -> np.ndarray:
+    """Mean distance (mm) of the model keypoints of ``states`` (T, n_q), frames ``first``
+    on, to the true keypoints."""
+    names, points = keypoints(model, forward_kinematics(model, states))
+    idx = [truth.keypoint_names.index(n) for n in names]
+    true = truth.keypoints_3d[first:first + len(states)][:, idx]
+    return np.linalg.norm(points - true, axis=2).mean(axis=1)
+
+
+def track_states(tracker: FeatureTracker, frames, start: np.ndarray,
+                 recover: AutoInitialiser | None = None) -> tuple[np.ndarray, list[int], float]:
+    """States per frame, the frames re-initialised, and the seconds spent (tracking plus
+    recovery), with the recovery of :func:`digiteyes.pipeline.run_tracker`."""
+    states, fresh_frames, seconds = [], [], 0.0
+    for index, images, result, step_s in step_frames(tracker, frames, start):
+        q = result.state
+        started = time.perf_counter()
+        if result.lost and recover is not None:
+            fresh = recover(images)
+            if fresh is not None:
+                tracker.reset(fresh)
+                q = fresh
+                fresh_frames.append(index)
+        seconds += step_s + time.perf_counter() - started
+        states.append(q)
+    return np.array(states), fresh_frames, seconds
+
+
+def setup_entry(name: str, n_frames: int) -> dict[str, Any]:
+    """Both runs on one setup (see the module docstring)."""
+    scenario = build_scenario(name, seed=SEED, n_frames=n_frames)
+    sequence = render_sequence(scenario, seed=SEED)
+    model, rig = scenario.model, sequence.rig
+    options = tracker_options(5, 20.0, "default", model, None, "none")
+    truth_states, _, truth_s = track_states(FeatureTracker(model, rig, options),
+                                            sequence.images, scenario.initial_state)
+    initialiser = AutoInitialiser(model, rig, "classic")
+    started = time.perf_counter()
+    start, skipped, rest = start_automatically(initialiser, iter(sequence.images))
+    start_s = time.perf_counter() - started
+    auto_states, fresh, auto_s = track_states(FeatureTracker(model, rig, options),
+                                              list(rest), start, initialiser)
+    err_truth = keypoint_error_mm(model, truth_states, sequence.truth)[skipped:]
+    err_auto = keypoint_error_mm(model, auto_states, sequence.truth, skipped)
+    gap = err_auto - err_truth
+    within = np.flatnonzero(np.array([np.all(gap[t:] <= TOLERANCE_MM)
+                                      for t in range(len(gap))]))
+    settled = slice(SETTLE_FRAMES, None)
+    return {
+        "setup": name, "frames": len(auto_states), "cameras": len(rig),
+        "start_frame": skipped, "start_seconds": start_s, "reinitialised_frames": fresh,
+        "error_true_start_mm": [round(float(e), 2) for e in err_truth],
+        "error_auto_start_mm": [round(float(e), 2) for e in err_auto],
+        "error_first_frame_auto_mm": float(err_auto[0]),
+        "mean_error_from_frame_10_true_start_mm": float(err_truth[settled].mean()),
+        "mean_error_from_frame_10_auto_start_mm": float(err_auto[settled].mean()),
+        "frames_to_match_true_start": int(within[0]) if within.size else None,
+        "meets_target": bool(within.size and within[0] <= SETTLE_FRAMES),
+        "tracker_fps_true_start": len(truth_states) / truth_s,
+        "fps_auto_start_with_recovery": len(auto_states) / auto_s,
+    }
+
+
+def run(json_path: str | None = None, quick: bool = False) -> dict:
+    """Both setups; print the table; write JSON to ``json_path`` when given."""
+    started = time.perf_counter()
+    n_frames = 16 if quick else 40
+    result = {"benchmark": "auto-start", "quick": quick, "machine": machine_info(),
+              "settings": {"seed": SEED, "frames": n_frames, "detector": "classic",
+                           "tolerance_mm": TOLERANCE_MM, "settle_frames": SETTLE_FRAMES},
+              "setups": [setup_entry(name, n_frames) for name in SETUPS]}
+    result["wall_seconds"] = time.perf_counter() - started
+    return emit(result, format_table(result), json_path)
+
+
+def format_table(result: dict[str, Any]) -> str:
+    """One row per setup."""
+    lines = [f"auto-start benchmark{' (quick)' if result['quick'] else ''}",
+             *machine_lines(result["machine"]),
+             f"{result['settings']['frames']} frames per setup, classic detector + model fit; "
+             f"target: within {TOLERANCE_MM:g} mm of the true start after <= "
+             f"{SETTLE_FRAMES} frames", "",
+             f"{'setup':<13} {'err f0':>7} {'true>=10':>9} {'auto>=10':>9} {'match at':>9}"
+             f" {'re-init':>8}  target"]
+    for e in result["setups"]:
+        match = e["frames_to_match_true_start"]
+        lines.append(f"{e['setup']:<13} {e['error_first_frame_auto_mm']:>7.1f}"
+                     f" {e['mean_error_from_frame_10_true_start_mm']:>9.2f}"
+                     f" {e['mean_error_from_frame_10_auto_start_mm']:>9.2f}"
+                     f" {'never' if match is None else match:>9}"
+                     f" {len(e['reinitialised_frames']):>8}"
+                     f"  {'yes' if e['meets_target'] else 'no'}")
+    lines.append("(errors: mean model keypoint distance to the truth, mm)")
+    return "\n".join(lines)

@@ -1,0 +1,122 @@
+"""A tracker's start from the images alone: detect the hand, fit the model, return a state.
+
+:class:`AutoInitialiser` is what ``digiteyes track --init auto`` runs on the first frames
+and, after a frame the tracker flags lost, again (the recovery of
+:func:`digiteyes.pipeline.run_tracker`). It calls :func:`~digiteyes.detect.pose.estimate_pose`
+(the detector in every camera, then :func:`~digiteyes.detect.model_fit.fit_keypoints`) with
+the hand scale held at the model's (``fit_scale=False``), so the state belongs to the very
+model the tracker uses (a personal model from ``calibrate-hand`` sets the size). When the
+joint fit to all cameras does not match the detections, the best fit to one camera alone
+is taken (the tracker, seeing every camera, corrects its depth).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from itertools import chain
+
+import numpy as np
+
+from digiteyes.camera import Rig
+from digiteyes.detect.model_fit import FitOptions, KeypointObservation, PoseFit, fit_keypoints
+from digiteyes.detect.pose import PoseResult, estimate_pose, make_detector
+from digiteyes.errors import DatasetError
+from digiteyes.kinematics import KinematicModel
+
+MIN_DETECTED_FRACTION = 0.5
+"""A fit is accepted when at least this fraction of the 21 keypoints reprojects within
+``max_error_px`` (a detector's wrong labelling leaves most keypoints far off)."""
+
+
+@dataclass
+class AutoInitialiser:
+    """Detect and fit on demand; callable as a :data:`digiteyes.pipeline.Recover`.
+
+    Attributes
+    ----------
+    model, rig : the tracker's model and cameras.
+    detector : ``"auto"`` (MediaPipe when installed, else classic), ``"mediapipe"`` or
+        ``"classic"``.
+    max_error_px : reprojection error (px) a keypoint of an accepted fit stays within.
+    calls, found : how many times it ran and found a hand; ``seconds`` their total (s).
+    last : the last :class:`PoseResult` (None before the first call).
+    """
+
+    model: KinematicModel
+    rig: Rig
+    detector: str = "auto"
+    max_error_px: float = 25.0
+    calls: int = 0
+    found: int = 0
+    seconds: float = 0.0
+    last: PoseResult | None = None
+    _detector: object = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        self._detector = make_detector(self.detector, self.model)
+        self._options = FitOptions(fit_scale=False)
+
+    @property
+    def detector_class(self) -> str:
+        """The class name of the detector in use (``auto`` resolved)."""
+        return type(self._detector).__name__
+
+    def __call__(self, images: Sequence[np.ndarray]) -> np.ndarray | None:
+        """A state of ``model`` (mm, rad) fitted to the hand detected in ``images`` (rig
+        order), or None when no camera finds a hand or the fit does not match it."""
+        result = estimate_pose(list(images), self.rig, self._detector, self.model,
+                               self._options)
+        self.calls += 1
+        self.seconds += sum(result.seconds.values())
+        self.last = result
+        fit = result.fit
+        if fit is not None and not self._accepted(fit.reprojection_px):
+            fit = self._best_single_camera(result)
+        if fit is None:
+            return None
+        self.found += 1
+        return np.array(fit.q, dtype=float)
+
+    def _accepted(self, reprojection_px: np.ndarray) -> bool:
+        errors = reprojection_px[np.isfinite(reprojection_px)]
+        return bool(errors.size
+                    and np.mean(errors <= self.max_error_px) >= MIN_DETECTED_FRACTION)
+
+    def _best_single_camera(self, result: PoseResult) -> PoseFit | None:
+        """When the cameras' detections disagree (a detector labels a hand seen from the
+        palm in one view and from the back in another), the best fit to one camera alone
+        that matches its detection; the depth then comes from the hand's size."""
+        started = time.perf_counter()
+        fits = []
+        for camera, candidate in zip(self.rig, result.candidates, strict=True):
+            if candidate is None or len(self.rig) == 1:
+                continue
+            observation = KeypointObservation(camera, candidate.keypoints,
+                                              candidate.keypoint_confidence)
+            fit = fit_keypoints(self.model, [observation], options=self._options)
+            if self._accepted(fit.reprojection_px):
+                fits.append(fit)
+        self.seconds += time.perf_counter() - started
+        return min(fits, key=lambda f: float(np.median(f.reprojection_px)), default=None)
+
+
+def start_automatically(initialiser: AutoInitialiser, frames: Iterator[list[np.ndarray]],
+                        max_frames: int = 10) -> tuple[np.ndarray, int, Iterator]:
+    """Try the first ``max_frames`` frames until ``initialiser`` finds the hand.
+
+    Returns ``(state, skipped, frames)``: the state fitted to frame ``skipped`` (the frames
+    before it had no hand and are not tracked) and the frames from that one on. Raises
+    :class:`DatasetError` when none of them shows a hand.
+    """
+    for skipped in range(max_frames):
+        images = next(frames, None)
+        if images is None:
+            break
+        state = initialiser(images)
+        if state is not None:
+            return state, skipped, chain([images], frames)
+    raise DatasetError(f"--init auto: no hand found in the first {max_frames} frame(s) "
+                       f"(detector {initialiser.detector!r}); give an initial state with "
+                       "--init FILE")

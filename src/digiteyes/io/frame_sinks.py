@@ -1,0 +1,165 @@
+"""Per-frame outputs of a tracking run that follow the frames as they are tracked.
+
+* :class:`KeypointLog`: ``keypoints.csv``, one row per frame with every model keypoint
+  (:func:`digiteyes.kinematics.keypoints.keypoints`: joint centres, fingertip centres, the
+  palm centre) in each camera: pixel position ``<camera>.<keypoint>.u_px / v_px`` and the
+  point in that camera's frame ``<camera>.<keypoint>.x_mm / y_mm / z_mm``.
+* :class:`JsonLinesStream`: one JSON object per frame (state, flags, the same keypoints)
+  to standard output (``-``) or a TCP socket (``tcp://HOST:PORT``, digiteyes connects to
+  a listening app), for other programs to follow a run live.
+
+Both are :class:`digiteyes.pipeline.FrameSink` objects (``write`` per frame, ``close``).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import socket
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Protocol, TextIO
+
+import numpy as np
+
+from digiteyes.camera import Rig
+from digiteyes.errors import DatasetError
+from digiteyes.kinematics import KinematicModel, forward_kinematics
+from digiteyes.kinematics.keypoints import keypoint_names, keypoints
+
+KEYPOINTS_FILE = "keypoints.csv"
+
+
+class TrackResult(Protocol):
+    """What the sinks read of a :class:`digiteyes.trackers.TrackResult` (named here so
+    that ``io`` stays below the trackers in the import graph)."""
+
+    state: np.ndarray
+    lost: bool
+    residual_rms_px: float
+
+
+def camera_keypoints(model: KinematicModel, rig: Rig, q: np.ndarray
+                     ) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
+    """Names, pixels (n_cameras, K, 2) and camera-frame points (n_cameras, K, 3), mm, of
+    the model keypoints of state ``q`` in every camera of ``rig``."""
+    names, world = keypoints(model, forward_kinematics(model, np.asarray(q, dtype=float)))
+    world = world[0]
+    uv = np.stack([cam.project(world) for cam in rig])
+    xyz = np.stack([cam.to_camera(world) for cam in rig])
+    return names, uv, xyz
+
+
+class KeypointLog:
+    """Write ``keypoints.csv`` (flushed per row, like ``states.csv``)."""
+
+    def __init__(self, path: str | Path, model: KinematicModel, rig: Rig) -> None:
+        self.path = Path(path)
+        self.model = model
+        self.rig = rig
+        try:
+            self._handle = open(self.path, "w", newline="", encoding="utf-8")
+        except OSError as exc:
+            raise DatasetError(f"{self.path}: cannot create ({exc.strerror or exc})") from None
+        self._writer = csv.writer(self._handle)
+        self._writer.writerow(["frame", *keypoint_columns(model, rig)])
+
+    def write(self, index: int, images: Sequence[np.ndarray], result: TrackResult,
+              reinitialised: bool) -> None:
+        """Append the keypoints of ``result.state``."""
+        _, uv, xyz = camera_keypoints(self.model, self.rig, result.state)
+        row = [str(index)]
+        for c in range(len(self.rig)):
+            for k in range(uv.shape[1]):
+                row += [f"{uv[c, k, 0]:.2f}", f"{uv[c, k, 1]:.2f}",
+                        *(f"{v:.2f}" for v in xyz[c, k])]
+        self._writer.writerow(row)
+        self._handle.flush()
+
+    def close(self) -> None:
+        self._handle.close()
+
+
+def keypoint_columns(model: KinematicModel, rig: Rig) -> list[str]:
+    """The named columns of ``keypoints.csv`` after ``frame``, camera by camera."""
+    return [f"{cam.name}.{name}.{axis}" for cam in rig for name in keypoint_names(model)
+            for axis in ("u_px", "v_px", "x_mm", "y_mm", "z_mm")]
+
+
+def frame_message(model: KinematicModel, rig: Rig, index: int, result: TrackResult,
+                  reinitialised: bool) -> dict:
+    """One frame as a JSON-ready object: ``frame``, ``time`` (Unix s), ``lost``,
+    ``reinitialised``, ``residual_rms_px``, ``state`` (by name; mm, rad) and
+    ``keypoints[camera][keypoint] = {"uv_px": [u, v], "xyz_mm": [x, y, z]}``."""
+    names, uv, xyz = camera_keypoints(model, rig, result.state)
+    rms = float(result.residual_rms_px)
+    return {
+        "frame": int(index),
+        "time": time.time(),
+        "lost": bool(result.lost),
+        "reinitialised": bool(reinitialised),
+        "residual_rms_px": rms if np.isfinite(rms) else None,
+        "state": {n: float(v) for n, v in zip(model.state_names, result.state, strict=True)},
+        "keypoints": {cam.name: {n: {"uv_px": [round(float(u), 2) for u in uv[c, k]],
+                                     "xyz_mm": [round(float(v), 2) for v in xyz[c, k]]}
+                                 for k, n in enumerate(names)}
+                      for c, cam in enumerate(rig)},
+    }
+
+
+def parse_stream_target(target: str) -> tuple[str, int] | None:
+    """``"-"`` gives None (standard output); ``"tcp://HOST:PORT"`` gives ``(HOST, PORT)``.
+    Anything else raises :class:`DatasetError`."""
+    if target == "-":
+        return None
+    host, sep, port = target.removeprefix("tcp://").rpartition(":")
+    if not target.startswith("tcp://") or not sep or not host or not port.isdigit():
+        raise DatasetError(f"--stream: expected '-' or tcp://HOST:PORT, got {target!r}")
+    return host, int(port)
+
+
+class JsonLinesStream:
+    """Send :func:`frame_message` per frame as one line of JSON to ``target`` (``-`` or
+    ``tcp://HOST:PORT``). A reader that goes away ends the stream quietly (the run goes
+    on); a socket that cannot be reached raises :class:`DatasetError` at once."""
+
+    def __init__(self, target: str, model: KinematicModel, rig: Rig,
+                 out: TextIO | None = None) -> None:
+        self.model = model
+        self.rig = rig
+        self._socket = None
+        address = parse_stream_target(target)
+        if address is None:
+            self._out = out or sys.stdout
+        else:
+            try:
+                self._socket = socket.create_connection(address, timeout=5.0)
+            except OSError as exc:
+                raise DatasetError(f"--stream {target}: cannot connect ({exc})") from None
+            self._out = self._socket.makefile("w", encoding="utf-8", newline="\n")
+        self.n_sent = 0
+
+    def write(self, index: int, images: Sequence[np.ndarray], result: TrackResult,
+              reinitialised: bool) -> None:
+        if self._out is None:
+            return
+        line = json.dumps(frame_message(self.model, self.rig, index, result, reinitialised))
+        try:
+            self._out.write(line + "\n")
+            self._out.flush()
+            self.n_sent += 1
+        except (OSError, ValueError):
+            self._out = None
+
+    def close(self) -> None:
+        if self._socket is not None:
+            try:
+                if self._out is not None:
+                    self._out.close()
+            except OSError:
+                pass
+            self._socket.close()
+            self._socket = None
+        self._out = None

@@ -1,0 +1,215 @@
+"""``digiteyes track``: automatic start, recovery after loss, keypoints.csv, the JSON-lines
+stream (stdout and TCP), the capture reader behind --camera, and --show without a display."""
+
+from __future__ import annotations
+
+import csv
+import json
+import socket
+import threading
+import time
+from collections.abc import Sequence
+
+import numpy as np
+import pytest
+
+from digiteyes import forward_kinematics
+from digiteyes.cli import main
+from digiteyes.io import VideoReader, VideoWriter, open_sequence, read_state_log
+from digiteyes.io.video import CaptureReader
+from digiteyes.kinematics.anatomy import FINGERS
+from digiteyes.kinematics.keypoints import keypoints
+from digiteyes.pipeline import run_tracker
+from digiteyes.trackers import TrackResult
+
+
+@pytest.fixture(scope="module")
+def webcam(tmp_path_factory):
+    """Six rendered frames of the webcam setup (one camera, fingers curling)."""
+    folder = tmp_path_factory.mktemp("seq") / "webcam"
+    assert main(["render", "webcam-1cam", "-o", str(folder), "--frames", "6"]) == 0
+    return folder
+
+
+def truth_keypoints(seq, frames):
+    """Names, world points (T, K, 3) of the model keypoints at the true states."""
+    names, points = keypoints(seq.model, forward_kinematics(seq.model, seq.truth.states[frames]))
+    return names, points
+
+
+def test_stream_to_stdout_gives_each_frames_state_and_keypoints(webcam, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["track", str(webcam), "-o", str(out), "--stream", "-", "--frames", "4",
+                 "--no-overlay", "--quiet"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    messages = [json.loads(line) for line in lines]
+    assert [m["frame"] for m in messages] == [0, 1, 2, 3]
+    seq = open_sequence(webcam)
+    camera = seq.rig[0]
+    names, world = truth_keypoints(seq, np.arange(4))
+    for t, message in enumerate(messages):
+        assert not message["lost"] and not message["reinitialised"]
+        points = message["keypoints"][camera.name]
+        assert set(points) == set(names)
+        xyz = np.array([points[n]["xyz_mm"] for n in names])
+        uv = np.array([points[n]["uv_px"] for n in names])
+        # the tracker follows the truth within a few mm; the keypoints are in camera frame
+        assert np.median(np.linalg.norm(xyz - camera.to_camera(world[t]), axis=1)) < 6.0
+        assert np.median(np.linalg.norm(uv - camera.project(world[t]), axis=1)) < 6.0
+        assert list(message["state"]) == list(seq.model.state_names)
+    # keypoints.csv holds the same numbers under named columns
+    with open(out / "keypoints.csv", newline="", encoding="utf-8") as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == 4
+    first = names[0]
+    for row, message in zip(rows, messages, strict=True):
+        got = [float(row[f"{camera.name}.{first}.{a}"]) for a in ("x_mm", "y_mm", "z_mm")]
+        assert np.allclose(got, message["keypoints"][camera.name][first]["xyz_mm"], atol=0.02)
+
+
+def test_stream_to_a_local_socket(webcam, tmp_path, capsys):
+    server = socket.create_server(("127.0.0.1", 0))
+    port = server.getsockname()[1]
+    received: list[bytes] = []
+
+    def serve():
+        conn, _ = server.accept()
+        with conn:
+            while chunk := conn.recv(65536):
+                received.append(chunk)
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    assert main(["track", str(webcam), "-o", str(tmp_path / "o"), "--frames", "2",
+                 "--stream", f"tcp://127.0.0.1:{port}", "--no-overlay", "--quiet"]) == 0
+    thread.join(timeout=10)
+    server.close()
+    messages = [json.loads(line) for line in b"".join(received).decode().splitlines()]
+    assert [m["frame"] for m in messages] == [0, 1]
+    assert "tracked 2 frame(s)" in capsys.readouterr().out
+
+
+def test_bad_stream_target_is_one_line_error(webcam, tmp_path, capsys):
+    assert main(["track", str(webcam), "-o", str(tmp_path / "o"), "--stream", "udp://x"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "tcp://HOST:PORT" in err[0]
+
+
+def test_auto_start_reaches_the_truth_within_five_frames(webcam, tmp_path):
+    out = tmp_path / "auto"
+    assert main(["track", str(webcam), "-o", str(out), "--init", "auto", "--detector",
+                 "classic", "--no-overlay", "--quiet"]) == 0
+    seq = open_sequence(webcam)
+    log = read_state_log(out / "states.csv", seq.model)
+    names, est = keypoints(seq.model, forward_kinematics(seq.model, log.states))
+    truth = seq.truth.keypoints_3d[log.frames][:, [seq.truth.keypoint_names.index(n)
+                                                   for n in names]]
+    error = np.linalg.norm(est - truth, axis=2).mean(axis=1)
+    assert error[0] < 25.0  # the fit to the classic detector's keypoints
+    assert error[5] < 5.0  # the tracker has pulled it onto the image
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["start"]["init"] == "auto" and summary["start"]["first_frame"] == 0
+    assert summary["reinitialisations"] == 0
+
+
+class LoseAfter:
+    """A test tracker: holds its state, calls the track lost from frame ``lost_from`` on
+    (counted since the last reset)."""
+
+    stages = ("hold",)
+
+    def __init__(self, lost_from: int) -> None:
+        self.lost_from = lost_from
+        self.state = None
+        self.frame = 0
+
+    def reset(self, initial_state: np.ndarray) -> None:
+        self.state = np.array(initial_state, dtype=float)
+        self.frame = 0
+
+    def step(self, frames: Sequence[np.ndarray]) -> TrackResult:
+        lost = self.frame >= self.lost_from
+        self.frame += 1
+        return TrackResult(state=self.state.copy(), cost=0.0, residual_rms_px=0.0, lost=lost,
+                           loss_reason="test" if lost else "", iterations=1,
+                           predicted_state=self.state.copy(), frame_index=self.frame,
+                           timings={"hold": 0.0, "total": 0.0},
+                           finger_lost=dict.fromkeys(FINGERS, False), details=None)
+
+
+def test_recovery_marks_each_reinitialisation(webcam, tmp_path):
+    seq = open_sequence(webcam)
+    start = np.array(seq.initial_state, dtype=float)
+    fresh = seq.truth.states[3].copy()
+    calls = []
+
+    def recover(images):
+        calls.append(len(images))
+        return fresh
+
+    tracker = LoseAfter(lost_from=2)
+    run = run_tracker(tracker, seq.model, seq.rig, iter(seq), start, tmp_path / "r",
+                      overlay=False, progress=False, views_every=0, warm=False,
+                      recover=recover)
+    # lost at frame 2; restarted there, it counts anew: frames 3, 4 held, 5 lost
+    assert run.reinitialised_frames == [2, 5] and calls == [1, 1]
+    header = (tmp_path / "r" / "states.csv").read_text().splitlines()[0].split(",")
+    assert "reinitialised" in header
+    with open(tmp_path / "r" / "states.csv", newline="") as handle:
+        flags = [int(row["reinitialised"]) for row in csv.DictReader(handle)]
+    assert flags == [0, 0, 1, 0, 0, 1]
+    log = read_state_log(tmp_path / "r" / "states.csv", seq.model)
+    assert np.allclose(log.states[2], fresh) and np.allclose(log.states[1], start)
+    assert json.loads((tmp_path / "r" / "summary.json").read_text())["reinitialisations"] == 2
+
+
+def test_capture_reader_reads_a_video_file_like_the_video_reader(tmp_path):
+    rng = np.random.default_rng(0)
+    path = tmp_path / "clip.mkv"
+    frames = [rng.integers(0, 255, (48, 64, 3), dtype=np.uint8) for _ in range(3)]
+    with VideoWriter(path, 10.0) as writer:
+        for frame in frames:
+            writer.write(frame)
+    expected = list(VideoReader(path))
+    got = list(CaptureReader(path))
+    assert len(got) == 3
+    for a, b in zip(got, expected, strict=True):
+        assert a.shape == b.shape and np.mean(np.abs(a.astype(int) - b)) < 3.0
+
+
+def test_show_without_display_says_so_and_tracks(webcam, tmp_path, capsys, monkeypatch):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    started = time.perf_counter()
+    assert main(["track", str(webcam), "-o", str(tmp_path / "s"), "--show", "--frames", "2",
+                 "--no-overlay", "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert "--show skipped: no display" in out and "tracked 2 frame(s)" in out
+    assert time.perf_counter() - started < 120
+
+
+def test_auto_start_on_an_uncalibrated_video_uses_the_default_camera(webcam, tmp_path,
+                                                                     capsys):
+    video = tmp_path / "clip.mkv"
+    seq = open_sequence(webcam)
+    with VideoWriter(video, 10.0) as writer:
+        for images in list(seq)[:3]:
+            writer.write(images[0])
+    out = tmp_path / "v"
+    assert main(["track", str(video), "--init", "auto", "--detector", "classic", "-o",
+                 str(out), "--no-overlay", "--quiet"]) == 0
+    assert "--init auto: hand found in frame 0" in capsys.readouterr().out
+    with open(out / "keypoints.csv", newline="", encoding="utf-8") as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == 3
+    depth = float(rows[0]["camera.palm.z_mm"])  # the default camera is named "camera"
+    assert 100.0 < depth < 2000.0
+
+
+def test_video_without_any_start_is_one_line_error(webcam, tmp_path, capsys):
+    video = tmp_path / "clip.mkv"
+    with VideoWriter(video, 10.0) as writer:
+        writer.write(next(iter(open_sequence(webcam)))[0])
+    assert main(["track", str(video), "-o", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--init auto" in err[0]
