@@ -41,7 +41,7 @@ JSON_VALUES = st.recursive(
 NASTY = st.sampled_from(["1" + "0" * 400, "9" * 5000, "[" * 3000, "1e999", "NaN", "-0",
                          "\x00", "\udcff", "\ufeff", "{", "\"", "q0", "pi/0", "1deg",
                          "!!opencv-matrix", "rows:", "cols: 99999999", "data: [", "%YAML:1.0",
-                         "<opencv_storage>", ",", "\n", "#"])
+                         "<opencv_storage>", ",", "\n", "#", "x" * 140_000])
 
 
 def _paths(node, prefix=()):

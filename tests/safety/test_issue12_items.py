@@ -31,7 +31,7 @@ from digiteyes.errors import (
 from digiteyes.io import StateLogWriter, VideoReader, VideoWriter, open_sequence, read_state_log
 from digiteyes.io.safe_paths import atomic_path
 from digiteyes.io.video_lengths import check_lengths, record_missing
-from digiteyes.kinematics import State
+from digiteyes.kinematics import State, read_states_csv
 
 K_YAML = "  rows: 3\n  cols: 3\n  dt: d\n  data: [500, 0, 20, 0, 500, 15, 0, 0, 1]\n"
 
@@ -334,3 +334,15 @@ def test_ctrl_c_in_the_first_seconds_of_track_has_no_traceback(tmp_path, delay):
     assert "Traceback" not in text, text
     assert process.returncode in (130, 2, -signal.SIGINT), (process.returncode, text)
     assert len(text.strip().splitlines()) <= 1, text
+
+
+@pytest.mark.parametrize("text", ["\udcffframe,a\n", "frame," + "x" * 200_000 + "\n"])
+def test_csv_readers_refuse_undecodable_and_huge_cells(tmp_path, text):
+    """Found by the slow fuzz run: bad UTF-8 and over-long cells in state CSVs and logs."""
+    model = load_model("hand")
+    path = tmp_path / "s.csv"
+    path.write_text(text, errors="surrogatepass")
+    with pytest.raises(StateError):
+        read_states_csv(model, path)
+    with pytest.raises(DatasetError):
+        read_state_log(path, model)

@@ -266,7 +266,8 @@ def read_ground_truth(folder: str | Path, spec: dict | None, model: KinematicMod
             raise DatasetError(f"{path}: missing ground-truth keypoints file") from None
         except KeyError as exc:
             raise DatasetError(f"{path}: lacks array {exc.args[0]}") from None
-        except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
+        except (OSError, ValueError, EOFError, NotImplementedError, RuntimeError,
+                zipfile.BadZipFile, zlib.error) as exc:
             raise DatasetError(f"{path}: not a readable .npz file ({exc})") from None
         names = tuple(str(n) for n in arrays["names"])
         k = len(names)

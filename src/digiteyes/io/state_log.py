@@ -148,7 +148,10 @@ def read_state_log(path: str | Path, model: KinematicModel) -> StateLog:
         raise DatasetError(f"{path}: no such state log") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise DatasetError(f"{path}: cannot read state log ({exc})") from None
-    rows = list(csv.reader(text.splitlines()))
+    try:
+        rows = list(csv.reader(text.splitlines()))
+    except csv.Error as exc:
+        raise DatasetError(f"{path}: not a readable state log ({exc})") from None
     if not rows:
         raise DatasetError(f"{path}: empty; expected a header "
                            f"{','.join(LOG_COLUMNS)},<state names>")

@@ -215,6 +215,8 @@ def read_states_csv(
             rows = list(csv.reader(handle))
     except FileNotFoundError:
         raise StateError(f"{path}: no such state file") from None
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise StateError(f"{path}: not a readable state CSV ({exc})") from None
     if not rows:
         raise StateError(f"{path}: empty CSV, expected a header of state names")
     header = rows[0]
