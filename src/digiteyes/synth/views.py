@@ -160,22 +160,9 @@ def _render_flesh(world: FleshScene, points: np.ndarray, names: tuple[str, ...],
                              specular=options.specular, shininess=options.shininess,
                              texture=options.texture, seed=options.skin_seed,
                              shadows=options.shadows)
-    grid, warp = camera_canvas(cam)
-    raster = rasterise_flesh(scene, grid, light_cam, material)
-    if options.supersample > 1:
-        ss = options.supersample
-        fine = rasterise_flesh(scene, grid.supersampled(ss), light_cam, material)
-        alpha = _block_mean(fine.hit.astype(np.float32), ss)
-        rgb = _block_mean(fine.rgb, ss)
-    else:
-        alpha = raster.hit.astype(np.float32)
-        rgb = raster.rgb
-    depth, labels = raster.depth, raster.labels
-    if warp is not None:
-        alpha = warp.warp(alpha, nearest=False, fill=0.0)
-        rgb = warp.warp(rgb, nearest=False, fill=0.0)
-        depth = warp.warp(depth, nearest=True, fill=np.inf)
-        labels = warp.warp(labels, nearest=True, fill=-1)
+    alpha, rgb, depth, labels = _draw(
+        cam, options, lambda grid: rasterise_flesh(scene, grid, light_cam, material),
+        lambda raster: raster.rgb)
     if options.color:
         paint = np.float32(255.0) * rgb
     else:
@@ -218,22 +205,9 @@ def _render_camera(world: Scene, points: np.ndarray, names: tuple[str, ...],
                    rng: np.random.Generator) -> RenderedView:
     scene = world.transformed(cam.T_cam_world)
     light_cam = _light_cam(cam, options)
-    grid, warp = camera_canvas(cam)
-    raster = rasterise(scene, grid, light_cam, options.ambient)
-    if options.supersample > 1:
-        ss = options.supersample
-        fine = rasterise(scene, grid.supersampled(ss), light_cam, options.ambient)
-        alpha = _block_mean(fine.hit.astype(np.float32), ss)
-        lit = _block_mean(fine.shade, ss)
-    else:
-        alpha = raster.hit.astype(np.float32)
-        lit = raster.shade
-    depth, labels = raster.depth, raster.labels
-    if warp is not None:
-        alpha = warp.warp(alpha, nearest=False, fill=0.0)
-        lit = warp.warp(lit, nearest=False, fill=0.0)
-        depth = warp.warp(depth, nearest=True, fill=np.inf)
-        labels = warp.warp(labels, nearest=True, fill=-1)
+    alpha, lit, depth, labels = _draw(
+        cam, options, lambda grid: rasterise(scene, grid, light_cam, options.ambient),
+        lambda raster: raster.shade)
     if options.color:
         paint = lit[..., None] * (np.float32(255.0)
                                   * np.asarray(options.skin_colour, dtype=np.float32))
@@ -247,6 +221,30 @@ def _render_camera(world: Scene, points: np.ndarray, names: tuple[str, ...],
     seen = labels[v, u].astype(int)
     visible = inside & (seen >= 0) & owners[np.arange(len(points)), np.maximum(seen, 0)]
     return RenderedView(image, depth, labels, points.copy(), pixels, visible, names)
+
+
+def _draw(cam: Camera, options: RenderOptions, cast, radiance
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Coverage alpha, radiance, depth and labels of one camera: ``cast(grid)`` ray casts
+    a pixel grid and ``radiance(raster)`` reads its shade or colour; with supersampling,
+    alpha and radiance are block means of a finer cast; lens distortion is applied last."""
+    grid, warp = camera_canvas(cam)
+    raster = cast(grid)
+    if options.supersample > 1:
+        ss = options.supersample
+        fine = cast(grid.supersampled(ss))
+        alpha = _block_mean(fine.hit.astype(np.float32), ss)
+        colour = _block_mean(radiance(fine), ss)
+    else:
+        alpha = raster.hit.astype(np.float32)
+        colour = radiance(raster)
+    depth, labels = raster.depth, raster.labels
+    if warp is not None:
+        alpha = warp.warp(alpha, nearest=False, fill=0.0)
+        colour = warp.warp(colour, nearest=False, fill=0.0)
+        depth = warp.warp(depth, nearest=True, fill=np.inf)
+        labels = warp.warp(labels, nearest=True, fill=-1)
+    return alpha, colour, depth, labels
 
 
 def _block_mean(image: np.ndarray, factor: int) -> np.ndarray:
