@@ -39,3 +39,17 @@ def test_targets_need_both_ratio_and_lag():
     assert bench._versus(raw, filtered(0.19, 1.1))["meets_targets"]
     assert not bench._versus(raw, filtered(0.21, 0.5))["meets_targets"]
     assert not bench._versus(raw, filtered(0.1, 1.2))["meets_targets"]
+
+
+def test_the_tuning_rule_takes_the_steadiest_setting_within_the_lag_margin():
+    rows = [{"jitter_ratio": 9.0, "added_lag_frames": bench.TUNING_ADDED_LAG + 0.05},
+            {"jitter_ratio": 6.0, "added_lag_frames": bench.TUNING_ADDED_LAG},
+            {"jitter_ratio": 4.0, "added_lag_frames": 0.2}]
+    assert bench.choose(rows) is rows[1]
+    assert bench.choose(rows[:1]) is None
+
+
+def test_the_shipped_defaults_are_in_the_grid():
+    from digiteyes.filters import OneEuroOptions
+
+    assert OneEuroOptions() in bench.grid_options()

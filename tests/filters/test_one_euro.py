@@ -3,6 +3,8 @@ still hand, little lag on a moving one, resets, and the filter's own maths."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -88,9 +90,43 @@ def test_scalar_case_is_the_published_filter(hand):
     np.testing.assert_allclose(out, expected, atol=1e-12)
 
 
+def test_scalar_case_with_speed_and_dead_band(hand):
+    """A joint alone follows the equations of the module docstring step by step: the speed
+    smoothed at ``d_cutoff``, the cutoff raised by ``beta`` per rad/s above the dead band."""
+    rng = np.random.default_rng(4)
+    states = np.repeat(hand.neutral()[None], 40, axis=0)
+    states[:, 9] = 0.2 + 0.03 * np.arange(40) + rng.normal(0.0, 0.01, 40)
+    options = OneEuroOptions(min_cutoff_hz=0.2, beta_per_rad=12.0, d_cutoff_hz=0.2,
+                             deadband_rad_s=0.1)
+    out = one_euro_filter(hand, states, FPS, options)[:, 9]
+    period = 1.0 / FPS
+    expected, speed = [states[0, 9]], 0.0
+    for z in states[1:, 9]:
+        step = z - expected[-1]
+        speed = _alpha(0.2, period) * step / period + (1 - _alpha(0.2, period)) * speed
+        cutoff = 0.2 + 12.0 * max(abs(speed) - 0.1, 0.0)
+        expected.append(expected[-1] + _alpha(cutoff, period) * step)
+    np.testing.assert_allclose(out, expected, atol=1e-12)
+    published = one_euro_filter(hand, states, FPS, replace(options, deadband_rad_s=0.0))
+    assert np.abs(published[:, 9] - out).max() > 1e-3
+
+
+def test_dead_band_keeps_slow_noise_at_the_resting_cutoff(hand):
+    """Noise whose smoothed speed stays under the dead band is filtered as with beta 0."""
+    rng = np.random.default_rng(5)
+    states = np.repeat(hand.neutral()[None], 30, axis=0)
+    states[:, 9] = 0.5 + rng.normal(0.0, 0.002, 30)
+    calm = OneEuroOptions(min_cutoff_hz=0.2, beta_per_rad=0.0, deadband_rad_s=0.0)
+    banded = OneEuroOptions(min_cutoff_hz=0.2, beta_per_rad=50.0, deadband_rad_s=1.0)
+    np.testing.assert_allclose(one_euro_filter(hand, states, FPS, banded)[:, 9],
+                               one_euro_filter(hand, states, FPS, calm)[:, 9], atol=1e-12)
+
+
 def test_bad_arguments(hand):
     with pytest.raises(StateError, match="min_cutoff_hz"):
         OneEuroOptions(min_cutoff_hz=0.0)
+    with pytest.raises(StateError, match="deadband_rad_s"):
+        OneEuroOptions(deadband_rad_s=-1.0)
     with pytest.raises(StateError, match="fps"):
         one_euro_filter(hand, hand.neutral()[None], 0.0)
     with pytest.raises(StateError, match="shape"):

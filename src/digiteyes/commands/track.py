@@ -184,9 +184,11 @@ def print_run(run: TrackingRun, err: bool = False) -> None:
               help="Also write states-smoothed.csv and joint_angles-smoothed.csv, One Euro "
                    "filtered (docs/output.md).")
 @click.option("--min-cutoff", type=click.FloatRange(min=0, min_open=True), default=None,
-              help="One Euro min_cutoff_hz (implies --smooth; default 0.1).")
+              help="One Euro min_cutoff_hz (implies --smooth; default "
+                   f"{OneEuroOptions().min_cutoff_hz:g}).")
 @click.option("--beta", type=click.FloatRange(min=0), default=None,
-              help="One Euro beta_per_rad (implies --smooth; default 5).")
+              help="One Euro beta_per_rad (implies --smooth; default "
+                   f"{OneEuroOptions().beta_per_rad:g}).")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 @click.option("--strict", is_flag=True,
               help="Refuse videos of different lengths instead of tracking the shortest.")

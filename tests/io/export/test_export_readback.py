@@ -164,17 +164,32 @@ def test_models_with_prismatic_states_are_refused(tmp_path):
         export_track(model, [0], model.neutral()[None], [False], FPS, tmp_path, "bvh")
 
 
+def _gltf_validator_folder() -> Path | None:
+    """The npm ``gltf-validator`` package: under DIGITEYES_GLTF_VALIDATOR
+    (``npm install --prefix DIR gltf-validator``) or installed globally (``npm install -g``,
+    as ``.ci/run`` does)."""
+    if not shutil.which("node"):
+        return None
+    if os.environ.get("DIGITEYES_GLTF_VALIDATOR"):
+        folder = Path(os.environ["DIGITEYES_GLTF_VALIDATOR"]) / "node_modules" / "gltf-validator"
+        return folder if folder.is_dir() else None
+    npm = shutil.which("npm")
+    if not npm:
+        return None
+    root = subprocess.run([npm, "root", "-g"], capture_output=True, text=True, timeout=60)
+    folder = Path(root.stdout.strip()) / "gltf-validator"
+    return folder if root.returncode == 0 and folder.is_dir() else None
+
+
 def test_gltf_passes_the_khronos_validator(track, tmp_path):
-    """Optional: the Khronos glTF-Validator (npm ``gltf-validator``) when
-    DIGITEYES_GLTF_VALIDATOR names a folder holding node_modules/gltf-validator
-    (``npm install --prefix DIR gltf-validator``)."""
-    folder = os.environ.get("DIGITEYES_GLTF_VALIDATOR")
-    if not folder or not shutil.which("node"):
-        pytest.skip("set DIGITEYES_GLTF_VALIDATOR to a folder with the npm gltf-validator")
+    """The Khronos glTF-Validator (npm ``gltf-validator``), which ``.ci/run`` installs."""
+    folder = _gltf_validator_folder()
+    if folder is None:
+        pytest.skip("needs node and the npm gltf-validator (npm install -g gltf-validator)")
     model, states = track
     path = export_track(model, np.arange(len(states)), states, np.zeros(len(states)), FPS,
                         tmp_path, "gltf")
-    package = json.dumps(str(Path(folder) / "node_modules" / "gltf-validator"))
+    package = json.dumps(str(folder))
     script = (f"const v = require({package});"
               "const fs = require('fs');"
               f"v.validateBytes(new Uint8Array(fs.readFileSync({json.dumps(str(path))})))"
