@@ -13,6 +13,10 @@ Usage::
    and the world mirrored (as in ``real_stb.py``) so the right-hand model applies.
 2. **FreiHAND** (8 annotated 224x224 images, 2D labels): 2D keypoint error (px) and
    detection rate of both detectors.
+2b. **Link lengths on STB** (both images of the pair, the calibrated stereo rig): each
+   detector's keypoints in the two views triangulated
+   (:func:`digiteyes.detect.link_lengths.triangulate`) and the 15 finger segments
+   measured, against the same segments of the 3D labels (mm).
 3. **The real video** (621 frames, 1280x720, grey wall): detection rate per frame of both
    detectors, time per frame (classic detection + fit), and agreement of the fitted 3D
    hand shape with the stored MediaPipe estimate (``mediapipe_joints_right.pkl``, not
@@ -41,6 +45,7 @@ from digiteyes import load_model
 from digiteyes.camera.default import default_camera
 from digiteyes.detect.classic import ClassicDetector
 from digiteyes.detect.hand21 import BONES
+from digiteyes.detect.link_lengths import SEGMENT_NAMES, segment_lengths, triangulate
 from digiteyes.detect.mediapipe_detector import MediaPipeDetector, mediapipe_available
 from digiteyes.detect.model_fit import FitOptions, KeypointObservation, fit_keypoints
 from digiteyes.io.video import VideoReader
@@ -181,6 +186,34 @@ def video_stage(data: Path, hand, step: int) -> dict | None:
             if tip_gap else None}
 
 
+def stb_link_length_stage(data: Path) -> dict | None:
+    """Segment lengths triangulated from each detector's keypoints in both STB views,
+    against the labels' (the flipped images and the mirrored rig, as :func:`stb_stage`)."""
+    stb = load_stb(data)
+    if stb is None:
+        return None
+    height, width = stb["images"][0].shape[:2]
+    rig = stb_rig(stb["camera"], width, height, mirrored=True)
+    images = [np.ascontiguousarray(image[:, ::-1]) for image in stb["images"]]
+    truth = mirror(stb["joints"][0])
+    truth21 = np.full((21, 3), np.nan)
+    truth21[1:] = truth[STB_OF_HAND21[1:]]
+    labelled = segment_lengths(truth21)
+    out: dict = {"segments": list(SEGMENT_NAMES), "labelled_mm": labelled.tolist()}
+    for name, det in detectors().items():
+        found = [det.detect(image, cam) for image, cam in zip(images, rig, strict=True)]
+        if not all(found):
+            out[name] = {"detected_in_both": False}
+            continue
+        measured = segment_lengths(triangulate(rig, [f[0].keypoints for f in found]))
+        error = measured - labelled
+        out[name] = {"detected_in_both": True, "measured_mm": measured.tolist(),
+                     "abs_error_mm_mean": float(np.abs(error).mean()),
+                     "abs_error_mm_max": float(np.abs(error).max()),
+                     "relative_error_mean": float(np.abs(error / labelled).mean())}
+    return out
+
+
 def format_table(result: dict) -> str:
     m = result["machine"]
     lines = [f"Initialisation on real data ({result['data']})",
@@ -202,6 +235,20 @@ def format_table(result: dict) -> str:
             lines.append(f"  {name:<10} {r['px_error_mean']:6.1f} {d['root_relative_mm']:13.1f}"
                          f" {d['root_position_mm']:14.1f} {k['root_relative_mm']:15.1f}"
                          f" {k['root_position_mm']:16.1f}")
+    lengths = result.get("stb_link_lengths")
+    if lengths:
+        lines += ["", "STB finger segments triangulated from both views (labels: "
+                  f"{np.mean(lengths['labelled_mm']):.1f} mm mean segment)"]
+        for name in ("classic", "mediapipe"):
+            r = lengths.get(name)
+            if not r:
+                continue
+            if not r["detected_in_both"]:
+                lines.append(f"  {name:<10} not detected in both views")
+                continue
+            lines.append(f"  {name:<10} mean |error| {r['abs_error_mm_mean']:.1f} mm "
+                         f"({100 * r['relative_error_mean']:.0f} %), worst "
+                         f"{r['abs_error_mm_max']:.1f} mm")
     fh = result.get("freihand")
     if fh:
         lines += ["", "FreiHAND (2D labels)"]
@@ -282,6 +329,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--data", type=Path, default=DEFAULT_DATA)
     parser.add_argument("--json", type=Path, default=RESULTS / "real_initialisation.json")
     parser.add_argument("--video-step", type=int, default=3, help="use every N-th video frame")
+    parser.add_argument("--link-lengths-only", action="store_true",
+                        help="rerun only the STB link-length stage into the existing JSON")
     parser.add_argument("--picture", type=Path,
                         help="only write the picture of a detection and fit on video frame 0")
     args = parser.parse_args(argv)
@@ -293,10 +342,14 @@ def main(argv: list[str] | None = None) -> int:
         print(f"wrote {args.picture}")
         return 0
     hand = load_model("hand")
-    result = {"data": str(args.data), "machine": machine(),
-              "mediapipe": mediapipe_available(), "stb": stb_stage(args.data, hand),
-              "freihand": freihand_stage(args.data),
-              "video": video_stage(args.data, hand, args.video_step)}
+    if args.link_lengths_only and args.json.is_file():
+        result = json.loads(args.json.read_text())
+    else:
+        result = {"data": str(args.data), "machine": machine(),
+                  "mediapipe": mediapipe_available(), "stb": stb_stage(args.data, hand),
+                  "freihand": freihand_stage(args.data),
+                  "video": video_stage(args.data, hand, args.video_step)}
+    result["stb_link_lengths"] = stb_link_length_stage(args.data)
     table = format_table(result)
     print(table)
     args.json.parent.mkdir(parents=True, exist_ok=True)

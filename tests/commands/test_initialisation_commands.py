@@ -101,3 +101,33 @@ def test_calibrate_hand_from_a_measured_length(tmp_path):
 def test_calibrate_hand_needs_a_scale_source(tmp_path, capsys):
     assert main(["calibrate-hand", "-o", str(tmp_path / "x.dh")]) == 2
     assert "one camera cannot see the hand's size" in capsys.readouterr().err
+
+
+def test_calibrate_hand_with_the_classic_detector_keeps_one_scale(tmp_path, capsys):
+    """Two rendered views of an open hand: the classic detector's keypoints are placed by a
+    model, so the segments are not measured and the model keeps its proportions."""
+    from digiteyes.detect.link_lengths import model_lengths
+
+    hand = load_model("hand")
+    rig = Rig((Camera.look_at("left", eye=(-80, 0, 450), target=(0, 30, 0), up=(0, -1, 0)),
+               Camera.look_at("right", eye=(80, 0, 450), target=(0, 30, 0), up=(0, -1, 0))))
+    q = basis_joint_angles(hand, "EEEEE")
+    q[0:4] = quaternion_from_rotvec(np.array([0.2, 0.1, 3.0]))
+    q[4:7] = (0.0, 30.0, 0.0)
+    views = render_views(hand, np.clip(q, hand.lower, hand.upper), list(rig),
+                         RenderOptions(color=True, background="uniform", background_level=0.45),
+                         rng=0)
+    paths = []
+    for cam, view in zip(rig, views, strict=True):
+        paths.append(str(tmp_path / f"{cam.name}.png"))
+        cv2.imwrite(paths[-1], cv2.cvtColor(view.image, cv2.COLOR_RGB2BGR))
+    save_rig(rig, tmp_path / "rig.json")
+    out = tmp_path / "me.dh"
+    assert main(["calibrate-hand", *paths, "--rig", str(tmp_path / "rig.json"),
+                 "--detector", "classic", "-o", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "cannot measure finger segments" in printed
+    scale = float(printed.split("hand scale ")[1].split()[0])
+    assert scale == pytest.approx(1.0, abs=0.15)  # the classic detector: 0.88 here
+    np.testing.assert_allclose(model_lengths(load_model(out)), scale * model_lengths(hand),
+                               rtol=2e-3)

@@ -21,11 +21,17 @@ import click
               default="auto", show_default=True)
 @click.option("--model", "model_name", default="hand", show_default=True,
               help="Model to scale (name or file).")
+@click.option("--scale-only", is_flag=True,
+              help="With a rig: keep the model's proportions (one global scale) instead of "
+                   "measuring the 15 finger segments.")
 def calibrate_hand(images: tuple[Path, ...], output: Path, rig: Path | None,
-                   hand_length_mm: float | None, detector: str, model_name: str) -> None:
+                   hand_length_mm: float | None, detector: str, model_name: str,
+                   scale_only: bool) -> None:
     """Estimate the hand's scale from frames of an open hand seen by a calibrated stereo
-    rig, or from a measured hand length, and write the scaled model file."""
+    rig (and there its finger segments one by one), or from a measured hand length, and
+    write the personal model file."""
     import cv2
+    import numpy as np
 
     from digiteyes.camera import load_rig
     from digiteyes.detect.hand_size import (
@@ -33,11 +39,18 @@ def calibrate_hand(images: tuple[Path, ...], output: Path, rig: Path | None,
         scale_from_length,
         write_personal_model,
     )
+    from digiteyes.detect.link_lengths import (
+        SEGMENT_NAMES,
+        measured_lengths,
+        model_lengths,
+        triangulate,
+    )
     from digiteyes.detect.pose import estimate_pose, make_detector
     from digiteyes.errors import DigitEyesError
     from digiteyes.kinematics import load_model
 
     model = load_model(model_name)
+    lengths = None
     if hand_length_mm is not None:
         scale = scale_from_length(model, hand_length_mm)
         how = f"measured length {hand_length_mm:.1f} mm"
@@ -51,7 +64,7 @@ def calibrate_hand(images: tuple[Path, ...], output: Path, rig: Path | None,
                                  f"{len(the_rig)} are needed, got {len(the_rig)} camera(s) and "
                                  f"{len(images)} image(s)")
         det = make_detector(detector, model)
-        fits = []
+        fits, points = [], []
         for start in range(0, len(images), len(the_rig)):
             frames = []
             for path in images[start:start + len(the_rig)]:
@@ -59,8 +72,24 @@ def calibrate_hand(images: tuple[Path, ...], output: Path, rig: Path | None,
                 if bgr is None:
                     raise DigitEyesError(f"{path}: not an image OpenCV can read")
                 frames.append(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
-            fits.append(estimate_pose(frames, the_rig, det, model).fit)
+            result = estimate_pose(frames, the_rig, det, model)
+            fits.append(result.fit)
+            seen = [None if c is None else c.keypoints for c in result.candidates]
+            if sum(k is not None for k in seen) >= 2:
+                points.append(triangulate(the_rig, seen))
         scale, spread, count = scale_from_fits(fits)
         how = f"{count} stereo frame(s), spread {100 * spread:.1f} %"
-    write_personal_model(model, scale, output, name=output.stem)
+        if not scale_only and not det.locates_joints:
+            click.echo(f"the {det.name} detector places its keypoints with a model, so it "
+                       "cannot measure finger segments: one global scale is kept (install "
+                       'the MediaPipe extra, pip install "digiteyes[mediapipe]", to measure '
+                       "them)")
+        elif not scale_only:
+            lengths, frames_seen = measured_lengths(np.array(points).reshape(-1, 21, 3))
+            nominal = scale * model_lengths(model)
+            click.echo(f"{'segment':<18} {'scaled model':>12} {'measured':>9} {'frames':>6}")
+            for name, ours, theirs, n in zip(SEGMENT_NAMES, nominal, lengths, frames_seen,
+                                             strict=True):
+                click.echo(f"{name:<18} {ours:>9.1f} mm {theirs:>6.1f} mm {n:>6d}")
+    write_personal_model(model, scale, output, name=output.stem, lengths=lengths)
     click.echo(f"hand scale {scale:.3f} ({how}); wrote {output}")

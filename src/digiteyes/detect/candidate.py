@@ -66,9 +66,13 @@ class HandDetector(Protocol):
 
     ``detect(image, camera)`` takes an RGB uint8 (H, W, 3) or grey (H, W) image and the
     camera that took it (detectors may ignore it) and returns the candidates, best first.
+    ``locates_joints`` says whether its keypoints are joints found in the image (a learned
+    detector) rather than placed by a model on a silhouette: only the former can measure
+    the user's link lengths (:mod:`digiteyes.detect.link_lengths`).
     """
 
     name: str
+    locates_joints: bool
 
     def detect(self, image: np.ndarray, camera: Camera | None = None) -> list[HandCandidate]:
         """Hand candidates in ``image``, best first (an empty list when there is none)."""

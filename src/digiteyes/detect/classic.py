@@ -315,6 +315,7 @@ class ClassicDetector:
     """
 
     name = "classic"
+    locates_joints = False  # keypoints placed by a hand template on the silhouette
 
     def __init__(self, model: KinematicModel | None = None,
                  background: BackgroundModel | None = None, max_side: int = 400,

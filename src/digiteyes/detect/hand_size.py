@@ -16,7 +16,8 @@ What sets metric scale (docs/initialisation.md):
   square size): gives the depth of that plane and hence the scale; error set by how well
   the hand stays in the plane.
 
-Only a global scale is estimated; per-link lengths are future work (see the docs).
+With two or more cameras the 15 finger segments are also measured one by one
+(:mod:`digiteyes.detect.link_lengths`) and written into the personal model.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from digiteyes.detect.link_lengths import with_link_lengths
 from digiteyes.detect.model_fit import PoseFit, palm_points
 from digiteyes.errors import DigitEyesError
 from digiteyes.kinematics import KinematicModel, format_model_text
@@ -58,13 +60,18 @@ def scale_from_fits(fits: Sequence[PoseFit]) -> tuple[float, float, int]:
 
 
 def write_personal_model(model: KinematicModel, scale: float, path: str | Path,
-                         name: str = "my-hand") -> KinematicModel:
-    """Write ``model`` scaled by ``scale`` as a model file; returns the scaled model."""
+                         name: str = "my-hand",
+                         lengths: np.ndarray | None = None) -> KinematicModel:
+    """Write ``model`` scaled by ``scale`` as a model file, with the 15 digit segments set
+    to ``lengths`` (mm, :data:`~digiteyes.detect.link_lengths.SEGMENT_NAMES` order) when
+    given; returns the personal model."""
     personal = scaled_model(model, scale, name=name)
+    if lengths is not None:
+        personal = with_link_lengths(personal, lengths)
     text = format_model_text(personal.spec)
     header = (f"# personal hand model written by digiteyes calibrate-hand: {model.name} "
-              f"scaled by {scale:.4f} (hand length {scale * model_hand_length(model):.1f} "
-              "mm)\n")
+              f"scaled by {scale:.4f} (hand length {model_hand_length(personal):.1f} mm"
+              f"{', measured finger segments' if lengths is not None else ''})\n")
     Path(path).write_text(header + text, encoding="utf-8")
     return personal
 

@@ -46,6 +46,7 @@ class MediaPipeDetector:
     """
 
     name = "mediapipe"
+    locates_joints = True  # keypoints from a network trained on annotated joints
 
     def __init__(self, max_hands: int = 2, static_image_mode: bool = True,
                  min_confidence: float = 0.5, model_complexity: int = 1) -> None:
