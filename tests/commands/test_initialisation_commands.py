@@ -11,7 +11,7 @@ import pytest
 
 from digiteyes import load_model
 from digiteyes.camera import Camera, Rig, load_rig, save_rig
-from digiteyes.camera.calibration import render_chessboard
+from digiteyes.camera.calibration import CharucoBoard, render_charuco, render_chessboard
 from digiteyes.cli import main
 from digiteyes.detect.hand_size import model_hand_length
 from digiteyes.kinematics.rotations import matrix_from_quaternion, quaternion_from_rotvec
@@ -86,6 +86,32 @@ def test_calibrate_camera_from_a_folder(tmp_path):
                  "-o", str(out)]) == 0
     got = load_rig(out)[0].K
     np.testing.assert_allclose(got[[0, 1], [0, 1]], [650.0, 650.0], rtol=0.015)
+
+
+def test_calibrate_camera_from_charuco_views(tmp_path, capsys):
+    K = np.array([[650.0, 0, 318.0], [0, 650.0, 242.0], [0, 0, 1]])
+    cam = Camera.create("truth", K, 640, 480)
+    board = CharucoBoard((8, 6), 25.0, 18.0, "DICT_5X5_100")
+    rng = np.random.default_rng(1)
+    folder = tmp_path / "charuco"
+    folder.mkdir()
+    for i in range(6):
+        T = np.eye(4)
+        T[:3, :3] = matrix_from_quaternion(quaternion_from_rotvec(rng.uniform(-0.45, 0.45, 3)))
+        T[:3, 3] = np.array([rng.uniform(-30, 30), rng.uniform(-20, 20), 420.0]) \
+            - T[:3, :3] @ np.array([100.0, 75.0, 0.0])
+        cv2.imwrite(str(folder / f"c{i}.png"), render_charuco(cam, T, board))
+    out = tmp_path / "rig.json"
+    assert main(["calibrate-camera", str(folder), "--charuco", "8x6", "--square-mm", "25",
+                 "--marker-mm", "18", "--dictionary", "DICT_5X5_100", "-o", str(out)]) == 0
+    np.testing.assert_allclose(load_rig(out)[0].K[[0, 1], [0, 1]], [650.0, 650.0], rtol=0.015)
+    assert main(["calibrate-camera", str(folder), "--charuco", "8x6", "--square-mm", "25",
+                 "-o", str(out)]) == 2
+    assert "--marker-mm" in capsys.readouterr().err
+    # the wrong dictionary finds no board: a clear error, not a traceback
+    assert main(["calibrate-camera", str(folder), "--charuco", "8x6", "--square-mm", "25",
+                 "--marker-mm", "18", "-o", str(out)]) == 2
+    assert "ChArUco board was found in 0 of 6" in capsys.readouterr().err
 
 
 def test_calibrate_hand_from_a_measured_length(tmp_path):
