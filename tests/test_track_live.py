@@ -163,6 +163,30 @@ def test_recovery_marks_each_reinitialisation(webcam, tmp_path):
     assert json.loads((tmp_path / "r" / "summary.json").read_text())["reinitialisations"] == 2
 
 
+class LoseAfterWithRestart(LoseAfter):
+    """The same, with a ``restart`` that the run loop must prefer to ``reset``."""
+
+    def __init__(self, lost_from: int) -> None:
+        super().__init__(lost_from)
+        self.restarts: list[np.ndarray] = []
+
+    def restart(self, state: np.ndarray) -> None:
+        self.restarts.append(np.array(state))
+        self.state = np.array(state, dtype=float)
+        self.frame = 0
+
+
+def test_recovery_restarts_a_tracker_that_can(webcam, tmp_path):
+    seq = open_sequence(webcam)
+    fresh = seq.truth.states[3].copy()
+    tracker = LoseAfterWithRestart(lost_from=2)
+    run = run_tracker(tracker, seq.model, seq.rig, iter(seq), seq.initial_state,
+                      tmp_path / "r", overlay=False, progress=False, views_every=0,
+                      warm=False, recover=lambda images: fresh)
+    assert run.reinitialised_frames == [2, 5] and len(tracker.restarts) == 2
+    np.testing.assert_array_equal(tracker.restarts[0], fresh)
+
+
 def test_capture_reader_reads_a_video_file_like_the_video_reader(tmp_path):
     rng = np.random.default_rng(0)
     path = tmp_path / "clip.mkv"

@@ -21,7 +21,8 @@ This is the layer between :mod:`digiteyes.io` (frames in, logs out) and
 **Recovery.** With ``recover`` (e.g. :class:`digiteyes.detect.initialiser.AutoInitialiser`),
 a frame the tracker flags lost is handed to it; when it returns a state (re-detection and
 model fit), that state replaces the tracker's estimate for the frame, the tracker restarts
-from it, and the state log's ``reinitialised`` column is 1 for the frame (its ``lost`` flag
+from it (:func:`~digiteyes.trackers.restart`: the feature tracker keeps its scene models,
+so no refit), and the state log's ``reinitialised`` column is 1 for the frame (its ``lost`` flag
 stays the tracker's). The recovery's time counts in the frame's ``time_s``.
 
 **Frame sinks.** Every object of ``sinks`` (:class:`FrameSink`: the keypoint log, the
@@ -52,7 +53,7 @@ from digiteyes.camera import Rig
 from digiteyes.io import StateLogWriter, VideoWriter
 from digiteyes.io.safe_paths import atomic_write_json
 from digiteyes.kinematics import KinematicModel
-from digiteyes.trackers import Tracker, TrackResult, warm_up
+from digiteyes.trackers import Tracker, TrackResult, restart, warm_up
 from digiteyes.viz.model_view import write_model_png
 from digiteyes.viz.track_overlay import overlay_image
 from digiteyes.viz.trajectory import write_trajectory_plots
@@ -220,7 +221,7 @@ def run_tracker(
                     start = time.perf_counter()
                     fresh = recover(images)
                     if fresh is not None:
-                        tracker.reset(np.asarray(fresh, dtype=float))
+                        restart(tracker, fresh)
                         result = replace(result, state=np.asarray(fresh, dtype=float))
                         run.reinitialised_frames.append(index)
                     seconds += time.perf_counter() - start

@@ -57,3 +57,26 @@ def test_tracker_flag_silent_when_right_and_fires_when_a_finger_is_wrong(desk):
     assert second.lost
     assert second.finger_lost["index"]
     assert "index" in second.loss_reason
+
+
+def test_restart_keeps_the_scene_models_and_still_flags(desk):
+    """After a re-detection the tracker continues from the new state with the first frame's
+    shading, foreground colours and baselines (no refit), and its loss flag still works."""
+    from digiteyes.trackers import restart
+
+    model, rig, q, _, image, image_curled = desk
+    tracker = FeatureTracker(model, rig, FeatureTrackerOptions(iterations_per_frame=2))
+    tracker.reset(q)
+    tracker.step([image])
+    shading, foreground = tracker.shading, tracker.foreground
+    baseline = list(tracker._unexplained_baseline)
+    assert shading is not None and foreground is not None and baseline
+    assert tracker.step([image_curled]).lost
+    restart(tracker, q)
+    assert tracker.shading is shading and tracker.foreground is foreground
+    assert tracker._unexplained_baseline == baseline
+    np.testing.assert_allclose(tracker.state, q, atol=1e-9)
+    assert not tracker.step([image]).lost
+    assert tracker.step([image_curled]).lost
+    tracker.reset(q)
+    assert tracker.shading is None and tracker.foreground is None

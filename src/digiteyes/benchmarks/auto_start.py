@@ -31,7 +31,7 @@ from digiteyes.kinematics.keypoints import keypoints
 from digiteyes.pipeline import step_frames
 from digiteyes.synth.scenarios import build_scenario
 from digiteyes.track_job import tracker_options
-from digiteyes.trackers import FeatureTracker
+from digiteyes.trackers import FeatureTracker, restart
 
 SETUPS = ("desk-2cam", "webcam-1cam")
 SEED = 0
@@ -61,7 +61,7 @@ def track_states(tracker: FeatureTracker, frames, start: np.ndarray,
         if result.lost and recover is not None:
             fresh = recover(images)
             if fresh is not None:
-                tracker.reset(fresh)
+                restart(tracker, fresh)
                 q = fresh
                 fresh_frames.append(index)
         seconds += step_s + time.perf_counter() - started

@@ -81,9 +81,19 @@ class Tracker(Protocol):
         """Start a new track from ``initial_state`` (n_q,)."""
         ...
 
+    # Optional: ``restart(state)`` continues the same scene from ``state`` after a
+    # re-detection, keeping what the tracker learned about the scene; the run loop calls
+    # it when the tracker has it, else ``reset`` (:func:`restart`).
+
     def step(self, frames: Sequence[np.ndarray]) -> TrackResult:
         """Estimate the state for the next set of frames."""
         ...
+
+
+def restart(tracker: Tracker, state: np.ndarray) -> None:
+    """Continue ``tracker`` from ``state`` after a re-detection: its ``restart`` when it has
+    one (it keeps what it learned about the scene), else :meth:`Tracker.reset`."""
+    getattr(tracker, "restart", tracker.reset)(np.asarray(state, dtype=float))
 
 
 def warm_up(tracker: Tracker, images: Sequence[np.ndarray], initial_state: np.ndarray
