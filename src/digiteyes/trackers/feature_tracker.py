@@ -485,16 +485,12 @@ class FeatureTracker:
 
     def restart(self, state: np.ndarray) -> None:
         """Continue the same scene from ``state`` (n_q,) after a re-detection: the motion
-        history is dropped, but what the first frame taught about the scene stays (the
-        shading model and backdrop, the foreground colours and the silhouette baselines),
+        history is dropped and the silhouette baselines are taken anew at ``state``, but
+        the shading model, its backdrop and the foreground colours of the first frame stay,
         so a recovery costs no refit."""
         shading, foreground = self.shading, self.foreground
-        baselines = (self._unexplained_baseline, self._outside_baseline,
-                     self._invalid_baseline)
         self.reset(state, shading=shading)
         self.foreground = foreground
-        (self._unexplained_baseline, self._outside_baseline,
-         self._invalid_baseline) = baselines
 
     def step(self, frames: Sequence[np.ndarray]) -> TrackResult:
         """Estimate the state for one set of frames (one image per camera, rig order).
