@@ -9,8 +9,12 @@ Usage::
    MediaPipe detections each fitted by the model (one camera, nominal hand size and the
    size fitted to the labels); root-relative 3D joint error (mm, root = middle MCP, the 20
    finger and thumb joints STB shares with the 21 keypoints), metric error of the root
-   position (mm) and 2D keypoint error (px). STB shows a left hand: the image is flipped
-   and the world mirrored (as in ``real_stb.py``) so the right-hand model applies.
+   position (mm) and 2D keypoint error (px); for MediaPipe also the root-relative error of
+   its own 3D keypoints (world landmarks) in the same run, the figure to beat. STB shows a
+   left hand: the image is flipped and the world mirrored (as in ``real_stb.py``) so the
+   right-hand model applies. Also the time of ``digiteyes pose`` on this 640x480 image
+   (:func:`digiteyes.detect.pose.estimate_pose`: detection and fit; median of
+   :data:`POSE_REPEATS`, after one untimed call).
 2. **FreiHAND** (8 annotated 224x224 images, 2D labels): 2D keypoint error (px) and
    detection rate of both detectors.
 2b. **Link lengths on STB** (both images of the pair, the calibrated stereo rig): each
@@ -42,12 +46,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from real_stb import load_stb, machine, mirror, stb_rig
 
 from digiteyes import load_model
+from digiteyes.camera import Rig
 from digiteyes.camera.default import default_camera
 from digiteyes.detect.classic import ClassicDetector
 from digiteyes.detect.hand21 import BONES
 from digiteyes.detect.link_lengths import SEGMENT_NAMES, segment_lengths, triangulate
 from digiteyes.detect.mediapipe_detector import MediaPipeDetector, mediapipe_available
 from digiteyes.detect.model_fit import FitOptions, KeypointObservation, fit_keypoints
+from digiteyes.detect.pose import estimate_pose
 from digiteyes.io.video import VideoReader
 from digiteyes.kinematics.procrustes import kabsch
 
@@ -56,6 +62,7 @@ RESULTS = Path(__file__).resolve().parent / "results"
 # STB index of each of the 21 keypoints (STB has the palm centre, not the wrist: -1)
 STB_OF_HAND21 = [-1, 17, 18, 19, 20, 13, 14, 15, 16, 9, 10, 11, 12, 5, 6, 7, 8, 1, 2, 3, 4]
 ROOT = 9  # middle MCP
+POSE_REPEATS = 15
 
 
 def detectors() -> dict:
@@ -100,6 +107,16 @@ def stb_stage(data: Path, hand) -> dict | None:
             rel = (p[common] - p[ROOT]) - (truth21[common] - truth21[ROOT])
             row[label] = {"root_relative_mm": float(np.linalg.norm(rel, axis=1).mean()),
                           "root_position_mm": float(np.linalg.norm(p[ROOT] - truth21[ROOT]))}
+        if c.keypoints_3d is not None:  # the detector's own metric 3D (MediaPipe's world)
+            own = c.keypoints_3d[common] - c.keypoints_3d[ROOT]
+            row["own_3d_root_relative_mm"] = float(np.linalg.norm(
+                own - (truth21[common] - truth21[ROOT]), axis=1).mean())
+        timings = [estimate_pose([image], Rig((cam,)), det, hand).seconds
+                   for _ in range(POSE_REPEATS + 1)][1:]
+        row["pose_ms_median"] = {key: 1000 * float(np.median([t[key] for t in timings]))
+                                 for key in ("detect", "fit")}
+        row["pose_ms_median"]["total"] = 1000 * float(np.median(
+            [t["detect"] + t["fit"] for t in timings]))
         out[name] = row
     return out
 
@@ -235,6 +252,16 @@ def format_table(result: dict) -> str:
             lines.append(f"  {name:<10} {r['px_error_mean']:6.1f} {d['root_relative_mm']:13.1f}"
                          f" {d['root_position_mm']:14.1f} {k['root_relative_mm']:15.1f}"
                          f" {k['root_position_mm']:16.1f}")
+            if "own_3d_root_relative_mm" in r:
+                lines.append(f"  {name:<10} its own 3D keypoints (world landmarks): root-relative"
+                             f" {r['own_3d_root_relative_mm']:.1f} mm")
+    if stb:
+        for name in ("classic", "mediapipe"):
+            r = stb.get(name) or {}
+            if "pose_ms_median" in r:
+                t = r["pose_ms_median"]
+                lines.append(f"  pose on the 640x480 image, {name}: {t['total']:.0f} ms "
+                             f"(detection {t['detect']:.0f}, fit {t['fit']:.0f}; median)")
     lengths = result.get("stb_link_lengths")
     if lengths:
         lines += ["", "STB finger segments triangulated from both views (labels: "
@@ -329,8 +356,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--data", type=Path, default=DEFAULT_DATA)
     parser.add_argument("--json", type=Path, default=RESULTS / "real_initialisation.json")
     parser.add_argument("--video-step", type=int, default=3, help="use every N-th video frame")
-    parser.add_argument("--link-lengths-only", action="store_true",
-                        help="rerun only the STB link-length stage into the existing JSON")
+    parser.add_argument("--stb-only", action="store_true",
+                        help="rerun only the STB stages into the existing JSON")
     parser.add_argument("--picture", type=Path,
                         help="only write the picture of a detection and fit on video frame 0")
     args = parser.parse_args(argv)
@@ -342,8 +369,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"wrote {args.picture}")
         return 0
     hand = load_model("hand")
-    if args.link_lengths_only and args.json.is_file():
+    if args.stb_only and args.json.is_file():
         result = json.loads(args.json.read_text())
+        result["stb"] = stb_stage(args.data, hand)
     else:
         result = {"data": str(args.data), "machine": machine(),
                   "mediapipe": mediapipe_available(), "stb": stb_stage(args.data, hand),
