@@ -50,12 +50,18 @@ from digiteyes.camera import Rig
 from digiteyes.camera.default import default_camera
 from digiteyes.detect.classic import ClassicDetector
 from digiteyes.detect.hand21 import BONES
-from digiteyes.detect.link_lengths import SEGMENT_NAMES, segment_lengths, triangulate
+from digiteyes.detect.link_lengths import (
+    SEGMENT_NAMES,
+    segment_lengths,
+    triangulate,
+    with_link_lengths,
+)
 from digiteyes.detect.mediapipe_detector import MediaPipeDetector, mediapipe_available
 from digiteyes.detect.model_fit import FitOptions, KeypointObservation, fit_keypoints
 from digiteyes.detect.pose import estimate_pose
 from digiteyes.io.video import VideoReader
 from digiteyes.kinematics.procrustes import kabsch
+from digiteyes.kinematics.scaling import scaled_model
 
 DEFAULT_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -203,9 +209,13 @@ def video_stage(data: Path, hand, step: int) -> dict | None:
             if tip_gap else None}
 
 
-def stb_link_length_stage(data: Path) -> dict | None:
+def stb_link_length_stage(data: Path, hand) -> dict | None:
     """Segment lengths triangulated from each detector's keypoints in both STB views,
-    against the labels' (the flipped images and the mirrored rig, as :func:`stb_stage`)."""
+    against the labels' (the flipped images and the mirrored rig, as :func:`stb_stage`);
+    then the one-camera fit of the left view with the hand measured this way, as
+    ``calibrate-hand --rig`` measures it (``calibrated``: the stereo-fitted scale;
+    ``personal``: that scale and the 15 segments), root-relative and root errors (mm).
+    The same pair serves to measure the hand and to test it: the sample has one pair."""
     stb = load_stb(data)
     if stb is None:
         return None
@@ -228,6 +238,20 @@ def stb_link_length_stage(data: Path) -> dict | None:
                      "abs_error_mm_mean": float(np.abs(error).mean()),
                      "abs_error_mm_max": float(np.abs(error).max()),
                      "relative_error_mean": float(np.abs(error / labelled).mean())}
+        observed = [KeypointObservation(cam, f[0].keypoints, f[0].keypoint_confidence)
+                    for cam, f in zip(rig, found, strict=True)]
+        scale = fit_keypoints(hand, observed).scale
+        variants = [("calibrated", hand, scale)]
+        if det.locates_joints:  # as calibrate-hand: segments only from located joints
+            variants.append(("personal", with_link_lengths(scaled_model(hand, scale),
+                                                           measured), 1.0))
+        for label, model, s in variants:
+            p = fit_keypoints(model, observed[:1], options=FitOptions(scale=s)).keypoints_world
+            rel = (p[1:] - p[ROOT]) - (truth21[1:] - truth21[ROOT])
+            out[name][label] = {"scale": scale,
+                                "root_relative_mm": float(np.linalg.norm(rel, axis=1).mean()),
+                                "root_position_mm": float(np.linalg.norm(p[ROOT]
+                                                                         - truth21[ROOT]))}
     return out
 
 
@@ -276,6 +300,13 @@ def format_table(result: dict) -> str:
             lines.append(f"  {name:<10} mean |error| {r['abs_error_mm_mean']:.1f} mm "
                          f"({100 * r['relative_error_mean']:.0f} %), worst "
                          f"{r['abs_error_mm_max']:.1f} mm")
+            for label in ("calibrated", "personal"):
+                if label not in r:
+                    continue
+                c = r[label]
+                lines.append(f"  {name:<10} left view alone, hand {label} from the pair "
+                             f"(scale {c['scale']:.3f}): root-relative "
+                             f"{c['root_relative_mm']:.1f} mm, root {c['root_position_mm']:.1f} mm")
     fh = result.get("freihand")
     if fh:
         lines += ["", "FreiHAND (2D labels)"]
@@ -377,7 +408,7 @@ def main(argv: list[str] | None = None) -> int:
                   "mediapipe": mediapipe_available(), "stb": stb_stage(args.data, hand),
                   "freihand": freihand_stage(args.data),
                   "video": video_stage(args.data, hand, args.video_step)}
-    result["stb_link_lengths"] = stb_link_length_stage(args.data)
+    result["stb_link_lengths"] = stb_link_length_stage(args.data, hand)
     table = format_table(result)
     print(table)
     args.json.parent.mkdir(parents=True, exist_ok=True)
