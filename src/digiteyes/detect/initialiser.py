@@ -22,7 +22,7 @@ import numpy as np
 from digiteyes.camera import Rig
 from digiteyes.detect.model_fit import FitOptions, KeypointObservation, PoseFit, fit_keypoints
 from digiteyes.detect.pose import PoseResult, estimate_pose, make_detector
-from digiteyes.errors import DatasetError
+from digiteyes.errors import DatasetError, DigitEyesError
 from digiteyes.kinematics import KinematicModel
 
 MIN_DETECTED_FRACTION = 0.5
@@ -66,9 +66,12 @@ class AutoInitialiser:
     def __call__(self, images: Sequence[np.ndarray]) -> np.ndarray | None:
         """A state of ``model`` (mm, rad) fitted to the hand detected in ``images`` (rig
         order), or None when no camera finds a hand or the fit does not match it."""
-        result = estimate_pose(list(images), self.rig, self._detector, self.model,
-                               self._options)
         self.calls += 1
+        try:
+            result = estimate_pose(list(images), self.rig, self._detector, self.model,
+                                   self._options)
+        except DigitEyesError:  # detections no hand pose explains: no state, as no hand
+            return None
         self.seconds += sum(result.seconds.values())
         self.last = result
         fit = result.fit
@@ -95,7 +98,10 @@ class AutoInitialiser:
                 continue
             observation = KeypointObservation(camera, candidate.keypoints,
                                               candidate.keypoint_confidence)
-            fit = fit_keypoints(self.model, [observation], options=self._options)
+            try:
+                fit = fit_keypoints(self.model, [observation], options=self._options)
+            except DigitEyesError:
+                continue
             if self._accepted(fit.reprojection_px):
                 fits.append(fit)
         self.seconds += time.perf_counter() - started
