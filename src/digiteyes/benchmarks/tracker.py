@@ -218,23 +218,24 @@ class RenderedSequence:
 def render_sequence(scenario: Scenario, background: str = "black", perturbed: bool = False,
                     seed: int = SEED, progress: bool = False, flat: bool = False,
                     cameras: Sequence[int] | None = None,
-                    appearance: str = "model") -> RenderedSequence:
+                    appearance: str = "model", color: bool = False) -> RenderedSequence:
     """Render every frame of ``scenario`` through its rig (grey, noise
     :data:`NOISE_SIGMA`), from a hand perturbed by :data:`PERTURB_LINK_LENGTH` if asked
     and scaled by the scenario's ``hand_scale`` if it has one; seeds as ``digiteyes render
     --seed``. ``flat`` lights the skin evenly (ambient light only: no shading towards the
     silhouette); ``cameras`` renders only those cameras of the rig (None: all);
-    ``appearance`` ``"model"`` or ``"flesh"`` (docs/appearance.md)."""
+    ``appearance`` ``"model"`` or ``"flesh"`` (docs/appearance.md); ``color`` RGB images
+    (what a learned detector needs) instead of grey."""
     truth_model, _ = perturbed_truth(truth_model_of(scenario),
                                      PERTURB_LINK_LENGTH if perturbed else 0.0, seed)
     options = RenderOptions(background=background, noise_sigma=NOISE_SIGMA,
-                            background_seed=seed, appearance=appearance)
+                            background_seed=seed, appearance=appearance, color=color)
     if flat:
         options = replace(options, ambient=1.0)
     rig = scenario.rig if cameras is None else Rig(tuple(scenario.rig.cameras[i]
                                                           for i in cameras))
     label = (f"render {scenario.name} {background} {'perturbed' if perturbed else 'exact'}"
-             f"{' flat' if flat else ''} {appearance}")
+             f"{' flat' if flat else ''} {appearance}{' colour' if color else ''}")
     frames = list(render_frames(scenario, options, seed=seed, truth_model=truth_model,
                                 rig=rig, progress=progress, label=label))
     truth = GroundTruth(np.array(scenario.states, dtype=float), frames[0][1].keypoint_names,
