@@ -43,9 +43,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from real_stb import load_stb, machine, mirror, stb_rig
+from real_stb import load_stb, mirror, stb_rig
 
 from digiteyes import load_model
+from digiteyes.benchmarks._machine import machine_info
 from digiteyes.camera import Rig
 from digiteyes.camera.default import default_camera
 from digiteyes.detect.classic import ClassicDetector
@@ -259,7 +260,7 @@ def format_table(result: dict) -> str:
     m = result["machine"]
     lines = [f"Initialisation on real data ({result['data']})",
              f"machine: {m['cpu']}, {m['cores']} cores, python {m['python']}, numpy "
-             f"{m['numpy']} (timings provisional: busy machine)"]
+             f"{m['numpy']}, load average (1 min) {m.get('load_average_start')} at the start"]
     stb = result.get("stb")
     if stb:
         lines += ["", f"STB {stb['image']}: labelled hand scale {stb['labelled_scale']:.3f}",
@@ -404,7 +405,7 @@ def main(argv: list[str] | None = None) -> int:
         result = json.loads(args.json.read_text())
         result["stb"] = stb_stage(args.data, hand)
     else:
-        result = {"data": str(args.data), "machine": machine(),
+        result = {"data": str(args.data), "machine": machine_info(),
                   "mediapipe": mediapipe_available(), "stb": stb_stage(args.data, hand),
                   "freihand": freihand_stage(args.data),
                   "video": video_stage(args.data, hand, args.video_step)}

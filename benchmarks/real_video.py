@@ -68,6 +68,7 @@ def shape_gap_mm(ours: np.ndarray, reference: np.ndarray) -> float:
 
 
 def measure(data: Path, frames: int | None, detector: str, out_dir: Path) -> dict:
+    machine = machine_info()
     video = data / VIDEO
     job = TrackJob((str(video),), str(out_dir), "hand", init_path=AUTO, max_frames=frames,
                    overlay=False, progress=False, detector=detector)
@@ -82,7 +83,7 @@ def measure(data: Path, frames: int | None, detector: str, out_dir: Path) -> dic
     gaps = [shape_gap_mm(ours[i], stored[start + i]) for i in range(len(log))
             if start + i < len(stored) and np.abs(stored[start + i]).sum() > 0]
     return {
-        "benchmark": "real_video", "machine": machine_info(), "video": str(VIDEO),
+        "benchmark": "real_video", "machine": machine, "video": str(VIDEO),
         "detector": summary["start"]["detector"], "camera": "default, 60 deg horizontal",
         "frames_limit": frames, "video_frames": video_frames, "frames_tracked": run.n_frames,
         "first_frame": start, "frames_without_state": video_frames - run.n_frames,
@@ -94,7 +95,6 @@ def measure(data: Path, frames: int | None, detector: str, out_dir: Path) -> dic
         "shape_gap_to_stored_mediapipe_mm": {
             "median": float(np.median(gaps)) if gaps else None,
             "p90": float(np.percentile(gaps, 90)) if gaps else None, "frames": len(gaps)},
-        "note": "provisional: measured on a busy 2-core machine; rerun on a quiet one",
     }
 
 

@@ -100,7 +100,9 @@ def machine_info(extra: Sequence[str] = ()) -> dict[str, object]:
     dict
         ``cpu`` (model name), ``cores`` (logical CPUs), ``cores_usable`` (CPUs this process
         may run on), ``platform``, ``python``, ``numpy``, ``numba``, ``opencv``, ``blas``
-        (see :func:`blas_info`) and one entry per module of ``extra``.
+        (see :func:`blas_info`), ``load_average_start`` (the 1-minute load average when
+        the suite started; :func:`emit` adds ``load_average_end``: how busy the machine
+        was, the suite's own work included) and one entry per module of ``extra``.
     """
     try:
         usable: int | None = len(os.sched_getaffinity(0))
@@ -116,10 +118,19 @@ def machine_info(extra: Sequence[str] = ()) -> dict[str, object]:
         "numba": package_version("numba"),
         "opencv": package_version("cv2"),
         "blas": blas_info(),
+        "load_average_start": _load_average(),
     }
     for module in extra:
         info[module] = package_version(module)
     return info
+
+
+def _load_average() -> float | None:
+    """The 1-minute load average (None where the system has none)."""
+    try:
+        return round(os.getloadavg()[0], 2)
+    except (AttributeError, OSError):
+        return None
 
 
 def machine_lines(info: dict[str, object]) -> list[str]:
@@ -137,12 +148,17 @@ def machine_lines(info: dict[str, object]) -> list[str]:
         f"         Python {info['python']}, numpy {info['numpy']}, numba {info['numba']}, "
         f"OpenCV {info['opencv']}",
         f"         BLAS {blas['library'] or 'unknown'}: {threads}",
+        f"         load average (1 min) at the start: {info.get('load_average_start')}",
     ]
 
 
 def emit(result: dict, table: str, json_path: str | None) -> dict:
     """Print a suite's table and, if ``json_path`` is given, write its result as JSON
-    (strict: NaN and infinities are refused); returns ``result``."""
+    (strict: NaN and infinities are refused); returns ``result``. The machine's load
+    average at the end goes into ``result["machine"]`` and the table."""
+    if isinstance(result.get("machine"), dict):
+        result["machine"]["load_average_end"] = _load_average()
+        table += f"\nload average (1 min) at the end: {result['machine']['load_average_end']}"
     print(table)
     if json_path is not None:
         Path(json_path).write_text(json.dumps(result, indent=2, allow_nan=False) + "\n",

@@ -32,7 +32,7 @@ d. **Latency from frame to page**: ``digiteyes mouse`` serving (1) a replay of t
    it was left out). Target: at most 50 ms.
 
 JSON keys: ``speed`` (runs, ``max_speed_before_loss_mm_s``), ``coupling``, ``resolution``,
-``latency``, ``machine``. Figures from a busy machine are provisional.
+``latency``, ``machine`` (with the load average at the start and end).
 """
 
 from __future__ import annotations
@@ -215,8 +215,7 @@ def run(json_path: str | None = None, quick: bool = False, *, progress: bool = T
         resolution = resolution_section()
     latency = latency_section(20 if quick else 80, progress)
     result = {"machine": machine_info(), "speed": speed, "coupling": coupling,
-              "resolution": resolution, "latency": latency, "quick": quick,
-              "provisional": "measured on a shared, busy machine; rerun on a quiet one"}
+              "resolution": resolution, "latency": latency, "quick": quick}
     return emit(result, format_table(result), json_path)
 
 
