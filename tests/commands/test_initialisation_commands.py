@@ -69,18 +69,28 @@ def test_pose_reports_an_unreadable_image(tmp_path, capsys):
     assert "not an image" in capsys.readouterr().err
 
 
-def test_calibrate_camera_from_a_folder(tmp_path):
-    K = np.array([[650.0, 0, 318.0], [0, 650.0, 242.0], [0, 0, 1]])
-    cam = Camera.create("truth", K, 640, 480)
-    rng = np.random.default_rng(0)
-    folder = tmp_path / "boards"
+TRUTH_K = np.array([[650.0, 0, 318.0], [0, 650.0, 242.0], [0, 0, 1]])
+
+
+def write_board_views(folder, render, centre_mm, seed):
+    """Six views of a board 420 mm from a camera of :data:`TRUTH_K`, tilted up to 26 deg:
+    ``render(camera, T_cam_board)`` draws one; returns the folder."""
+    cam = Camera.create("truth", TRUTH_K, 640, 480)
+    rng = np.random.default_rng(seed)
     folder.mkdir()
     for i in range(6):
         T = np.eye(4)
         T[:3, :3] = matrix_from_quaternion(quaternion_from_rotvec(rng.uniform(-0.45, 0.45, 3)))
         T[:3, 3] = np.array([rng.uniform(-30, 30), rng.uniform(-20, 20), 420.0]) \
-            - T[:3, :3] @ np.array([75.0, 50.0, 0.0])
-        cv2.imwrite(str(folder / f"b{i}.png"), render_chessboard(cam, T, (7, 5), 25.0))
+            - T[:3, :3] @ np.array([*centre_mm, 0.0])
+        cv2.imwrite(str(folder / f"b{i}.png"), render(cam, T))
+    return folder
+
+
+def test_calibrate_camera_from_a_folder(tmp_path):
+    folder = write_board_views(tmp_path / "boards",
+                               lambda cam, T: render_chessboard(cam, T, (7, 5), 25.0),
+                               (75.0, 50.0), seed=0)
     out = tmp_path / "rig.json"
     assert main(["calibrate-camera", str(folder), "--pattern", "7x5", "--square-mm", "25",
                  "-o", str(out)]) == 0
@@ -89,18 +99,10 @@ def test_calibrate_camera_from_a_folder(tmp_path):
 
 
 def test_calibrate_camera_from_charuco_views(tmp_path, capsys):
-    K = np.array([[650.0, 0, 318.0], [0, 650.0, 242.0], [0, 0, 1]])
-    cam = Camera.create("truth", K, 640, 480)
     board = CharucoBoard((8, 6), 25.0, 18.0, "DICT_5X5_100")
-    rng = np.random.default_rng(1)
-    folder = tmp_path / "charuco"
-    folder.mkdir()
-    for i in range(6):
-        T = np.eye(4)
-        T[:3, :3] = matrix_from_quaternion(quaternion_from_rotvec(rng.uniform(-0.45, 0.45, 3)))
-        T[:3, 3] = np.array([rng.uniform(-30, 30), rng.uniform(-20, 20), 420.0]) \
-            - T[:3, :3] @ np.array([100.0, 75.0, 0.0])
-        cv2.imwrite(str(folder / f"c{i}.png"), render_charuco(cam, T, board))
+    folder = write_board_views(tmp_path / "charuco",
+                               lambda cam, T: render_charuco(cam, T, board),
+                               (100.0, 75.0), seed=1)
     out = tmp_path / "rig.json"
     assert main(["calibrate-camera", str(folder), "--charuco", "8x6", "--square-mm", "25",
                  "--marker-mm", "18", "--dictionary", "DICT_5X5_100", "-o", str(out)]) == 0
