@@ -4,14 +4,18 @@ with finite figures and the loss flag's scores."""
 import json
 import math
 
+import pytest
+
 from digiteyes.benchmarks import accuracy
+from digiteyes.errors import DigitEyesError
 
 
 def test_quick_accuracy_bench_writes_every_row(tmp_path):
     path = tmp_path / "accuracy.json"
     result = accuracy.run(json_path=str(path), quick=True, trackers=["features"])
     data = json.loads(path.read_text())
-    assert data["settings"]["frames"] == accuracy.QUICK_FRAMES
+    assert data["settings"]["frames"] == {"features": accuracy.QUICK_FRAMES}
+    assert data["settings"]["workers"] == 1
     rows = data["rows"]
     combos = {(r["tracker"], r["appearance"], r["setup"], r["hand"]) for r in rows}
     assert combos == {("features", a, s, h) for a in accuracy.APPEARANCES
@@ -31,4 +35,28 @@ def test_quick_accuracy_bench_writes_every_row(tmp_path):
     assert set(totals) == set(accuracy.APPEARANCES)
     assert sum(t["frames"] for t in totals.values()) == len(rows) * accuracy.QUICK_FRAMES
     assert set(data["finger_flag_totals"]["features"]) == set(accuracy.APPEARANCES)
+    # one tracker: the totals over all trackers are its totals
+    assert data["flag_totals_all"] == totals
     assert result["rows"] == rows
+
+
+def test_frames_per_tracker():
+    full = accuracy.frames_per_tracker(["features", "divide-conquer", "condensation",
+                                        "random-search"])
+    assert full["features"] == accuracy.FRAMES
+    assert full["condensation"] == accuracy.TRACKER_FRAMES["condensation"] < accuracy.FRAMES
+    assert full["divide-conquer"] == accuracy.TRACKER_FRAMES["divide-conquer"]
+    assert set(accuracy.frames_per_tracker(["features", "condensation"], quick=True)
+               .values()) == {accuracy.QUICK_FRAMES}
+    assert accuracy.frames_per_tracker(["condensation"], frames=7) == {"condensation": 7}
+    with pytest.raises(DigitEyesError, match="at least 2 frames"):
+        accuracy.frames_per_tracker(["features"], frames=1)
+
+
+def test_each_tracker_tracks_its_own_frames_of_one_render():
+    rows = accuracy.source_rows("model", "exact", "webcam", {"features": 3, "templates": 2})
+    assert [(r["tracker"], r["setup"], r["frames"]) for r in rows] == [
+        ("features", "webcam 1cam", 3), ("templates", "webcam 1cam", 2)]
+    for row in rows:
+        assert row["flag"]["lost_frames"] == row["truly_lost_frames"]
+        assert row["finger_flag"]["judged"] == 5 * row["frames"]

@@ -62,6 +62,8 @@ CASES = {
     # bench
     "bench unknown": ["bench", "nope"],
     "bench json to a folder": ["bench", "kinematics", "--json", "{w}"],
+    "bench workers elsewhere": ["bench", "kinematics", "--workers", "2"],
+    "bench no workers": ["bench", "accuracy", "--workers", "0"],
 }
 
 

@@ -1,15 +1,18 @@
 """The silhouette loss rule: silent when the state is right, firing (and naming the
-finger) when a finger is wrong, on images of the independent flesh appearance."""
+finger) when a finger is wrong, on images of the independent flesh appearance; in the
+feature tracker and in every other registered tracker."""
 
 import numpy as np
 import pytest
 
 from digiteyes.camera import Rig
+from digiteyes.errors import DigitEyesError
 from digiteyes.features.foreground import fit_foreground, model_labels, silhouette_check
 from digiteyes.kinematics import forward_kinematics
 from digiteyes.synth import RenderOptions, render_views
 from digiteyes.synth.scenarios import build_scenario
-from digiteyes.trackers import FeatureTracker, FeatureTrackerOptions
+from digiteyes.trackers import FeatureTracker, FeatureTrackerOptions, create_tracker
+from digiteyes.trackers.silhouette_loss import SilhouetteLoss
 
 
 @pytest.fixture(scope="module")
@@ -68,14 +71,52 @@ def test_restart_keeps_the_scene_models_and_still_flags(desk):
     tracker = FeatureTracker(model, rig, FeatureTrackerOptions(iterations_per_frame=2))
     tracker.reset(q)
     tracker.step([image])
-    shading, foreground = tracker.shading, tracker.foreground
+    shading, foreground = tracker.shading, tracker.silhouette_loss.foreground
     assert shading is not None and foreground is not None
     assert tracker.step([image_curled]).lost
     restart(tracker, q)
-    assert tracker.shading is shading and tracker.foreground is foreground
-    assert not tracker._unexplained_baseline  # taken anew at the restart state
+    assert tracker.shading is shading and tracker.silhouette_loss.foreground is foreground
+    assert not tracker.silhouette_loss._unexplained_baseline  # taken anew at this state
     np.testing.assert_allclose(tracker.state, q, atol=1e-9)
     assert not tracker.step([image]).lost
     assert tracker.step([image_curled]).lost
     tracker.reset(q)
-    assert tracker.shading is None and tracker.foreground is None
+    assert tracker.shading is None and tracker.silhouette_loss.foreground is None
+
+
+@pytest.mark.parametrize("name", ["templates", "templates+features", "divide-conquer",
+                                  "condensation", "random-search"])
+def test_every_tracker_uses_the_silhouette_rule(desk, name):
+    """The template and particle trackers' own rules miss a finger left straight while
+    the hand curls it; the shared silhouette rule flags the frame and names the finger,
+    stays quiet at the true first state, and only reports (the track is the same)."""
+    model, rig, q, _, image, image_curled = desk
+    options = {} if name.startswith("templates") else {"n_particles": 200}
+    results = {}
+    for check in (True, False):
+        tracker = create_tracker(name, model, rig, silhouette_check=check, **options)
+        tracker.reset(q)
+        results[check] = (tracker.step([image]), tracker.step([image_curled]))
+    first, second = results[True]
+    assert not first.lost, first.loss_reason
+    assert first.finger_lost and not any(first.finger_lost.values())
+    assert second.lost and second.finger_lost["index"]
+    assert "off the hand's silhouette: index" in second.loss_reason
+    assert not any(v for k, v in second.finger_lost.items() if k != "index")
+    assert not results[False][1].lost  # the tracker's own rules alone miss it
+    np.testing.assert_allclose(second.state, results[False][1].state, atol=1e-12)
+
+
+def test_silhouette_loss_rule_on_its_own(desk):
+    model, rig, q, _, image, image_curled = desk
+    rule = SilhouetteLoss(model, rig)
+    assert rule.check([image], q, q).reasons == []
+    verdict = rule.check([image_curled], q, q)
+    assert verdict.finger_lost["index"] and len(verdict.checks) == 1
+    # the baseline is the first frame's: after reset a wrong first estimate is the norm
+    rule.reset()
+    assert rule.check([image_curled], q, q).reasons == []
+    with pytest.raises(DigitEyesError, match="max_unexplained"):
+        SilhouetteLoss(model, rig, max_unexplained=0.0)
+    with pytest.raises(DigitEyesError, match="tolerance"):
+        SilhouetteLoss(model, rig, tolerance_px=-1)

@@ -15,18 +15,25 @@ recall >= 90 % and precision >= 80 %).
 
 Frames: :data:`FRAMES` per sequence (120 at 10 Hz: the index, middle and ring fingers
 curl in turn in the setups, :func:`digiteyes.synth.setups.curl_in_turn`), black cloth,
-grey, sensor noise 2 grey levels, seed 0. The desk 1-camera row is camera 0 of the desk
-pair (the same camera and motion), so it is not rendered twice. Every tracker starts
-from the true first state. One thread for OpenCV and numba (as ``bench tracker``).
+grey, sensor noise 2 grey levels, seed 0. The slow particle trackers track the first
+:data:`TRACKER_FRAMES` frames of the same renders (at least the index finger's whole
+curl, 40 frames), so that the table fits in about 15 minutes on two cores; every row is
+there, and each row says its frames. The desk 1-camera row is camera 0 of the desk pair
+(the same camera and motion), so it is not rendered twice. Every tracker starts from the
+true first state. One thread for OpenCV and numba per process (as ``bench tracker``);
+the sequences (appearance x hand x scenario) are rendered and tracked in
+:data:`WORKERS` worker processes.
 
-Run it with ``digiteyes bench accuracy [--json FILE] [--quick]`` (``--trackers`` through
-:func:`run`'s ``trackers`` argument); docs/accuracy.md explains the table.
+Run it with ``digiteyes bench accuracy [--json FILE] [--quick] [--trackers A,B]
+[--workers N]``; docs/accuracy.md explains the table.
 """
 
 from __future__ import annotations
 
+import multiprocessing
 import time
 from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import replace
 from typing import Any
 
@@ -52,8 +59,14 @@ from digiteyes.trackers import tracker_entry, tracker_names
 
 FRAMES = 120
 """Frames per sequence of the full run."""
+TRACKER_FRAMES = {"divide-conquer": 60, "condensation": 40, "random-search": 40}
+"""Frames per sequence of the slow particle trackers in the full run (the first frames of
+the renders of :data:`FRAMES`; 40 frames hold the index finger's whole curl and
+reopening). Trackers not named here track :data:`FRAMES`."""
 QUICK_FRAMES = 3
-"""Frames per sequence of ``--quick`` (a smoke run)."""
+"""Frames per sequence of ``--quick`` (a smoke run), every tracker."""
+WORKERS = 2
+"""Worker processes of the full run (the benchmark machine has two cores)."""
 SCALED_HAND = 0.9
 """Size of the ``scaled`` hand relative to Appendix A (the tracking model stays at 1.0)."""
 APPEARANCES = ("model", "flesh")
@@ -127,71 +140,133 @@ def _totals(rows: list[dict[str, Any]], key: str = "flag") -> dict[str, Any] | N
             "true_negative": frames - tp - fp - fn, "frames": frames}
 
 
+def frames_per_tracker(names: Sequence[str], quick: bool = False,
+                       frames: int | None = None) -> dict[str, int]:
+    """Frames per sequence of each tracker: ``frames`` for all when given, else
+    :data:`QUICK_FRAMES` with ``quick``, else :data:`TRACKER_FRAMES` or :data:`FRAMES`.
+    Raises :class:`DigitEyesError` below 2 frames."""
+    out = {name: frames or (QUICK_FRAMES if quick else TRACKER_FRAMES.get(name, FRAMES))
+           for name in names}
+    for name, n in out.items():
+        if n < 2:
+            raise DigitEyesError(f"bench accuracy needs at least 2 frames per sequence, "
+                                 f"got {n} for {name!r}")
+    return out
+
+
+def source_rows(appearance: str, hand: str, source: str, frames: dict[str, int],
+                progress: bool = False) -> list[dict[str, Any]]:
+    """Render one scenario ``source`` (``whole-hand`` or a camera setup) in ``appearance``
+    with the hand of ``hand``, for as many frames as the longest of ``frames`` (tracker
+    name -> frames), and track each setup of :data:`SETUPS` drawn from it with every
+    tracker over its first ``frames[name]`` frames; the rows of the table (one thread)."""
+    rows = []
+    with _one_thread():
+        rendered = render_sequence(scenario_for(source, hand, max(frames.values())),
+                                   appearance=appearance, progress=progress)
+        for label, (setup_source, cameras) in SETUPS.items():
+            if setup_source != source:
+                continue
+            for name, n in frames.items():
+                sequence = rendered.cameras(cameras).first(n)
+                options = tracker_entry(name).options_type()
+                outcome = track_sequence(sequence, options, f"{name} {label}", progress,
+                                         tracker=name)
+                rows.append({"tracker": name, "appearance": appearance, "setup": label,
+                             "hand": hand} | row_figures(sequence, outcome))
+    return rows
+
+
+def _jobs() -> list[tuple[str, str, str]]:
+    """(appearance, hand, source) of every rendered sequence, the costliest first (the
+    desk renders serve two setups)."""
+    sources = sorted(dict.fromkeys(source for source, _ in SETUPS.values()),
+                     key=lambda src: -sum(s == src for s, _ in SETUPS.values()))
+    return [(a, h, src) for src in sources for a in APPEARANCES[::-1] for h in HANDS]
+
+
+def _row_order(row: dict[str, Any], names: Sequence[str]) -> tuple[int, ...]:
+    return (APPEARANCES.index(row["appearance"]), HANDS.index(row["hand"]),
+            list(SETUPS).index(row["setup"]), list(names).index(row["tracker"]))
+
+
 def run(json_path: str | None = None, quick: bool = False,
         trackers: Sequence[str] | None = None, frames: int | None = None,
-        progress: bool = False) -> dict[str, Any]:
+        progress: bool = False, workers: int | None = None) -> dict[str, Any]:
     """Run the table, print it, optionally write JSON; return the figures.
 
     ``trackers``: names of registered trackers (default: all of them,
     :func:`~digiteyes.trackers.tracker_names`); ``frames`` overrides the frames per
-    sequence (:data:`FRAMES`, or :data:`QUICK_FRAMES` with ``quick``).
+    sequence of every tracker (:func:`frames_per_tracker`); ``workers``: processes that
+    render and track the sequences (default :data:`WORKERS`, 1 with ``quick``; 1 runs in
+    this process).
 
     JSON: ``rows`` (a list; each row ``tracker``, ``appearance``, ``setup``, ``hand`` and
-    the figures of :func:`row_figures`), ``flag_totals`` [tracker][appearance], and
-    ``finger_flag_totals`` [tracker][appearance] (the per-finger flags over every
-    (frame, finger) judged; None for a tracker without them), ``settings``, ``machine``,
-    ``threads``, ``wall_seconds``. A row's ``finger_flag`` scores
-    ``TrackResult.finger_lost`` against the per-finger truth (tip error above 50 mm).
+    the figures of :func:`row_figures`, ``frames`` among them), ``flag_totals``
+    [tracker][appearance], ``finger_flag_totals`` [tracker][appearance] (the per-finger
+    flags over every (frame, finger) judged; None for a tracker without them),
+    ``flag_totals_all`` [appearance] and ``finger_flag_totals_all`` [appearance] (over
+    the rows of every tracker), ``settings`` (``frames``: tracker -> frames per
+    sequence), ``machine``, ``threads``, ``wall_seconds``. A row's ``finger_flag``
+    scores ``TrackResult.finger_lost`` against the per-finger truth (tip error above
+    50 mm).
     """
     names = list(tracker_names()) if trackers is None else list(trackers)
     for name in names:
         tracker_entry(name)
-    n = frames or (QUICK_FRAMES if quick else FRAMES)
-    if n < 2:
-        raise DigitEyesError(f"bench accuracy needs at least 2 frames per sequence, got {n}")
+    per_tracker = frames_per_tracker(names, quick, frames)
+    n_workers = workers or (1 if quick else WORKERS)
+    if n_workers < 1:
+        raise DigitEyesError(f"bench accuracy needs at least 1 worker, got {n_workers}")
     started = time.perf_counter()
     machine = machine_info()
     result: dict[str, Any] = {
         "benchmark": "accuracy", "quick": quick, "machine": machine, "trackers": names,
-        "settings": {"frames": n, "seed": SEED, "scaled_hand": SCALED_HAND,
+        "settings": {"frames": per_tracker, "rendered_frames": max(per_tracker.values()),
+                     "workers": n_workers, "seed": SEED, "scaled_hand": SCALED_HAND,
                      "background": "black", "image": "640x480 grey",
                      "truly_lost": "mean fingertip error > 30 mm or any tip > 50 mm"},
     }
-    rows: list[dict[str, Any]] = []
     with _one_thread() as threads:
-        result["threads"] = threads
-        print("\n".join([f"accuracy benchmark{' (quick)' if quick else ''}, {n} frames "
-                         "per sequence", *machine_lines(machine), f"threads: {threads}", ""]),
-              flush=True)
-        for appearance in APPEARANCES:
-            for hand in HANDS:
-                rendered: dict[str, RenderedSequence] = {}
-                for label, (source, cameras) in SETUPS.items():
-                    if source not in rendered:
-                        rendered[source] = render_sequence(
-                            scenario_for(source, hand, n), appearance=appearance,
-                            progress=progress)
-                    sequence = rendered[source].cameras(cameras)
-                    for name in names:
-                        options = tracker_entry(name).options_type()
-                        outcome = track_sequence(sequence, options, f"{name} {label}",
-                                                 progress, tracker=name)
-                        row = {"tracker": name, "appearance": appearance, "setup": label,
-                               "hand": hand} | row_figures(sequence, outcome)
-                        rows.append(row)
-                        print(f"{name} / {appearance} / {label} / {hand}: tip "
-                              f"{_f(row['fingertip_err_mm_mean'])} mm, "
-                              f"{row['flag']['flagged_frames']} flagged, "
-                              f"{row['truly_lost_frames']} truly lost", flush=True)
+        result["threads"] = f"per process: {threads}"
+    print("\n".join([f"accuracy benchmark{' (quick)' if quick else ''}, frames per "
+                     "sequence: " + ", ".join(f"{k} {v}" for k, v in per_tracker.items()),
+                     *machine_lines(machine), f"threads: {result['threads']}",
+                     f"worker processes: {n_workers}", ""]), flush=True)
+    rows: list[dict[str, Any]] = []
+    jobs = _jobs()
+    if n_workers == 1:
+        for job in jobs:
+            rows += _report(source_rows(*job, per_tracker, progress))
+    else:
+        context = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(n_workers, mp_context=context) as pool:
+            futures = [pool.submit(source_rows, *job, per_tracker) for job in jobs]
+            for future in as_completed(futures):
+                rows += _report(future.result())
+    rows.sort(key=lambda row: _row_order(row, names))
     result["rows"] = rows
     result["flag_totals"], result["finger_flag_totals"] = (
         {name: {a: _totals([r for r in rows if r["tracker"] == name
                             and r["appearance"] == a], key) for a in APPEARANCES}
          for name in names} for key in ("flag", "finger_flag"))
+    result["flag_totals_all"], result["finger_flag_totals_all"] = (
+        {a: _totals([r for r in rows if r["appearance"] == a], key) for a in APPEARANCES}
+        for key in ("flag", "finger_flag"))
     result["wall_seconds"] = time.perf_counter() - started
     lines = ["", format_rows(rows), "", format_side_by_side(rows), "", format_totals(result),
              f"benchmark wall time {result['wall_seconds']:.0f} s"]
     return emit(result, "\n".join(lines), json_path)
+
+
+def _report(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Print one line per row as the rows arrive; returns them."""
+    for row in rows:
+        print(f"{row['tracker']} / {row['appearance']} / {row['setup']} / {row['hand']}: "
+              f"{row['frames']} frames, tip {_f(row['fingertip_err_mm_mean'])} mm, "
+              f"{row['flag']['flagged_frames']} flagged, {row['truly_lost_frames']} truly "
+              "lost", flush=True)
+    return rows
 
 
 def _f(value: float | None, fmt: str = ".1f") -> str:
@@ -221,12 +296,14 @@ def _pct(value: float | None) -> str:
 def format_totals(result: dict[str, Any]) -> str:
     """The loss flag over all rows of each tracker and appearance (confusion counts), and
     the per-finger flags over every (frame, finger) judged."""
+    totals = {key: {**result[key], "all trackers": result[f"{key}_all"]}
+              for key in ("flag_totals", "finger_flag_totals")}
     cells = [[name + (" (per finger)" if key.startswith("finger") else ""), appearance,
               _pct(t["precision"]), _pct(t["recall"]),
               str(t["true_positive"]), str(t["false_positive"]), str(t["false_negative"]),
               str(t["true_negative"])]
              for key in ("flag_totals", "finger_flag_totals")
-             for name, by_appearance in result[key].items()
+             for name, by_appearance in totals[key].items()
              for appearance, t in by_appearance.items() if t]
     return "\n".join(["loss flag against truth, all rows (targets on flesh: recall >= 90 %, "
                       "precision >= 80 %)",

@@ -203,6 +203,15 @@ class RenderedSequence:
     def n_frames(self) -> int:
         return len(self.images)
 
+    def first(self, n: int) -> RenderedSequence:
+        """The sequence's first ``n`` frames (all of them when it has no more)."""
+        if n >= self.n_frames:
+            return self
+        t = self.truth
+        truth = GroundTruth(None if t.states is None else t.states[:n], t.keypoint_names,
+                            t.keypoints_3d[:n], t.keypoints_2d[:n], t.visible[:n])
+        return replace(self, images=self.images[:n], truth=truth)
+
     def cameras(self, indices: Sequence[int] | None) -> RenderedSequence:
         """The same sequence seen by a subset of the cameras (None: all of them)."""
         if indices is None:

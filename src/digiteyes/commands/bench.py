@@ -19,7 +19,7 @@ SUITES = {
     "auto-start": "digiteyes.benchmarks.auto_start",
 }
 TRACKER_SUITES = ("accuracy",)
-"""Suites that take ``--trackers``."""
+"""Suites that take ``--trackers`` and ``--workers``."""
 
 
 @click.command()
@@ -30,15 +30,22 @@ TRACKER_SUITES = ("accuracy",)
 @click.option("--quick", is_flag=True, help="Fewer repeats and frames (for a smoke run).")
 @click.option("--trackers", help="Comma-separated registered tracker names (suite "
                                  "'accuracy'; default: every registered tracker).")
-def bench(suite: str, json_path: str | None, quick: bool, trackers: str | None) -> None:
+@click.option("--workers", type=click.IntRange(min=1),
+              help="Worker processes that render and track (suite 'accuracy'; default 2, "
+                   "1 with --quick).")
+def bench(suite: str, json_path: str | None, quick: bool, trackers: str | None,
+          workers: int | None) -> None:
     """Run benchmark SUITE (one of the names above) or all."""
     names = list(SUITES) if suite == "all" else [suite]
-    extra = {}
-    if trackers is not None:
-        if suite not in TRACKER_SUITES:
-            raise click.UsageError(f"--trackers applies to {', '.join(TRACKER_SUITES)}, "
+    extra: dict = {}
+    for flag, value in (("--trackers", trackers), ("--workers", workers)):
+        if value is not None and suite not in TRACKER_SUITES:
+            raise click.UsageError(f"{flag} applies to {', '.join(TRACKER_SUITES)}, "
                                    f"not {suite!r}")
+    if trackers is not None:
         extra["trackers"] = [t.strip() for t in trackers.split(",") if t.strip()]
+    if workers is not None:
+        extra["workers"] = workers
     for name in names:
         path = json_path
         if json_path and suite == "all":

@@ -19,6 +19,14 @@ Three samplers share everything else (same likelihood, same palm step):
 :class:`CondensationTracker` (``"condensation"``: random-walk dynamics, weights = the
 likelihood, 3000 particles) and :class:`RandomSearchTracker` (``"random-search"``: 5000
 samples around the last estimate, the best one kept, no particle set).
+
+Track loss: a frame is ``lost`` when fewer than ``min_edge_fraction`` of the best
+hypothesis's visible finger sample points find an edge, or (``silhouette_check``, a
+plain backdrop) by the silhouette rule of the feature tracker
+(:mod:`digiteyes.trackers.silhouette_loss`, the same thresholds), which also names the
+fingers in ``finger_lost``. The edge likelihood stays high when a finger hypothesis lies
+on the edges of the palm or a neighbour (docs/accuracy.md). Loss is reported, not acted
+on.
 """
 
 from __future__ import annotations
@@ -31,6 +39,7 @@ import numpy as np
 
 from digiteyes.camera import Camera, Rig
 from digiteyes.errors import DigitEyesError
+from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import KinematicModel
 from digiteyes.smc.configuration import ConfigurationSpace
 from digiteyes.smc.likelihood import (
@@ -62,6 +71,12 @@ from digiteyes.smc.proposal import (
 )
 from digiteyes.smc.resample import effective_sample_size, normalised_weights, systematic_resample
 from digiteyes.trackers.base import TrackResult
+from digiteyes.trackers.silhouette_loss import (
+    MAX_FINGER_OUTSIDE,
+    MAX_UNEXPLAINED,
+    TOLERANCE_PX,
+    SilhouetteLoss,
+)
 
 SAMPLERS = ("manifold", "condensation", "random-search")
 OVERLAY_SAMPLE = 24
@@ -88,6 +103,9 @@ class DivideConquerOptions:
         weights, perturb by a random walk half as wide as the last, reweight.
     min_edge_fraction : the track is reported lost when fewer visible sample points than
         this fraction find an edge.
+    silhouette_check, silhouette_tolerance_px, max_unexplained, max_finger_outside : the
+        silhouette loss rule (:class:`~digiteyes.trackers.silhouette_loss.SilhouetteLoss`;
+        defaults as the feature tracker's).
     palm_search : the palm refinement after the EM rounds (:mod:`digiteyes.smc.palm_search`;
         ``rounds=0`` turns it off).
     proposal, likelihood, icp : options of the parts.
@@ -107,6 +125,10 @@ class DivideConquerOptions:
     walk_fraction: float = 0.1
     anneal_layers: int = 0
     min_edge_fraction: float = 0.3
+    silhouette_check: bool = True
+    silhouette_tolerance_px: int = TOLERANCE_PX
+    max_unexplained: float = MAX_UNEXPLAINED
+    max_finger_outside: float = MAX_FINGER_OUTSIDE
     proposal: ProposalOptions = field(default_factory=ProposalOptions)
     likelihood: LikelihoodOptions = field(default_factory=LikelihoodOptions)
     icp: IcpOptions = field(default_factory=IcpOptions)
@@ -190,8 +212,9 @@ class DivideConquerTracker:
     space : the configuration space (default: :func:`default_configuration_space`).
     """
 
-    stages = ("edges", "proposal", "palm_icp", "likelihood", "resampling")
-    """Timing stages of :attr:`TrackResult.timings`."""
+    stages = ("edges", "proposal", "palm_icp", "likelihood", "resampling", "silhouette")
+    """Timing stages of :attr:`TrackResult.timings` (``silhouette``: the silhouette loss
+    rule)."""
     options_type: type[DivideConquerOptions] = DivideConquerOptions
 
     def __init__(self, model: KinematicModel, rig: Rig | Camera | Sequence[Camera],
@@ -215,6 +238,9 @@ class DivideConquerTracker:
         self.state: np.ndarray | None = None
         self.particles = np.zeros((0, self.space.n_dims))
         self.frame_index = -1
+        self.silhouette_loss = SilhouetteLoss(model, self.rig, options.silhouette_tolerance_px,
+                                              options.max_unexplained,
+                                              options.max_finger_outside)
 
     # ------------------------------------------------------------------ protocol
     def reset(self, initial_state: np.ndarray) -> None:
@@ -228,6 +254,7 @@ class DivideConquerTracker:
         self.particles = np.repeat(X0[None], self.options.n_particles, axis=0)
         self.rng = np.random.default_rng(self.options.seed)
         self.frame_index = -1
+        self.silhouette_loss.reset()
 
     def calibrate(self, frame: np.ndarray, state: np.ndarray) -> float:
         """Palm size from a frame of the open palm at a known ``state`` (Huang Sec. 4.2);
@@ -343,7 +370,16 @@ class DivideConquerTracker:
         q = self.space.states(self.model, q, X[best])[0]
         self.state = q
         visible, hits = lik.visible[best], lik.with_edge[best]
-        lost = bool(visible == 0 or hits < opt.min_edge_fraction * visible)
+        reasons = [f"only {int(hits)} of {int(visible)} finger sample points found an edge"] \
+            if visible == 0 or hits < opt.min_edge_fraction * visible else []
+        finger_lost: dict[str, bool] = {}
+        if opt.silhouette_check:
+            t = time.perf_counter()
+            verdict = self.silhouette_loss.check([prepare_image(f) for f in frames], q,
+                                                 predicted)
+            reasons += verdict.reasons
+            finger_lost = verdict.finger_lost
+            timings["silhouette"] = time.perf_counter() - t
         timings["total"] = time.perf_counter() - t_start
         cost = float(-lik.log_likelihood[best])
         ranks = np.argsort(-weights, kind="stable")
@@ -354,11 +390,10 @@ class DivideConquerTracker:
                                        palm_pixels, palm_rms, rounds, stop,
                                        self.space.states(self.model, q, X[shown]))
         return TrackResult(
-            state=q.copy(), residual_rms_px=float(lik.rms_px[best]), cost=cost, lost=lost,
-            loss_reason=(f"only {int(hits)} of {int(visible)} finger sample points found an "
-                         "edge") if lost else "",
-            iterations=rounds, predicted_state=predicted, frame_index=self.frame_index,
-            timings=timings, details=details)
+            state=q.copy(), residual_rms_px=float(lik.rms_px[best]), cost=cost,
+            lost=bool(reasons), loss_reason="; ".join(reasons), iterations=rounds,
+            predicted_state=predicted, frame_index=self.frame_index, timings=timings,
+            finger_lost=finger_lost, details=details)
 
     # ------------------------------------------------------------------ samplers
     def _draw(self) -> tuple[np.ndarray, np.ndarray]:

@@ -23,8 +23,8 @@ a frame is flagged ``lost`` when
   than ``max_unexplained`` of its own area of the hand's silhouette unexplained, beyond
   what it left at the true first state, or puts more than ``max_finger_outside`` of a
   finger over the backdrop beyond that finger's share at the first state (that finger
-  is flagged in ``finger_lost``;
-  :mod:`digiteyes.features.foreground`). The feature residual alone cannot see a
+  is flagged in ``finger_lost``; :mod:`digiteyes.trackers.silhouette_loss`, shared
+  with the other trackers). The feature residual alone cannot see a
   finger that has snapped onto its neighbour's edges: each measured edge is then close
   to some predicted line (docs/accuracy.md).
 
@@ -46,13 +46,6 @@ from digiteyes.camera import Rig
 from digiteyes.errors import StateError
 from digiteyes.features import FeatureOptions, feature_residuals, measure_features
 from digiteyes.features.appearance import EdgeBias, ShadingModel, edge_bias, fit_shading
-from digiteyes.features.foreground import (
-    Foreground,
-    SilhouetteCheck,
-    fit_foreground,
-    model_labels,
-    silhouette_check,
-)
 from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import (
     STEP_FORMS,
@@ -72,6 +65,13 @@ from digiteyes.solvers.robust import ROBUST_LOSSES, RobustLoss
 from digiteyes.trackers.base import TrackResult
 from digiteyes.trackers.parameterisation import StateParameterisation
 from digiteyes.trackers.prediction import PREDICTIONS, PredictionKind, StatePredictor
+from digiteyes.trackers.silhouette_loss import (
+    MAX_FINGER_OUTSIDE,
+    MAX_UNEXPLAINED,
+    TOLERANCE_PX,
+    SilhouetteLoss,
+    SilhouetteVerdict,
+)
 
 NO_FEATURES = "no features measured"
 """The loss reason of a frame without any valid feature (given alone)."""
@@ -189,9 +189,9 @@ class FeatureTrackerOptions:
     growth_factor: float = 2.0
     growth_min_px: float = 3.0
     silhouette_check: bool = True
-    silhouette_tolerance_px: int = 5
-    max_unexplained: float = 0.08
-    max_finger_outside: float = 0.35
+    silhouette_tolerance_px: int = TOLERANCE_PX
+    max_unexplained: float = MAX_UNEXPLAINED
+    max_finger_outside: float = MAX_FINGER_OUTSIDE
 
     def __post_init__(self) -> None:
         if isinstance(self.iterations_per_frame, bool) or not isinstance(
@@ -431,9 +431,8 @@ class FeatureTracker:
         self.state: np.ndarray | None = None
         self.shading: ShadingModel | None = None
         self.edge_bias: list[EdgeBias] = []
-        self.foreground: list[Foreground | None] | None = None
-        self._unexplained_baseline: list[float] = []
-        self._outside_baseline: list[dict[str, float]] = []
+        self.silhouette_loss = SilhouetteLoss(model, rig, opts.silhouette_tolerance_px,
+                                              opts.max_unexplained, opts.max_finger_outside)
         self._invalid_baseline: float | None = None
 
     @staticmethod
@@ -478,9 +477,7 @@ class FeatureTracker:
         self._frame_index = 0
         self.shading = shading
         self.edge_bias = []
-        self.foreground = None
-        self._unexplained_baseline = []
-        self._outside_baseline = []
+        self.silhouette_loss.reset()
         self._invalid_baseline = None
 
     def restart(self, state: np.ndarray) -> None:
@@ -488,9 +485,9 @@ class FeatureTracker:
         history is dropped and the silhouette baselines are taken anew at ``state``, but
         the shading model, its backdrop and the foreground colours of the first frame stay,
         so a recovery costs no refit."""
-        shading, foreground = self.shading, self.foreground
-        self.reset(state, shading=shading)
-        self.foreground = foreground
+        foreground = self.silhouette_loss.foreground
+        self.reset(state, shading=self.shading)
+        self.silhouette_loss.foreground = foreground
 
     def step(self, frames: Sequence[np.ndarray]) -> TrackResult:
         """Estimate the state for one set of frames (one image per camera, rig order).
@@ -522,9 +519,10 @@ class FeatureTracker:
         timings["linear_solve"] = summary.timings["linear_solve"]
         final = problem.evaluation_at(q)
         start = time.perf_counter()
-        checks = self._silhouette(images, predicted, q)
+        verdict = (self.silhouette_loss.check(images, q, predicted)
+                   if self.options.silhouette_check else None)
         timings["silhouette"] = time.perf_counter() - start
-        result = self._result(q, predicted, summary, final, timings, checks)
+        result = self._result(q, predicted, summary, final, timings, verdict)
         self.state = q
         self.predictor.update(q, reliable=not result.lost)
         self._frame_index += 1
@@ -549,50 +547,9 @@ class FeatureTracker:
                           max_width_error=opts.max_width_error)
                 for camera in self.rig]
 
-    def _silhouette(self, images: list[np.ndarray], predicted: np.ndarray,
-                    q: np.ndarray) -> list[SilhouetteCheck]:
-        """The silhouette check of ``q`` in every camera with a plain backdrop; fits the
-        foreground thresholds on the first frame (at the predicted, i.e. initial, state)
-        and keeps that frame's unexplained fractions as the baseline."""
-        opts = self.options
-        if not opts.silhouette_check:
-            return []
-        if self.foreground is None:
-            kin0 = forward_kinematics(self.model, predicted)
-            self.foreground = [fit_foreground(image, model_labels(self.model, kin0, camera))
-                               for image, camera in zip(images, self.rig, strict=True)]
-        kin = forward_kinematics(self.model, q)
-        checks = [silhouette_check(self.model, kin, camera, fg.mask(image),
-                                   opts.silhouette_tolerance_px)
-                  for image, camera, fg in zip(images, self.rig, self.foreground, strict=True)
-                  if fg is not None]
-        if not self._unexplained_baseline:
-            self._unexplained_baseline = [c.unexplained for c in checks]
-            self._outside_baseline = [dict(c.finger_outside) for c in checks]
-        return checks
-
-    def _silhouette_reasons(self, checks: list[SilhouetteCheck]
-                            ) -> tuple[list[str], dict[str, bool]]:
-        """Loss reasons and per-finger flags of the silhouette checks."""
-        opts = self.options
-        reasons: list[str] = []
-        fingers: dict[str, bool] = {}
-        for camera, (check, base, outside_base) in enumerate(zip(
-                checks, self._unexplained_baseline, self._outside_baseline, strict=True)):
-            if check.unexplained - base > opts.max_unexplained:
-                reasons.append(f"camera {camera}: {check.unexplained:.0%} of the model's area "
-                               f"of the hand unexplained (first frame {base:.0%})")
-            for finger, outside in check.finger_outside.items():
-                excess = outside - outside_base.get(finger, 0.0)
-                fingers[finger] = fingers.get(finger, False) or excess > opts.max_finger_outside
-        off = [finger for finger, lost in fingers.items() if lost]
-        if off:
-            reasons.append(f"off the hand's silhouette: {', '.join(off)}")
-        return reasons, fingers
-
     def _result(self, q: np.ndarray, predicted: np.ndarray, summary: SolverSummary,
                 final: _Evaluation, timings: dict[str, float],
-                checks: list[SilhouetteCheck]) -> TrackResult:
+                verdict: SilhouetteVerdict | None) -> TrackResult:
         r = final.residuals
         rms = float(np.sqrt(np.mean(r * r))) if len(r) else float("nan")
         n_links = int(sum(int(np.sum(m.link_valid)) for m in final.measurements))
@@ -602,9 +559,9 @@ class FeatureTracker:
         reasons = track_loss_reasons(rms, n_links + n_tips, self.n_features,
                                      list(self._rms_history), self.options,
                                      self._invalid_baseline)
-        silhouette_reasons, finger_lost = self._silhouette_reasons(checks)
-        if reasons != [NO_FEATURES]:
-            reasons += silhouette_reasons
+        finger_lost = verdict.finger_lost if verdict else {}
+        if verdict and reasons != [NO_FEATURES]:
+            reasons += verdict.reasons
         if np.isfinite(rms):
             self._rms_history.append(rms)
         else:

@@ -18,7 +18,13 @@ Track loss: a frame is ``lost`` when the visibility-weighted template residual R
 exceeds ``max_residual_rms`` (grey levels of the filtered image), when fewer than
 ``min_visible_fraction`` of the acquired template pixels are visible in all cameras, or
 when the RMS grew over ``growth_frames`` frames to ``growth_factor`` times its value
-(and above ``growth_min``). Lost frames do not refresh the templates.
+(and above ``growth_min``); these residual rules gate the template refresh and the
+prediction (frames they call lost refresh nothing). With ``silhouette_check`` (a plain
+backdrop), the silhouette rule of the feature tracker
+(:mod:`digiteyes.trackers.silhouette_loss`, the same thresholds) also flags the frame and
+its fingers: the template residual stays small when a finger's template has slid onto
+skin of the palm or a neighbour (docs/accuracy.md). It reports only, so the track itself
+is the same with it on or off.
 
 The templates are acquired from the first frame at the state given to :meth:`reset`.
 """
@@ -59,15 +65,23 @@ from digiteyes.templates.layered import (
 from digiteyes.trackers.base import TrackResult
 from digiteyes.trackers.parameterisation import StateParameterisation
 from digiteyes.trackers.prediction import PREDICTIONS, PredictionKind, StatePredictor
+from digiteyes.trackers.silhouette_loss import (
+    MAX_FINGER_OUTSIDE,
+    MAX_UNEXPLAINED,
+    TOLERANCE_PX,
+    SilhouetteLoss,
+    SilhouetteVerdict,
+)
 
 TEMPLATE_TIMING_STAGES = ("prediction", "filtering", "visibility", "template_rendering",
-                          "residual", "jacobian", "features", "linear_solve", "refresh")
+                          "residual", "jacobian", "features", "linear_solve", "refresh",
+                          "silhouette")
 """Stages of :attr:`TrackResult.timings` for the template trackers (seconds; ``"total"``
 is reported too). ``template_rendering`` is placing the template pixels (planes, points,
 projection), ``residual`` the compiled pass that samples the image and sums the error and
 normal equations, ``jacobian`` chaining the twist and window sums into ``H`` and ``g``,
 ``features`` the edge features of the combined tracker (measurement, residuals, Jacobian;
-0 for the templates alone)."""
+0 for the templates alone), ``silhouette`` the silhouette loss rule."""
 
 SOLVERS = ("gauss-newton", "gradient-descent")
 
@@ -96,6 +110,9 @@ class LayeredTemplateOptions:
     growth_frames, growth_factor, growth_min : loss rule on a residual that grew in each
         of the last ``growth_frames`` frames to ``growth_factor`` times its value and
         above ``growth_min`` grey levels.
+    silhouette_check, silhouette_tolerance_px, max_unexplained, max_finger_outside : the
+        silhouette loss rule (:class:`~digiteyes.trackers.silhouette_loss.SilhouetteLoss`;
+        defaults as the feature tracker's).
     """
 
     templates: TemplateOptions = field(default_factory=TemplateOptions)
@@ -114,6 +131,10 @@ class LayeredTemplateOptions:
     growth_frames: int = 5
     growth_factor: float = 2.5
     growth_min: float = 15.0
+    silhouette_check: bool = True
+    silhouette_tolerance_px: int = TOLERANCE_PX
+    max_unexplained: float = MAX_UNEXPLAINED
+    max_finger_outside: float = MAX_FINGER_OUTSIDE
 
     def __post_init__(self) -> None:
         if isinstance(self.iterations_per_frame, bool) or int(self.iterations_per_frame) != \
@@ -156,6 +177,8 @@ class TemplateDetails:
         iteration, step norms, termination).
     finger_rms : finger name -> visibility-weighted template residual RMS of its parts,
         grey levels (NaN when none of its pixels is visible).
+    residual_lost : the template residual rules called the frame lost (they gate the
+        refresh and the prediction; the silhouette rule only reports).
     """
 
     templates: list[CameraTemplates]
@@ -170,6 +193,7 @@ class TemplateDetails:
     refreshed: int
     summary: SolverSummary
     finger_rms: dict[str, float]
+    residual_lost: bool = False
 
 
 class LayeredTemplateTracker:
@@ -183,7 +207,8 @@ class LayeredTemplateTracker:
 
     Each :class:`TrackResult` carries a :class:`TemplateDetails` as ``result.details``;
     ``result.finger_lost`` flags each finger whose visible template pixels have a residual
-    RMS above ``max_residual_rms`` (a hidden finger is not lost).
+    RMS above ``max_residual_rms`` (a hidden finger is not lost), or that the silhouette
+    rule finds over the backdrop.
     Registered as tracker ``"templates"``.
     """
 
@@ -212,6 +237,9 @@ class LayeredTemplateTracker:
             finger = part.name.split(".")[0]
             if part.kind != "palm" and finger in DIGITS:
                 self._fingers.setdefault(finger, []).append(k)
+        opts = self.options
+        self.silhouette_loss = SilhouetteLoss(model, rig, opts.silhouette_tolerance_px,
+                                              opts.max_unexplained, opts.max_finger_outside)
 
     def reset(self, initial_state: np.ndarray) -> None:
         """Start a new track from ``initial_state`` (n_q,); the templates are acquired
@@ -227,6 +255,7 @@ class LayeredTemplateTracker:
         self._orders = [None] * len(self.rig)
         self._rms_history.clear()
         self._frame_index = 0
+        self.silhouette_loss.reset()
 
     # ------------------------------------------------------------------ per frame
     def step(self, frames: Sequence[np.ndarray]) -> TrackResult:
@@ -252,9 +281,15 @@ class LayeredTemplateTracker:
         setup = self._frame_setup(predicted, timings)
         q, summary = self._solve(predicted, images, greys, setup, timings)
         final = [self._evaluate(q, images, setup, c, timings) for c in range(len(self.rig))]
-        result = self._result(q, predicted, summary, final, setup, timings)
+        verdict = None
+        if self.options.silhouette_check:
+            tic = time.perf_counter()
+            verdict = self.silhouette_loss.check(greys or [prepare_image(f) for f in frames],
+                                                 q, predicted)
+            timings["silhouette"] = time.perf_counter() - tic
+        result = self._result(q, predicted, summary, final, setup, timings, verdict)
         self.state = q
-        self.predictor.update(q, reliable=not result.lost)
+        self.predictor.update(q, reliable=not result.details.residual_lost)
         self._frame_index += 1
         timings["total"] = time.perf_counter() - start_total
         return result
@@ -353,7 +388,8 @@ class LayeredTemplateTracker:
         return q, summary
 
     def _result(self, q, predicted, summary: SolverSummary, final: list[LayeredEvaluation],
-                setup: dict, timings: dict[str, float]) -> TrackResult:
+                setup: dict, timings: dict[str, float],
+                verdict: SilhouetteVerdict | None) -> TrackResult:
         opts = self.options
         energy = sum(ev.energy for ev in final) * opts.template_weight
         summary.cost_final = energy
@@ -363,11 +399,11 @@ class LayeredTemplateTracker:
                                 for ev in final) / weight_sum)) if weight_sum > 0 else np.nan
         acquired = sum(float(t.weights.sum()) for t in self.templates)
         visible_fraction = weight_sum / acquired if acquired > 0 else 0.0
-        reasons = self._loss_reasons(rms, visible_fraction)
+        residual_reasons = self._loss_reasons(rms, visible_fraction)
         if np.isfinite(rms):
             self._rms_history.append(rms)
         refreshed = 0
-        if not reasons:
+        if not residual_reasons:
             tic = time.perf_counter()
             refreshed = sum(refresh_templates(t, ev, opts.templates)
                             for t, ev in zip(self.templates, final, strict=True))
@@ -381,13 +417,16 @@ class LayeredTemplateTracker:
         details = TemplateDetails(
             list(self.templates), setup["orders"], setup["events"], final, setup["planes"],
             segmentations, visible_fraction, rms, feature_links, refreshed, summary,
-            finger_rms)
+            finger_rms, bool(residual_reasons))
+        reasons = residual_reasons + (verdict.reasons if verdict else [])
+        finger_lost = {f: bool(v > opts.max_residual_rms) for f, v in finger_rms.items()}
+        for finger, lost in (verdict.finger_lost if verdict else {}).items():
+            finger_lost[finger] = finger_lost.get(finger, False) or lost
         return TrackResult(
             state=q, cost=energy, residual_rms_px=rms, lost=bool(reasons),
             loss_reason="; ".join(reasons), iterations=summary.iterations,
             predicted_state=predicted, frame_index=self._frame_index, timings=timings,
-            finger_lost={f: bool(v > opts.max_residual_rms) for f, v in finger_rms.items()},
-            details=details)
+            finger_lost=finger_lost, details=details)
 
     def _finger_rms(self, final: list[LayeredEvaluation]) -> dict[str, float]:
         """Visibility-weighted residual RMS of each finger's parts over all cameras."""

@@ -1,0 +1,132 @@
+"""The silhouette loss rule, shared by every tracker: does the model drawn at the estimate
+explain the hand's silhouette as well as it did at the true first state?
+
+One :class:`SilhouetteLoss` per track. On the first frame it fits each camera's
+foreground threshold at the reference state the track starts from
+(:func:`~digiteyes.features.foreground.fit_foreground`; a camera over a textured backdrop
+gets none and is not checked) and keeps the first estimate's silhouette check as the
+baseline. Every frame (:meth:`SilhouetteLoss.check`) the estimate is drawn in each
+checked camera and compared with the foreground
+(:func:`~digiteyes.features.foreground.silhouette_check`); the frame is lost when
+
+* the hand pixels beyond ``tolerance_px`` of the model, per model pixel, exceed their
+  first-frame value by more than ``max_unexplained`` in any camera (a finger the pose has
+  put elsewhere, or curled into the palm while the real one is out), or
+* a finger's fraction of model pixels beyond ``tolerance_px`` of the foreground exceeds
+  its first-frame value by more than ``max_finger_outside`` (a finger drawn over the
+  backdrop); that finger is flagged in the per-finger flags.
+
+Measured against the first frame, so that systematic differences of hand and model (a
+fleshier palm, tapered fingers, a 10 % size difference) do not count. The thresholds were
+chosen with the feature tracker on the flesh appearance, desk setup, two cameras, exact
+hand (docs/accuracy.md) and are the same for every tracker.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from digiteyes.camera import Rig
+from digiteyes.errors import DigitEyesError
+from digiteyes.features.foreground import (
+    Foreground,
+    SilhouetteCheck,
+    fit_foreground,
+    model_labels,
+    silhouette_check,
+)
+from digiteyes.kinematics import KinematicModel, forward_kinematics
+
+TOLERANCE_PX = 5
+"""Default distance (px) within which the two silhouettes may differ."""
+MAX_UNEXPLAINED = 0.08
+"""Default excess of unexplained hand pixels per model pixel over the first frame."""
+MAX_FINGER_OUTSIDE = 0.35
+"""Default excess of a finger's model pixels over the backdrop over the first frame."""
+
+
+@dataclass(frozen=True)
+class SilhouetteVerdict:
+    """One frame's silhouette rule: ``reasons`` (empty when the track holds),
+    ``finger_lost`` (digit -> bool, the digits judged), ``checks`` (one per checked
+    camera)."""
+
+    reasons: list[str]
+    finger_lost: dict[str, bool]
+    checks: list[SilhouetteCheck]
+
+
+class SilhouetteLoss:
+    """The silhouette loss rule of one track (module docstring).
+
+    Parameters
+    ----------
+    model, rig : the tracking model and its cameras.
+    tolerance_px : silhouette differences within this distance are ignored, px.
+    max_unexplained, max_finger_outside : the thresholds (fractions, excess over the
+        first frame).
+
+    Raises :class:`~digiteyes.errors.DigitEyesError` for a negative or non-integer
+    tolerance or a threshold that is not positive.
+    """
+
+    def __init__(self, model: KinematicModel, rig: Rig, tolerance_px: int = TOLERANCE_PX,
+                 max_unexplained: float = MAX_UNEXPLAINED,
+                 max_finger_outside: float = MAX_FINGER_OUTSIDE) -> None:
+        if isinstance(tolerance_px, bool) or not isinstance(tolerance_px, int | np.integer) \
+                or tolerance_px < 0:
+            raise DigitEyesError(f"silhouette_tolerance_px must be an integer >= 0, got "
+                                 f"{tolerance_px!r}")
+        for name, value in (("max_unexplained", max_unexplained),
+                            ("max_finger_outside", max_finger_outside)):
+            if not value > 0:
+                raise DigitEyesError(f"{name} must be positive, got {value!r}")
+        self.model, self.rig = model, rig
+        self.tolerance_px = tolerance_px
+        self.max_unexplained = max_unexplained
+        self.max_finger_outside = max_finger_outside
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the foreground and the baseline: the next :meth:`check` fits them."""
+        self.foreground: list[Foreground | None] | None = None
+        self._unexplained_baseline: list[float] = []
+        self._outside_baseline: list[dict[str, float]] = []
+
+    def check(self, images: Sequence[np.ndarray], state: np.ndarray,
+              reference: np.ndarray) -> SilhouetteVerdict:
+        """The rule for one frame: grey ``images`` (H, W), one per camera in rig order,
+        the estimated ``state`` (n_q,), and ``reference`` (n_q,), the state the track
+        started from (used on the first frame only, to fit the foreground)."""
+        if self.foreground is None:
+            kin0 = forward_kinematics(self.model, reference)
+            self.foreground = [fit_foreground(image, model_labels(self.model, kin0, camera))
+                               for image, camera in zip(images, self.rig, strict=True)]
+        kin = forward_kinematics(self.model, state)
+        checks = [silhouette_check(self.model, kin, camera, fg.mask(image), self.tolerance_px)
+                  for image, camera, fg in zip(images, self.rig, self.foreground, strict=True)
+                  if fg is not None]
+        if not self._unexplained_baseline:
+            self._unexplained_baseline = [c.unexplained for c in checks]
+            self._outside_baseline = [dict(c.finger_outside) for c in checks]
+        reasons, fingers = self._reasons(checks)
+        return SilhouetteVerdict(reasons, fingers, checks)
+
+    def _reasons(self, checks: list[SilhouetteCheck]) -> tuple[list[str], dict[str, bool]]:
+        reasons: list[str] = []
+        fingers: dict[str, bool] = {}
+        for camera, (check, base, outside_base) in enumerate(zip(
+                checks, self._unexplained_baseline, self._outside_baseline, strict=True)):
+            if check.unexplained - base > self.max_unexplained:
+                reasons.append(f"camera {camera}: {check.unexplained:.0%} of the model's area "
+                               f"of the hand unexplained (first frame {base:.0%})")
+            for finger, outside in check.finger_outside.items():
+                excess = outside - outside_base.get(finger, 0.0)
+                fingers[finger] = fingers.get(finger, False) or excess > self.max_finger_outside
+        off = [finger for finger, lost in fingers.items() if lost]
+        if off:
+            reasons.append(f"off the hand's silhouette: {', '.join(off)}")
+        return reasons, fingers
