@@ -98,7 +98,7 @@ def compile_in_background(scenario: str = "whole-hand") -> subprocess.Popen | No
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
 
-def _compile(scenario_name: str) -> None:
+def compile_tracking(scenario_name: str = "whole-hand") -> None:
     """Compile the kernels of tracking ``scenario_name`` with the default tracker.
 
     First the tracker steps once on blank frames with its drawing steps off (shading
@@ -125,4 +125,4 @@ def _compile(scenario_name: str) -> None:
 
 
 if __name__ == "__main__":
-    _compile(sys.argv[1] if len(sys.argv) > 1 else "whole-hand")
+    compile_tracking(sys.argv[1] if len(sys.argv) > 1 else "whole-hand")

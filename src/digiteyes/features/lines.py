@@ -116,7 +116,7 @@ def _median(values, n):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def _robust_scale(residual, mask, min_scale, values):  # pragma: no cover - compiled
-    n = 0
+    n = np.int64(0)  # typed, not a literal 0: _median is compiled once
     for i in range(residual.shape[0]):
         if mask[i]:
             values[n] = abs(residual[i])
@@ -149,7 +149,7 @@ def _lmeds(points, mask, line, values):  # pragma: no cover - compiled
             a = -dy / length
             b = dx / length
             rho = a * points[i, 0] + b * points[i, 1]
-            n = 0
+            n = np.int64(0)
             below = 0
             for k in range(n_points):
                 if mask[k]:
