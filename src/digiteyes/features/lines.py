@@ -205,7 +205,10 @@ def fit_one(pts, mask, normal, loss, iterations, min_scale, line, inlier, weight
         inlier[:] = False
         return 0, np.nan
     if line[0] * normal[0] + line[1] * normal[1] < 0.0:
-        line[:] = -line[:]
+        # element by element: an array assignment would compile numba's shape-mismatch
+        # error message (string formatting, 2 s of the first run)
+        for c in range(3):
+            line[c] = -line[c]
     for i in range(n_points):
         residual[i] = line[0] * pts[i, 0] + line[1] * pts[i, 1] - line[2]
     cut = np.inf
