@@ -1,10 +1,13 @@
-"""Where the first run's compile time goes: numba's compile events for one rendered and
-tracked frame, on an empty kernel cache.
+"""Where the first run's compile time goes: numba's compile events of the two processes
+of a first ``digiteyes demo``, on an empty kernel cache.
 
-Runs in a fresh process with ``NUMBA_CACHE_DIR`` pointing at an empty temporary folder
-(the package's own cache is left alone), renders frame 0 of a scenario and steps the
-default tracker on it (what ``digiteyes.warmup`` compiles in the background), and writes
-``benchmarks/results/compile_profile.json``: per kernel, the number of specialisations
+Runs two fresh processes, one after the other, with ``NUMBA_CACHE_DIR`` pointing at one
+empty temporary folder (the package's own cache is left alone): ``render`` renders frame
+0 of a scenario (what the demo's own process compiles before its rendering), then
+``track`` runs :func:`digiteyes.warmup.compile_tracking` (the demo's background process;
+the renderer's kernels are in the cache by then, as in the demo when the rendering
+process compiled them first). Writes ``benchmarks/results/compile_profile.json``: per
+process its seconds (wall, CPU, compiling) and per kernel the number of specialisations
 compiled (more than one means the callers pass different types), the seconds spent in
 its compile events (inclusive, and exclusive of the kernels it compiled on the way) and
 the signatures. Usage::
@@ -51,8 +54,8 @@ class _CompileRecorder:
         entry["signatures"].append(", ".join(str(a) for a in args))
 
 
-def _profile(scenario_name: str) -> dict:
-    """Compile events of rendering and tracking frame 0 (run in the child process)."""
+def _profile(process: str, scenario_name: str) -> dict:
+    """Compile events of one of the demo's two processes (run in the child process)."""
     from numba.core import event
 
     recorder = _CompileRecorder()
@@ -63,42 +66,45 @@ def _profile(scenario_name: str) -> dict:
     from digiteyes.synth import RenderOptions
     from digiteyes.synth.scenarios import build_scenario
     from digiteyes.synth.sequence import render_frames
-    from digiteyes.trackers import DEFAULT_TRACKER, create_tracker
-    from digiteyes.warmup import warm_up
+    from digiteyes.warmup import compile_tracking
 
-    start = time.perf_counter()
-    scenario = build_scenario(scenario_name, seed=0, n_frames=1)
-    images, _ = next(render_frames(scenario, RenderOptions()))
-    render_s = time.perf_counter() - start
-    warm_up(create_tracker(DEFAULT_TRACKER, scenario.model, scenario.rig), images,
-            scenario.initial_state)
+    start, cpu_start = time.perf_counter(), time.process_time()
+    if process == "render":
+        next(render_frames(build_scenario(scenario_name, seed=0, n_frames=1),
+                           RenderOptions()))
+    else:
+        compile_tracking(scenario_name)
     kernels = {name: {**entry, "inclusive_s": round(entry["inclusive_s"], 2),
                       "exclusive_s": round(entry["exclusive_s"], 2)}
                for name, entry in sorted(recorder.kernels.items(),
                                          key=lambda kv: -kv[1]["exclusive_s"])}
-    return {"scenario": scenario_name, "render_frame_s": round(render_s, 2),
-            "total_s": round(time.perf_counter() - start, 2),
+    return {"total_s": round(time.perf_counter() - start, 2),
+            "cpu_s": round(time.process_time() - cpu_start, 2),
             "compile_s": round(sum(e["exclusive_s"] for e in kernels.values()), 2),
             "kernels": kernels}
 
 
 def main() -> None:
     if len(sys.argv) > 1 and sys.argv[1] == "--child":
-        print(json.dumps(_profile(sys.argv[2])))
+        print(json.dumps(_profile(sys.argv[2], sys.argv[3])))
         return
     scenario = sys.argv[1] if len(sys.argv) > 1 else "whole-hand"
+    result: dict = {"scenario": scenario, "processes": {}}
     with tempfile.TemporaryDirectory() as cache:
-        child = subprocess.run(
-            [sys.executable, __file__, "--child", scenario], check=True, capture_output=True,
-            text=True, env={**os.environ, "NUMBA_CACHE_DIR": cache})
-    result = json.loads(child.stdout.strip().splitlines()[-1])
+        for process in ("render", "track"):
+            child = subprocess.run(
+                [sys.executable, __file__, "--child", process, scenario], check=True,
+                capture_output=True, text=True, env={**os.environ, "NUMBA_CACHE_DIR": cache})
+            result["processes"][process] = json.loads(child.stdout.strip().splitlines()[-1])
     RESULT.write_text(json.dumps(result, indent=1) + "\n")
-    print(f"frame 0 rendered and tracked in {result['total_s']} s, "
-          f"{result['compile_s']} s compiling")
-    print(f"{'kernel':<64} {'n':>2} {'excl s':>7} {'incl s':>7}")
-    for name, entry in result["kernels"].items():
-        print(f"{name:<64} {entry['compiles']:>2} {entry['exclusive_s']:>7.2f} "
-              f"{entry['inclusive_s']:>7.2f}")
+    for process, entry in result["processes"].items():
+        print(f"{process}: {entry['total_s']} s wall, {entry['cpu_s']} s CPU, "
+              f"{entry['compile_s']} s compiling")
+        print(f"  {'kernel':<62} {'n':>2} {'excl s':>7} {'incl s':>7}")
+        for name, kernel in entry["kernels"].items():
+            if kernel["exclusive_s"] >= 0.1 or kernel["compiles"] > 1:
+                print(f"  {name:<62} {kernel['compiles']:>2} {kernel['exclusive_s']:>7.2f} "
+                      f"{kernel['inclusive_s']:>7.2f}")
     print(f"-> {RESULT}")
 
 

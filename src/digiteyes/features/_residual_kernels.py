@@ -83,7 +83,10 @@ def feature_residuals_kernel(shapes, q, jacobian_tables, camera, features, link_
     for k in range(n_width):
         for j in range(2):
             rows[first_width + 2 * k + j] = model_rows[width_ids[k]]
-            p_shape[first_width + 2 * k + j] = local[k, j]
+            # element by element: an array assignment would compile numba's
+            # shape-mismatch error message (string formatting, 2 s of the first run)
+            for c in range(3):
+                p_shape[first_width + 2 * k + j, c] = local[k, j, c]
 
     # World points and their Jacobians, pixels and the projection Jacobians.
     p_world = np.empty((1, n_points, 3))

@@ -116,7 +116,7 @@ def _median(values, n):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def _robust_scale(residual, mask, min_scale, values):  # pragma: no cover - compiled
-    n = 0
+    n = np.int64(0)  # typed, not a literal 0: _median is compiled once
     for i in range(residual.shape[0]):
         if mask[i]:
             values[n] = abs(residual[i])
@@ -149,7 +149,7 @@ def _lmeds(points, mask, line, values):  # pragma: no cover - compiled
             a = -dy / length
             b = dx / length
             rho = a * points[i, 0] + b * points[i, 1]
-            n = 0
+            n = np.int64(0)
             below = 0
             for k in range(n_points):
                 if mask[k]:
@@ -205,7 +205,10 @@ def fit_one(pts, mask, normal, loss, iterations, min_scale, line, inlier, weight
         inlier[:] = False
         return 0, np.nan
     if line[0] * normal[0] + line[1] * normal[1] < 0.0:
-        line[:] = -line[:]
+        # element by element: an array assignment would compile numba's shape-mismatch
+        # error message (string formatting, 2 s of the first run)
+        for c in range(3):
+            line[c] = -line[c]
     for i in range(n_points):
         residual[i] = line[0] * pts[i, 0] + line[1] * pts[i, 1] - line[2]
     cut = np.inf

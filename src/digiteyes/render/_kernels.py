@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 BALL, CAPSULE, BOX = 0, 1, 2
 N_PARAMS = 15
@@ -267,7 +267,7 @@ def _row_span(kind, P, yn, u_first, u_last, intrinsics, perspective, scale):  # 
             min(u_last, math.ceil(mid + half * t_high) + 1))
 
 
-@njit(cache=True, error_model="numpy", parallel=True)
+@njit(cache=True, error_model="numpy")
 def cast_kernel(kinds, params, labels, far_labels, intrinsics, perspective, scale, light,
                 base, gain, depth, label_image, shade):  # pragma: no cover - compiled
     """Ray cast primitives into the z-buffer ``depth`` (H, W) float32 (start at inf),
@@ -279,8 +279,12 @@ def cast_kernel(kinds, params, labels, far_labels, intrinsics, perspective, scal
     1 otherwise; ``light`` (3,) unit vector towards the light. Surfaces that coincide (the
     end ball of a link and the start ball of the next) go to the earlier primitive: a
     later one must be nearer by a relative 1e-6 (float32 depth resolution is 6e-8), so
-    ties never speckle the label image. Rows are shared out among numba's threads; each
-    row visits the primitives in order, so the result does not depend on the threads.
+    ties never speckle the label image.
+
+    One thread: a frame is about 1-3 ms of work (the hand covers a small part of the
+    image), too little for numba's ``parallel=True`` to pay for its thread start-up and
+    its barrier per call (slower on shared cores), and its compile time was three times
+    the serial kernel's (docs/architecture.md, "The first run").
     """
     fy, cy = intrinsics[3], intrinsics[4]
     height, width = depth.shape
@@ -294,7 +298,7 @@ def cast_kernel(kinds, params, labels, far_labels, intrinsics, perspective, scal
         if present[k]:
             v_first = min(v_first, blocks[k, 2])
             v_last = max(v_last, blocks[k, 3])
-    for v in prange(v_first, v_last + 1):
+    for v in range(v_first, v_last + 1):
         yn = (v - cy) / fy
         for k in range(n):
             if not present[k] or v < blocks[k, 2] or v > blocks[k, 3]:
