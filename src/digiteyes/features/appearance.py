@@ -148,11 +148,8 @@ def fit_shading(images: Sequence[np.ndarray], rig: Rig, model: KinematicModel,
         n_cam, hit = _normals(scene, camera)
         mask = hit.astype(np.uint8)
         interior = cv2.erode(mask, _disc(_INTERIOR_PX)).astype(bool)
-        # distance (px) of every pixel to the silhouette: one pass instead of dilating by
-        # discs of both radii
-        away = cv2.distanceTransform(1 - mask, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-        outside = away > _INTERIOR_PX
-        ring = outside & (away <= _BACKDROP_PX)
+        outside = ~cv2.dilate(mask, _disc(_INTERIOR_PX)).astype(bool)
+        ring = cv2.dilate(mask, _disc(_BACKDROP_PX)).astype(bool) & outside
         normals.append(n_cam[interior] @ camera.T_cam_world[:3, :3])  # rows n_world^T
         levels.append(gray[interior].astype(float))
         backdrop.append(gray[ring].astype(float))
