@@ -51,10 +51,6 @@ _FILL_SIGMAS_PX = (4.0, 16.0, 64.0)
 """Widths (Gaussian standard deviations) of the neighbourhoods that fill the model's place
 in a backdrop, narrowest first."""
 
-_COARSE_SIGMA_PX = 4.0
-"""Blurs wider than twice this run on a grid coarser by ``sigma // _COARSE_SIGMA_PX``
-(:func:`_blur`)."""
-
 _BACKDROP_SMOOTH_PX = 4.0
 """Standard deviation (px) of the blur whose residue measures a backdrop's texture."""
 
@@ -197,28 +193,10 @@ def _local_mean(image: np.ndarray, known: np.ndarray, sigma: float
     pixel (normalised convolution, standard deviation ``sigma`` px), and the weight of
     known pixels it rests on; the mean is NaN where that weight is 0."""
     weight = known.astype(np.float32)
-    mass = _blur(weight, sigma)
-    total = _blur(image * weight, sigma)
+    mass = cv2.GaussianBlur(weight, (0, 0), sigma)
+    total = cv2.GaussianBlur(image * weight, (0, 0), sigma)
     with np.errstate(invalid="ignore", divide="ignore"):
         return total / mass, mass
-
-
-def _blur(image: np.ndarray, sigma: float) -> np.ndarray:
-    """Gaussian blur of standard deviation ``sigma`` px (OpenCV's borders). A wide one runs
-    on a grid ``step = sigma // _COARSE_SIGMA_PX`` times coarser: box-averaged down (a
-    blur of variance ``(step^2 - 1) / 12``, taken off the Gaussian's), blurred, and
-    interpolated back. The cost falls by ``step^2`` (a 64 px blur of a 1280x720 image: 16x
-    fewer pixels and a 16x shorter kernel), and for the slowly varying fields blurred here
-    the result moves by a small fraction of their range."""
-    step = int(sigma // _COARSE_SIGMA_PX)
-    if step < 2:
-        return cv2.GaussianBlur(image, (0, 0), sigma)
-    height, width = image.shape
-    small = cv2.resize(image, (-(-width // step), -(-height // step)),
-                       interpolation=cv2.INTER_AREA)
-    coarse_sigma = np.sqrt(sigma**2 - (step**2 - 1) / 12.0) / step
-    small = cv2.GaussianBlur(small, (0, 0), coarse_sigma)
-    return cv2.resize(small, (width, height), interpolation=cv2.INTER_LINEAR)
 
 
 def _fit_lambert(normals: np.ndarray, levels: np.ndarray) -> tuple[float, np.ndarray]:
