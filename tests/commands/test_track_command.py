@@ -50,6 +50,25 @@ def test_track_dataset_writes_log_overlay_views_and_plots(whole_hand, tmp_path, 
     assert "tracked 6 frame(s)" in capsys.readouterr().out
 
 
+def test_track_says_compiling_only_when_its_tracker_has_cold_kernels(whole_hand, tmp_path,
+                                                                   capsys, monkeypatch):
+    """The default tracker asks about the kernels it uses (the demo's), not every kernel of
+    the package: with those compiled, ``track`` does not claim to compile."""
+    import digiteyes.commands.track as track_command
+    from digiteyes.warmup import COMPILE_MESSAGE, DEMO_KERNELS
+
+    asked = []
+
+    def cold(modules=None, only=None):
+        asked.append(only)
+        return [] if only is not None else ["digiteyes.smc._kernels.unused"]
+
+    monkeypatch.setattr(track_command, "cold_kernels", cold)
+    assert main(["track", str(whole_hand), "-o", str(tmp_path / "a"), "--quiet",
+                 "--frames", "2", "--no-overlay"]) == 0
+    assert asked == [DEMO_KERNELS] and COMPILE_MESSAGE not in capsys.readouterr().out
+
+
 def test_track_videos_matches_tracking_the_dataset(whole_hand, tmp_path):
     seq = open_sequence(whole_hand)
     videos = []

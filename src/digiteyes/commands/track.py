@@ -15,7 +15,7 @@ from digiteyes.io.frame_sinks import parse_stream_target
 from digiteyes.pipeline import TrackingRun
 from digiteyes.track_job import TrackJob, run_track_job, tracker_options
 from digiteyes.trackers import DEFAULT_TRACKER, tracker_entry, tracker_names
-from digiteyes.warmup import COMPILE_MESSAGE, cold_kernels
+from digiteyes.warmup import COMPILE_MESSAGE, DEMO_KERNELS, cold_kernels
 
 __all__ = ["parse_tracker_options", "print_run", "smoothing_options", "track",
            "tracker_options"]
@@ -210,7 +210,9 @@ def track(inputs: tuple[str, ...], model_name: str | None, rig_path: str | None,
         tracker_name=tracker_name, options=tuple(parse_tracker_options(option_pairs).items()),
         strict=strict, smooth=smoothing_options(smooth, min_cutoff, beta), camera=camera,
         show=show, stream=stream, detector=detector, hfov=hfov, recover=recover)
-    if cold_kernels():
+    # the default tracker compiles the demo's kernels (its silhouette check draws with the
+    # renderer's); other trackers may compile any
+    if cold_kernels(only=DEMO_KERNELS if tracker_name == DEFAULT_TRACKER else None):
         click.echo(COMPILE_MESSAGE, err=err)
     run = run_track_job(job, echo=lambda line: click.echo(line, err=err))
     print_run(run, err=err)
