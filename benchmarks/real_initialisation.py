@@ -21,6 +21,11 @@ Usage::
    detector's keypoints in the two views triangulated
    (:func:`digiteyes.detect.link_lengths.triangulate`) and the 15 finger segments
    measured, against the same segments of the 3D labels (mm).
+2c. **InterHand2.6M** (4 annotated 334x512 images with 3D joints and their cameras):
+   for each image whose right hand is annotated, each detector's candidate nearest the
+   right hand's projected joints (oracle association: three of the images show two hands),
+   its 2D error, the one-camera fit's root-relative and root errors (default hand size),
+   and MediaPipe's own 3D keypoints' root-relative error in the same run.
 3. **The real video** (621 frames, 1280x720, grey wall): detection rate per frame of both
    detectors, time per frame (classic detection + fit), and agreement of the fitted 3D
    hand shape with the stored MediaPipe estimate (``mediapipe_joints_right.pkl``, not
@@ -47,7 +52,7 @@ from real_stb import load_stb, mirror, stb_rig
 
 from digiteyes import load_model
 from digiteyes.benchmarks._machine import machine_info
-from digiteyes.camera import Rig
+from digiteyes.camera import Camera, Rig
 from digiteyes.camera.default import default_camera
 from digiteyes.detect.classic import ClassicDetector
 from digiteyes.detect.hand21 import BONES
@@ -210,6 +215,55 @@ def video_stage(data: Path, hand, step: int) -> dict | None:
             if tip_gap else None}
 
 
+INTERHAND = Path("annotated_images") / "tests" / "data" / "interhand2.6m"
+INTERHAND_OF_HAND21 = [20, 3, 2, 1, 0, 7, 6, 5, 4, 11, 10, 9, 8, 15, 14, 13, 12, 19, 18, 17, 16]
+"""InterHand joint (tip first per digit, wrist last) of each of the 21 keypoints."""
+
+
+def interhand_stage(data: Path, hand) -> dict | None:
+    """The InterHand2.6M test images (see the module docstring), right hands only."""
+    root = data / INTERHAND
+    if not (root / "test_interhand2.6m_data.json").is_file():
+        return None
+    cameras, joints, meta = (json.loads((root / f"test_interhand2.6m_{name}.json").read_text())
+                             for name in ("camera", "joint_3d", "data"))
+    out: dict = {"images": len(meta["images"]), "right_hands": 0}
+    rows: dict[str, list[dict]] = {name: [] for name in detectors()}
+    for image, ann in zip(meta["images"], meta["annotations"], strict=True):
+        if not np.array(ann["joint_valid"]).ravel()[:21].all():
+            continue
+        out["right_hands"] += 1
+        capture, cam_id = str(image["capture"]), image["camera"]
+        params = {k: cameras[capture][k][cam_id] for k in ("campos", "camrot", "focal",
+                                                           "princpt")}
+        world = np.array(joints[capture][str(image["frame_idx"])]["world_coord"])[:21]
+        truth = (world[INTERHAND_OF_HAND21] - params["campos"]) @ np.array(params["camrot"]).T
+        (fx, fy), (cx, cy) = params["focal"], params["princpt"]
+        camera = Camera.create(cam_id, np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1]]),
+                               image["width"], image["height"], np.eye(4))
+        truth_px = camera.project(truth)
+        rgb = cv2.cvtColor(cv2.imread(str(root / image["file_name"])), cv2.COLOR_BGR2RGB)
+        for name, det in detectors().items():
+            found = det.detect(rgb, camera)
+            if not found:
+                rows[name].append({"image": image["file_name"], "detected": False})
+                continue
+            c = min(found, key=lambda k: np.linalg.norm(k.keypoints - truth_px, axis=1).mean())
+            p = fit_keypoints(hand, [KeypointObservation(camera, c.keypoints,
+                                                         c.keypoint_confidence)]).keypoints_world
+            rel = (p - p[ROOT]) - (truth - truth[ROOT])
+            row = {"image": image["file_name"], "detected": True,
+                   "px_error_mean": float(np.linalg.norm(c.keypoints - truth_px, axis=1).mean()),
+                   "root_relative_mm": float(np.linalg.norm(rel, axis=1)[1:].mean()),
+                   "root_position_mm": float(np.linalg.norm(p[ROOT] - truth[ROOT]))}
+            if c.keypoints_3d is not None:
+                own = (c.keypoints_3d - c.keypoints_3d[ROOT]) - (truth - truth[ROOT])
+                row["own_3d_root_relative_mm"] = float(np.linalg.norm(own, axis=1)[1:].mean())
+            rows[name].append(row)
+    out["detectors"] = rows
+    return out
+
+
 def stb_link_length_stage(data: Path, hand) -> dict | None:
     """Segment lengths triangulated from each detector's keypoints in both STB views,
     against the labels' (the flipped images and the mirrored rig, as :func:`stb_stage`);
@@ -308,6 +362,20 @@ def format_table(result: dict) -> str:
                 lines.append(f"  {name:<10} left view alone, hand {label} from the pair "
                              f"(scale {c['scale']:.3f}): root-relative "
                              f"{c['root_relative_mm']:.1f} mm, root {c['root_position_mm']:.1f} mm")
+    ih = result.get("interhand")
+    if ih:
+        lines += ["", f"InterHand2.6M: {ih['right_hands']} of {ih['images']} images with the right "
+                  "hand annotated (3D, camera known; default hand size)"]
+        for name, rows in ih["detectors"].items():
+            for r in rows:
+                if not r["detected"]:
+                    lines.append(f"  {name:<10} {r['image']}: not detected")
+                    continue
+                own = r.get("own_3d_root_relative_mm")
+                lines.append(f"  {name:<10} {r['image']}: 2D {r['px_error_mean']:.1f} px, "
+                             f"root-relative {r['root_relative_mm']:.1f} mm, root "
+                             f"{r['root_position_mm']:.1f} mm"
+                             + ("" if own is None else f"; its own 3D {own:.1f} mm"))
     fh = result.get("freihand")
     if fh:
         lines += ["", "FreiHAND (2D labels)"]
@@ -388,8 +456,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--data", type=Path, default=DEFAULT_DATA)
     parser.add_argument("--json", type=Path, default=RESULTS / "real_initialisation.json")
     parser.add_argument("--video-step", type=int, default=3, help="use every N-th video frame")
-    parser.add_argument("--stb-only", action="store_true",
-                        help="rerun only the STB stages into the existing JSON")
+    parser.add_argument("--only", choices=("stb", "interhand"),
+                        help="rerun only these stages into the existing JSON")
     parser.add_argument("--picture", type=Path,
                         help="only write the picture of a detection and fit on video frame 0")
     args = parser.parse_args(argv)
@@ -401,15 +469,18 @@ def main(argv: list[str] | None = None) -> int:
         print(f"wrote {args.picture}")
         return 0
     hand = load_model("hand")
-    if args.stb_only and args.json.is_file():
+    if args.only and args.json.is_file():
         result = json.loads(args.json.read_text())
-        result["stb"] = stb_stage(args.data, hand)
     else:
         result = {"data": str(args.data), "machine": machine_info(),
-                  "mediapipe": mediapipe_available(), "stb": stb_stage(args.data, hand),
+                  "mediapipe": mediapipe_available(),
                   "freihand": freihand_stage(args.data),
                   "video": video_stage(args.data, hand, args.video_step)}
-    result["stb_link_lengths"] = stb_link_length_stage(args.data, hand)
+    if args.only in (None, "stb"):
+        result["stb"] = stb_stage(args.data, hand)
+        result["stb_link_lengths"] = stb_link_length_stage(args.data, hand)
+    if args.only in (None, "interhand"):
+        result["interhand"] = interhand_stage(args.data, hand)
     table = format_table(result)
     print(table)
     args.json.parent.mkdir(parents=True, exist_ok=True)
