@@ -72,10 +72,8 @@ from digiteyes.smc.proposal import (
 from digiteyes.smc.resample import effective_sample_size, normalised_weights, systematic_resample
 from digiteyes.trackers.base import TrackResult
 from digiteyes.trackers.silhouette_loss import (
-    MAX_FINGER_OUTSIDE,
-    MAX_UNEXPLAINED,
-    TOLERANCE_PX,
     SilhouetteLoss,
+    SilhouetteLossOptions,
 )
 
 SAMPLERS = ("manifold", "condensation", "random-search")
@@ -84,7 +82,7 @@ OVERLAY_SAMPLE = 24
 
 
 @dataclass(frozen=True)
-class DivideConquerOptions:
+class DivideConquerOptions(SilhouetteLossOptions):
     """Settings of the divide-and-conquer tracker and its baselines.
 
     sampler : ``"manifold"`` (Huang Sec. 5.1), ``"condensation"`` or ``"random-search"``.
@@ -125,10 +123,6 @@ class DivideConquerOptions:
     walk_fraction: float = 0.1
     anneal_layers: int = 0
     min_edge_fraction: float = 0.3
-    silhouette_check: bool = True
-    silhouette_tolerance_px: int = TOLERANCE_PX
-    max_unexplained: float = MAX_UNEXPLAINED
-    max_finger_outside: float = MAX_FINGER_OUTSIDE
     proposal: ProposalOptions = field(default_factory=ProposalOptions)
     likelihood: LikelihoodOptions = field(default_factory=LikelihoodOptions)
     icp: IcpOptions = field(default_factory=IcpOptions)
@@ -238,9 +232,7 @@ class DivideConquerTracker:
         self.state: np.ndarray | None = None
         self.particles = np.zeros((0, self.space.n_dims))
         self.frame_index = -1
-        self.silhouette_loss = SilhouetteLoss(model, self.rig, options.silhouette_tolerance_px,
-                                              options.max_unexplained,
-                                              options.max_finger_outside)
+        self.silhouette_loss = SilhouetteLoss.from_options(model, self.rig, options)
 
     # ------------------------------------------------------------------ protocol
     def reset(self, initial_state: np.ndarray) -> None:

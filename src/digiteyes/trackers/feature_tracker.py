@@ -66,10 +66,8 @@ from digiteyes.trackers.base import TrackResult
 from digiteyes.trackers.parameterisation import StateParameterisation
 from digiteyes.trackers.prediction import PREDICTIONS, PredictionKind, StatePredictor
 from digiteyes.trackers.silhouette_loss import (
-    MAX_FINGER_OUTSIDE,
-    MAX_UNEXPLAINED,
-    TOLERANCE_PX,
     SilhouetteLoss,
+    SilhouetteLossOptions,
     SilhouetteVerdict,
 )
 
@@ -96,7 +94,7 @@ def thesis_whole_hand_links(model: KinematicModel) -> tuple[str, ...]:
 
 
 @dataclass(frozen=True)
-class FeatureTrackerOptions:
+class FeatureTrackerOptions(SilhouetteLossOptions):
     """Settings of :class:`FeatureTracker` (defaults follow thesis Table 4.2).
 
     Attributes
@@ -188,10 +186,6 @@ class FeatureTrackerOptions:
     growth_frames: int = 5
     growth_factor: float = 2.0
     growth_min_px: float = 3.0
-    silhouette_check: bool = True
-    silhouette_tolerance_px: int = TOLERANCE_PX
-    max_unexplained: float = MAX_UNEXPLAINED
-    max_finger_outside: float = MAX_FINGER_OUTSIDE
 
     def __post_init__(self) -> None:
         if isinstance(self.iterations_per_frame, bool) or not isinstance(
@@ -431,8 +425,7 @@ class FeatureTracker:
         self.state: np.ndarray | None = None
         self.shading: ShadingModel | None = None
         self.edge_bias: list[EdgeBias] = []
-        self.silhouette_loss = SilhouetteLoss(model, rig, opts.silhouette_tolerance_px,
-                                              opts.max_unexplained, opts.max_finger_outside)
+        self.silhouette_loss = SilhouetteLoss.from_options(model, rig, opts)
         self._invalid_baseline: float | None = None
 
     @staticmethod

@@ -66,10 +66,8 @@ from digiteyes.trackers.base import TrackResult
 from digiteyes.trackers.parameterisation import StateParameterisation
 from digiteyes.trackers.prediction import PREDICTIONS, PredictionKind, StatePredictor
 from digiteyes.trackers.silhouette_loss import (
-    MAX_FINGER_OUTSIDE,
-    MAX_UNEXPLAINED,
-    TOLERANCE_PX,
     SilhouetteLoss,
+    SilhouetteLossOptions,
     SilhouetteVerdict,
 )
 
@@ -87,7 +85,7 @@ SOLVERS = ("gauss-newton", "gradient-descent")
 
 
 @dataclass(frozen=True)
-class LayeredTemplateOptions:
+class LayeredTemplateOptions(SilhouetteLossOptions):
     """Settings of :class:`LayeredTemplateTracker`.
 
     Attributes
@@ -131,10 +129,6 @@ class LayeredTemplateOptions:
     growth_frames: int = 5
     growth_factor: float = 2.5
     growth_min: float = 15.0
-    silhouette_check: bool = True
-    silhouette_tolerance_px: int = TOLERANCE_PX
-    max_unexplained: float = MAX_UNEXPLAINED
-    max_finger_outside: float = MAX_FINGER_OUTSIDE
 
     def __post_init__(self) -> None:
         if isinstance(self.iterations_per_frame, bool) or int(self.iterations_per_frame) != \
@@ -238,8 +232,7 @@ class LayeredTemplateTracker:
             if part.kind != "palm" and finger in DIGITS:
                 self._fingers.setdefault(finger, []).append(k)
         opts = self.options
-        self.silhouette_loss = SilhouetteLoss(model, rig, opts.silhouette_tolerance_px,
-                                              opts.max_unexplained, opts.max_finger_outside)
+        self.silhouette_loss = SilhouetteLoss.from_options(model, rig, opts)
 
     def reset(self, initial_state: np.ndarray) -> None:
         """Start a new track from ``initial_state`` (n_q,); the templates are acquired

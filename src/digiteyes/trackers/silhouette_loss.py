@@ -49,6 +49,23 @@ MAX_FINGER_OUTSIDE = 0.35
 
 
 @dataclass(frozen=True)
+class SilhouetteLossOptions:
+    """The silhouette rule's settings, shared by every tracker's options class (which
+    inherits them, so ``--option silhouette_check=false`` works for any tracker).
+
+    silhouette_check : apply the rule (it needs a plain backdrop and a static camera).
+    silhouette_tolerance_px : silhouette differences within this distance are ignored, px.
+    max_unexplained, max_finger_outside : the thresholds (fractions, excess over the first
+        frame).
+    """
+
+    silhouette_check: bool = True
+    silhouette_tolerance_px: int = TOLERANCE_PX
+    max_unexplained: float = MAX_UNEXPLAINED
+    max_finger_outside: float = MAX_FINGER_OUTSIDE
+
+
+@dataclass(frozen=True)
 class SilhouetteVerdict:
     """One frame's silhouette rule: ``reasons`` (empty when the track holds),
     ``finger_lost`` (digit -> bool, the digits judged), ``checks`` (one per checked
@@ -89,6 +106,13 @@ class SilhouetteLoss:
         self.max_unexplained = max_unexplained
         self.max_finger_outside = max_finger_outside
         self.reset()
+
+    @classmethod
+    def from_options(cls, model: KinematicModel, rig: Rig,
+                     options: SilhouetteLossOptions) -> SilhouetteLoss:
+        """The rule with the settings of a tracker's options."""
+        return cls(model, rig, options.silhouette_tolerance_px, options.max_unexplained,
+                   options.max_finger_outside)
 
     def reset(self) -> None:
         """Forget the foreground and the baseline: the next :meth:`check` fits them."""
