@@ -56,6 +56,7 @@ from digiteyes.camera import Camera, Rig
 from digiteyes.camera.default import default_camera
 from digiteyes.detect.classic import ClassicDetector
 from digiteyes.detect.hand21 import BONES
+from digiteyes.detect.hand_size import measure_hand
 from digiteyes.detect.link_lengths import (
     SEGMENT_NAMES,
     segment_lengths,
@@ -75,6 +76,14 @@ RESULTS = Path(__file__).resolve().parent / "results"
 STB_OF_HAND21 = [-1, 17, 18, 19, 20, 13, 14, 15, 16, 9, 10, 11, 12, 5, 6, 7, 8, 1, 2, 3, 4]
 ROOT = 9  # middle MCP
 POSE_REPEATS = 15
+
+
+def root_errors(points: np.ndarray, truth: np.ndarray) -> dict:
+    """Root-relative error (mean over the 20 finger and thumb keypoints, root = the middle
+    MCP) and the root's position error, mm, of keypoints (21, 3) against the truth."""
+    rel = (points[1:] - points[ROOT]) - (truth[1:] - truth[ROOT])
+    return {"root_relative_mm": float(np.linalg.norm(rel, axis=1).mean()),
+            "root_position_mm": float(np.linalg.norm(points[ROOT] - truth[ROOT]))}
 
 
 def detectors() -> dict:
@@ -116,13 +125,10 @@ def stb_stage(data: Path, hand) -> dict | None:
                                                            c.keypoint_confidence)],
                                 options=FitOptions(scale=scale))
             p = fit.keypoints_world
-            rel = (p[common] - p[ROOT]) - (truth21[common] - truth21[ROOT])
-            row[label] = {"root_relative_mm": float(np.linalg.norm(rel, axis=1).mean()),
-                          "root_position_mm": float(np.linalg.norm(p[ROOT] - truth21[ROOT]))}
+            row[label] = root_errors(p, truth21)
         if c.keypoints_3d is not None:  # the detector's own metric 3D (MediaPipe's world)
-            own = c.keypoints_3d[common] - c.keypoints_3d[ROOT]
-            row["own_3d_root_relative_mm"] = float(np.linalg.norm(
-                own - (truth21[common] - truth21[ROOT]), axis=1).mean())
+            row["own_3d_root_relative_mm"] = root_errors(c.keypoints_3d,
+                                                         truth21)["root_relative_mm"]
         timings = [estimate_pose([image], Rig((cam,)), det, hand).seconds
                    for _ in range(POSE_REPEATS + 1)][1:]
         row["pose_ms_median"] = {key: 1000 * float(np.median([t[key] for t in timings]))
@@ -251,14 +257,12 @@ def interhand_stage(data: Path, hand) -> dict | None:
             c = min(found, key=lambda k: np.linalg.norm(k.keypoints - truth_px, axis=1).mean())
             p = fit_keypoints(hand, [KeypointObservation(camera, c.keypoints,
                                                          c.keypoint_confidence)]).keypoints_world
-            rel = (p - p[ROOT]) - (truth - truth[ROOT])
             row = {"image": image["file_name"], "detected": True,
                    "px_error_mean": float(np.linalg.norm(c.keypoints - truth_px, axis=1).mean()),
-                   "root_relative_mm": float(np.linalg.norm(rel, axis=1)[1:].mean()),
-                   "root_position_mm": float(np.linalg.norm(p[ROOT] - truth[ROOT]))}
+                   **root_errors(p, truth)}
             if c.keypoints_3d is not None:
-                own = (c.keypoints_3d - c.keypoints_3d[ROOT]) - (truth - truth[ROOT])
-                row["own_3d_root_relative_mm"] = float(np.linalg.norm(own, axis=1)[1:].mean())
+                row["own_3d_root_relative_mm"] = root_errors(c.keypoints_3d,
+                                                             truth)["root_relative_mm"]
             rows[name].append(row)
     out["detectors"] = rows
     return out
@@ -293,20 +297,17 @@ def stb_link_length_stage(data: Path, hand) -> dict | None:
                      "abs_error_mm_mean": float(np.abs(error).mean()),
                      "abs_error_mm_max": float(np.abs(error).max()),
                      "relative_error_mean": float(np.abs(error / labelled).mean())}
-        observed = [KeypointObservation(cam, f[0].keypoints, f[0].keypoint_confidence)
-                    for cam, f in zip(rig, found, strict=True)]
-        scale = fit_keypoints(hand, observed).scale
+        measured_hand = measure_hand([images], rig, det, hand)  # as calibrate-hand does
+        scale = measured_hand.scale
         variants = [("calibrated", hand, scale)]
-        if det.locates_joints:  # as calibrate-hand: segments only from located joints
+        if measured_hand.lengths is not None:
             variants.append(("personal", with_link_lengths(scaled_model(hand, scale),
-                                                           measured), 1.0))
+                                                           measured_hand.lengths), 1.0))
+        left = [KeypointObservation(rig[0], found[0][0].keypoints,
+                                    found[0][0].keypoint_confidence)]
         for label, model, s in variants:
-            p = fit_keypoints(model, observed[:1], options=FitOptions(scale=s)).keypoints_world
-            rel = (p[1:] - p[ROOT]) - (truth21[1:] - truth21[ROOT])
-            out[name][label] = {"scale": scale,
-                                "root_relative_mm": float(np.linalg.norm(rel, axis=1).mean()),
-                                "root_position_mm": float(np.linalg.norm(p[ROOT]
-                                                                         - truth21[ROOT]))}
+            p = fit_keypoints(model, left, options=FitOptions(scale=s)).keypoints_world
+            out[name][label] = {"scale": scale, **root_errors(p, truth21)}
     return out
 
 

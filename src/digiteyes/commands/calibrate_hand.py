@@ -31,21 +31,11 @@ def calibrate_hand(images: tuple[Path, ...], output: Path, rig: Path | None,
     rig (and there its finger segments one by one), or from a measured hand length, and
     write the personal model file."""
     import cv2
-    import numpy as np
 
     from digiteyes.camera import load_rig
-    from digiteyes.detect.hand_size import (
-        scale_from_fits,
-        scale_from_length,
-        write_personal_model,
-    )
-    from digiteyes.detect.link_lengths import (
-        SEGMENT_NAMES,
-        measured_lengths,
-        model_lengths,
-        triangulate,
-    )
-    from digiteyes.detect.pose import estimate_pose, make_detector
+    from digiteyes.detect.hand_size import measure_hand, scale_from_length, write_personal_model
+    from digiteyes.detect.link_lengths import SEGMENT_NAMES, model_lengths
+    from digiteyes.detect.pose import make_detector
     from digiteyes.errors import DigitEyesError
     from digiteyes.kinematics import load_model
 
@@ -63,33 +53,29 @@ def calibrate_hand(images: tuple[Path, ...], output: Path, rig: Path | None,
             raise DigitEyesError(f"a rig of at least two cameras and images in sets of "
                                  f"{len(the_rig)} are needed, got {len(the_rig)} camera(s) and "
                                  f"{len(images)} image(s)")
+
+        def read(path: Path):
+            bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
+            if bgr is None:
+                raise DigitEyesError(f"{path}: not an image OpenCV can read")
+            return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+
         det = make_detector(detector, model)
-        fits, points = [], []
-        for start in range(0, len(images), len(the_rig)):
-            frames = []
-            for path in images[start:start + len(the_rig)]:
-                bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
-                if bgr is None:
-                    raise DigitEyesError(f"{path}: not an image OpenCV can read")
-                frames.append(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
-            result = estimate_pose(frames, the_rig, det, model)
-            fits.append(result.fit)
-            seen = [None if c is None else c.keypoints for c in result.candidates]
-            if sum(k is not None for k in seen) >= 2:
-                points.append(triangulate(the_rig, seen))
-        scale, spread, count = scale_from_fits(fits)
-        how = f"{count} stereo frame(s), spread {100 * spread:.1f} %"
-        if not scale_only and not det.locates_joints:
+        sets = ([read(p) for p in images[start:start + len(the_rig)]]
+                for start in range(0, len(images), len(the_rig)))
+        hand = measure_hand(sets, the_rig, det, model, segments=not scale_only)
+        scale, lengths = hand.scale, hand.lengths
+        how = f"{hand.frames} stereo frame(s), spread {100 * hand.spread:.1f} %"
+        if not scale_only and lengths is None:
             click.echo(f"the {det.name} detector places its keypoints with a model, so it "
                        "cannot measure finger segments: one global scale is kept (install "
                        'the MediaPipe extra, pip install "digiteyes[mediapipe]", to measure '
                        "them)")
-        elif not scale_only:
-            lengths, frames_seen = measured_lengths(np.array(points).reshape(-1, 21, 3))
+        elif lengths is not None:
             nominal = scale * model_lengths(model)
             click.echo(f"{'segment':<18} {'scaled model':>12} {'measured':>9} {'frames':>6}")
-            for name, ours, theirs, n in zip(SEGMENT_NAMES, nominal, lengths, frames_seen,
-                                             strict=True):
+            for name, ours, theirs, n in zip(SEGMENT_NAMES, nominal, lengths,
+                                             hand.segment_frames, strict=True):
                 click.echo(f"{name:<18} {ours:>9.1f} mm {theirs:>6.1f} mm {n:>6d}")
     write_personal_model(model, scale, output, name=output.stem, lengths=lengths)
     click.echo(f"hand scale {scale:.3f} ({how}); wrote {output}")

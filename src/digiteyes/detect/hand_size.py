@@ -22,13 +22,17 @@ With two or more cameras the 15 finger segments are also measured one by one
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from digiteyes.detect.link_lengths import with_link_lengths
+from digiteyes.camera import Rig
+from digiteyes.detect.candidate import HandDetector
+from digiteyes.detect.link_lengths import measured_lengths, triangulate, with_link_lengths
 from digiteyes.detect.model_fit import PoseFit, palm_points
+from digiteyes.detect.pose import estimate_pose
 from digiteyes.errors import DigitEyesError
 from digiteyes.kinematics import KinematicModel, format_model_text
 from digiteyes.kinematics.scaling import scaled_model
@@ -59,6 +63,46 @@ def scale_from_fits(fits: Sequence[PoseFit]) -> tuple[float, float, int]:
     return median, float(np.median(np.abs(scales - median)) / median), len(scales)
 
 
+@dataclass(frozen=True)
+class HandMeasurement:
+    """The user's hand measured from image sets of a calibrated rig (:func:`measure_hand`).
+
+    scale, spread, frames : :func:`scale_from_fits` of the per-set fits.
+    lengths : the 15 finger segments (mm, :data:`~digiteyes.detect.link_lengths.SEGMENT_NAMES`
+        order), the median over the sets of the triangulated keypoints; None when not
+        measured (``segments=False``, or a detector that does not locate joints).
+    segment_frames : per segment, the sets that measured it (None with ``lengths``).
+    """
+
+    scale: float
+    spread: float
+    frames: int
+    lengths: np.ndarray | None
+    segment_frames: np.ndarray | None
+
+
+def measure_hand(image_sets: Iterable[Sequence[np.ndarray]], rig: Rig,
+                 detector: HandDetector, model: KinematicModel,
+                 segments: bool = True) -> HandMeasurement:
+    """Measure the hand in image sets (one image per camera of ``rig``, at the same moment):
+    the scale of the model fitted to each set's detections, and, with ``segments`` and a
+    detector that locates joints (``detector.locates_joints``), the finger segments of
+    the keypoints triangulated in each set seen by two or more cameras. Raises
+    :class:`DigitEyesError` when no set gives a fitted scale or a segment is never seen."""
+    fits, points = [], []
+    for images in image_sets:
+        result = estimate_pose(list(images), rig, detector, model)
+        fits.append(result.fit)
+        seen = [None if c is None else c.keypoints for c in result.candidates]
+        if sum(k is not None for k in seen) >= 2:
+            points.append(triangulate(rig, seen))
+    scale, spread, count = scale_from_fits(fits)
+    if not (segments and detector.locates_joints):
+        return HandMeasurement(scale, spread, count, None, None)
+    lengths, frames = measured_lengths(np.array(points).reshape(-1, 21, 3))
+    return HandMeasurement(scale, spread, count, lengths, frames)
+
+
 def write_personal_model(model: KinematicModel, scale: float, path: str | Path,
                          name: str = "my-hand",
                          lengths: np.ndarray | None = None) -> KinematicModel:
@@ -76,5 +120,5 @@ def write_personal_model(model: KinematicModel, scale: float, path: str | Path,
     return personal
 
 
-__all__ = ["model_hand_length", "scale_from_fits", "scale_from_length",
-           "write_personal_model"]
+__all__ = ["HandMeasurement", "measure_hand", "model_hand_length", "scale_from_fits",
+           "scale_from_length", "write_personal_model"]
