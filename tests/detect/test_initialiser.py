@@ -38,6 +38,8 @@ def test_a_hand_is_started_from_its_keypoints(hand, camera, posed):
     pixels = camera.project(forward_kinematics(hand, q).points(rows, points))
     state = initialiser_with(hand, camera, pixels)([np.zeros((480, 640), np.uint8)])
     assert state is not None and state.shape == (hand.n_q,)
+    fitted = camera.project(forward_kinematics(hand, state).points(rows, points))
+    assert np.linalg.norm(fitted - pixels, axis=1).mean() < 2.0  # it explains the keypoints
 
 
 def test_keypoints_no_pose_explains_give_no_state(hand, camera):
