@@ -54,7 +54,6 @@ from digiteyes import load_model
 from digiteyes.benchmarks._machine import machine_info
 from digiteyes.camera import Camera, Rig
 from digiteyes.camera.default import default_camera
-from digiteyes.detect.classic import ClassicDetector
 from digiteyes.detect.hand21 import BONES
 from digiteyes.detect.hand_size import measure_hand
 from digiteyes.detect.link_lengths import (
@@ -65,7 +64,7 @@ from digiteyes.detect.link_lengths import (
 )
 from digiteyes.detect.mediapipe_detector import MediaPipeDetector, mediapipe_available
 from digiteyes.detect.model_fit import FitOptions, KeypointObservation, fit_keypoints
-from digiteyes.detect.pose import estimate_pose
+from digiteyes.detect.pose import estimate_pose, make_detector
 from digiteyes.io.video import VideoReader
 from digiteyes.kinematics.procrustes import kabsch
 from digiteyes.kinematics.scaling import scaled_model
@@ -86,11 +85,14 @@ def root_errors(points: np.ndarray, truth: np.ndarray) -> dict:
             "root_position_mm": float(np.linalg.norm(points[ROOT] - truth[ROOT]))}
 
 
+NAMES = ("classic", "mediapipe", "mediapipe-lite")
+"""The detectors compared (:func:`digiteyes.detect.pose.make_detector`'s names), in table
+order; the MediaPipe ones when the extra is installed."""
+
+
 def detectors() -> dict:
-    found = {"classic": ClassicDetector()}
-    if mediapipe_available():
-        found["mediapipe"] = MediaPipeDetector(max_hands=1)
-    return found
+    return {name: make_detector(name) for name in NAMES
+            if name == "classic" or mediapipe_available()}
 
 
 def stb_stage(data: Path, hand) -> dict | None:
@@ -173,8 +175,10 @@ def video_stage(data: Path, hand, step: int) -> dict | None:
         return None
     stored = np.asarray(pickle.loads((folder / "mediapipe_joints_right.pkl").read_bytes()))
     dets = detectors()
-    if "mediapipe" in dets:
-        dets["mediapipe"] = MediaPipeDetector(max_hands=1, static_image_mode=False)
+    for name, complexity in (("mediapipe", 1), ("mediapipe-lite", 0)):
+        if name in dets:  # as track uses it: landmarks followed from frame to frame
+            dets[name] = MediaPipeDetector(max_hands=1, static_image_mode=False,
+                                           model_complexity=complexity)
     counts = dict.fromkeys(dets, 0)
     gaps = {n: [] for n in dets}
     classic_ms = []
@@ -203,7 +207,7 @@ def video_stage(data: Path, hand, step: int) -> dict | None:
                     classic_ms.append(1000 * (time.perf_counter() - start))
                 if index < len(stored) and np.abs(stored[index]).sum() > 0:
                     gaps[name].append(shape_gap_mm(fit.keypoints_world, stored[index]))
-            if len(found) == 2:
+            if "classic" in found and "mediapipe" in found:
                 d = np.linalg.norm(found["classic"] - found["mediapipe"], axis=1)
                 px_gap.append(float(np.median(d)))
                 tip_gap.append(float(np.median(d[[4, 8, 12, 16, 20]])))
@@ -319,24 +323,24 @@ def format_table(result: dict) -> str:
     stb = result.get("stb")
     if stb:
         lines += ["", f"STB {stb['image']}: labelled hand scale {stb['labelled_scale']:.3f}",
-                  f"  {'detector':<10} {'2D px':>6} {'rel mm (def)':>13} {'root mm (def)':>14}"
+                  f"  {'detector':<14} {'2D px':>6} {'rel mm (def)':>13} {'root mm (def)':>14}"
                   f" {'rel mm (known)':>15} {'root mm (known)':>16}"]
-        for name in ("classic", "mediapipe"):
+        for name in NAMES:
             r = stb.get(name)
             if not r:
                 continue
             if not r["detected"]:
-                lines.append(f"  {name:<10} not detected")
+                lines.append(f"  {name:<14} not detected")
                 continue
             d, k = r["default size"], r["known size"]
-            lines.append(f"  {name:<10} {r['px_error_mean']:6.1f} {d['root_relative_mm']:13.1f}"
+            lines.append(f"  {name:<14} {r['px_error_mean']:6.1f} {d['root_relative_mm']:13.1f}"
                          f" {d['root_position_mm']:14.1f} {k['root_relative_mm']:15.1f}"
                          f" {k['root_position_mm']:16.1f}")
             if "own_3d_root_relative_mm" in r:
-                lines.append(f"  {name:<10} its own 3D keypoints (world landmarks): root-relative"
+                lines.append(f"  {name:<14} its own 3D keypoints (world landmarks): root-relative"
                              f" {r['own_3d_root_relative_mm']:.1f} mm")
     if stb:
-        for name in ("classic", "mediapipe"):
+        for name in NAMES:
             r = stb.get(name) or {}
             if "pose_ms_median" in r:
                 t = r["pose_ms_median"]
@@ -346,21 +350,21 @@ def format_table(result: dict) -> str:
     if lengths:
         lines += ["", "STB finger segments triangulated from both views (labels: "
                   f"{np.mean(lengths['labelled_mm']):.1f} mm mean segment)"]
-        for name in ("classic", "mediapipe"):
+        for name in NAMES:
             r = lengths.get(name)
             if not r:
                 continue
             if not r["detected_in_both"]:
-                lines.append(f"  {name:<10} not detected in both views")
+                lines.append(f"  {name:<14} not detected in both views")
                 continue
-            lines.append(f"  {name:<10} mean |error| {r['abs_error_mm_mean']:.1f} mm "
+            lines.append(f"  {name:<14} mean |error| {r['abs_error_mm_mean']:.1f} mm "
                          f"({100 * r['relative_error_mean']:.0f} %), worst "
                          f"{r['abs_error_mm_max']:.1f} mm")
             for label in ("calibrated", "personal"):
                 if label not in r:
                     continue
                 c = r[label]
-                lines.append(f"  {name:<10} left view alone, hand {label} from the pair "
+                lines.append(f"  {name:<14} left view alone, hand {label} from the pair "
                              f"(scale {c['scale']:.3f}): root-relative "
                              f"{c['root_relative_mm']:.1f} mm, root {c['root_position_mm']:.1f} mm")
     ih = result.get("interhand")
@@ -370,10 +374,10 @@ def format_table(result: dict) -> str:
         for name, rows in ih["detectors"].items():
             for r in rows:
                 if not r["detected"]:
-                    lines.append(f"  {name:<10} {r['image']}: not detected")
+                    lines.append(f"  {name:<14} {r['image']}: not detected")
                     continue
                 own = r.get("own_3d_root_relative_mm")
-                lines.append(f"  {name:<10} {r['image']}: 2D {r['px_error_mean']:.1f} px, "
+                lines.append(f"  {name:<14} {r['image']}: 2D {r['px_error_mean']:.1f} px, "
                              f"root-relative {r['root_relative_mm']:.1f} mm, root "
                              f"{r['root_position_mm']:.1f} mm"
                              + ("" if own is None else f"; its own 3D {own:.1f} mm"))
@@ -382,17 +386,17 @@ def format_table(result: dict) -> str:
         lines += ["", "FreiHAND (2D labels)"]
         for name, r in fh.items():
             err = "-" if r["px_error_mean"] is None else f"{r['px_error_mean']:.1f} px"
-            lines.append(f"  {name:<10} detected {r['detected']}/{r['images']}, mean 2D error "
+            lines.append(f"  {name:<14} detected {r['detected']}/{r['images']}, mean 2D error "
                          f"{err}")
     video = result.get("video")
     if video:
         lines += ["", f"real video: {video['frames']} frames (every {video['step']}), "
                   f"{video['camera']}"]
-        for name in ("classic", "mediapipe"):
+        for name in NAMES:
             if name in video:
                 gap = video[name]["shape_gap_to_stored_mediapipe_mm_median"]
                 rate = 100 * video[name]["detection_rate"]
-                lines.append(f"  {name:<10} detection rate {rate:.0f}"
+                lines.append(f"  {name:<14} detection rate {rate:.0f}"
                              f" %, shape gap to stored MediaPipe "
                              f"{'-' if gap is None else f'{gap:.1f} mm'} (median)")
         if video["classic_vs_mediapipe_px_median"] is not None:

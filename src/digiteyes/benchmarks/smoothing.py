@@ -24,7 +24,9 @@ targets (jitter down 5x, at most one frame of added lag). :func:`choose` applies
 that picked the defaults (the largest jitter ratio with at most :data:`TUNING_ADDED_LAG`
 frames of added lag on seed :data:`SEED`), and the JSON says whether the shipped defaults
 are its choice. The defaults are then checked on pairs of sequences rendered with other
-seeds (:data:`HELD_OUT_SEEDS`), which did not take part in choosing them.
+seeds (:data:`HELD_OUT_SEEDS`), and on the pair of seed :data:`SEED` drawn with the
+independent flesh appearance (docs/appearance.md), none of which took part in choosing
+them.
 """
 
 from __future__ import annotations
@@ -113,17 +115,19 @@ def assess(model: KinematicModel, still: np.ndarray, still_truth_kp: np.ndarray,
             "jitter_moving": jitter(model, moving)}
 
 
-def tracked_pair(seed: int, n_still: int, n_moving: int, progress: bool) -> dict[str, Any]:
-    """Render and track the still and moving hands of ``whole-hand`` with ``seed``: the
-    model, fps, the estimated states and the true keypoints of both, and the moving
-    hand's true states."""
+def tracked_pair(seed: int, n_still: int, n_moving: int, progress: bool,
+                 appearance: str = "model") -> dict[str, Any]:
+    """Render (in ``appearance``, docs/appearance.md) and track the still and moving hands
+    of ``whole-hand`` with ``seed``: the model, fps, the estimated states and the true
+    keypoints of both, and the moving hand's true states."""
     moving = build_scenario("whole-hand", seed=seed, n_frames=n_moving)
     moving = replace(moving, states=moving.states[:n_moving])
     still = replace(moving, name="still", states=np.repeat(moving.states[:1], n_still, axis=0))
     pair: dict[str, Any] = {"model": moving.model, "fps": moving.fps,
                             "moving_truth_states": moving.states}
     for name, scenario in (("still", still), ("moving", moving)):
-        sequence = render_sequence(scenario, seed=seed, progress=progress)
+        sequence = render_sequence(scenario, seed=seed, progress=progress,
+                                   appearance=appearance)
         pair[name] = track_sequence(sequence, FeatureTrackerOptions(), label=name,
                                     progress=progress).log.states
         pair[f"{name}_truth"] = keypoint_tracks(moving.model, scenario.states)
@@ -167,10 +171,10 @@ def run(json_path: str | None = None, quick: bool = False, *, progress: bool = T
     defaults = OneEuroOptions()
     chosen = choose(grid)
     held_out = []
-    for seed in HELD_OUT_SEEDS:
-        other = tracked_pair(seed, n_still, n_moving, progress)
+    for seed, appearance in [(s, "model") for s in HELD_OUT_SEEDS] + [(SEED, "flesh")]:
+        other = tracked_pair(seed, n_still, n_moving, progress, appearance)
         other_raw = evaluate(None, other)
-        held_out.append({"seed": seed, "raw": other_raw,
+        held_out.append({"seed": seed, "appearance": appearance, "raw": other_raw,
                          **_versus(other_raw, evaluate(defaults, other))})
     tuned = _versus(raw, evaluate(defaults))
     result: dict[str, Any] = {
@@ -227,7 +231,7 @@ def format_table(result: dict[str, Any]) -> str:
              f" {raw['lag_frames']:>6.2f} {'':>6} {raw['error_still_mm']:>7.2f}"
              f" {raw['error_moving_mm']:>7.2f}",
              _row("defaults", result["defaults"]),
-             *(_row(f"defaults, seed {entry['seed']} (held out)", entry)
+             *(_row(f"defaults, seed {entry['seed']} {entry['appearance']} (held out)", entry)
                for entry in result["held_out"]),
              "defaults chosen by the tuning rule: "
              f"{'yes' if result['defaults']['chosen_by_rule'] else 'no'}; targets met on "

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import click
 
+from digiteyes.detect.pose import DETECTORS
+
 
 @click.command("calibrate-hand")
 @click.argument("images", nargs=-1, type=click.Path(exists=True, dir_okay=False,
@@ -17,7 +19,7 @@ import click
 @click.option("--hand-length-mm", type=float,
               help="Measured wrist-crease to middle-fingertip length (one camera, no images "
                    "needed).")
-@click.option("--detector", type=click.Choice(["auto", "mediapipe", "classic"]),
+@click.option("--detector", type=click.Choice(DETECTORS),
               default="auto", show_default=True)
 @click.option("--model", "model_name", default="hand", show_default=True,
               help="Model to scale (name or file).")

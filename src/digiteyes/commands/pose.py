@@ -6,6 +6,8 @@ from pathlib import Path
 
 import click
 
+from digiteyes.detect.pose import DETECTORS
+
 
 @click.command()
 @click.argument("images", nargs=-1, required=True,
@@ -15,7 +17,7 @@ import click
 @click.option("--rig", type=click.Path(exists=True, dir_okay=False, path_type=Path),
               help="Rig file (JSON or OpenCV YAML). With N cameras the images are taken N at "
                    "a time, in rig order. Default: one camera with a 60 deg field of view.")
-@click.option("--detector", type=click.Choice(["auto", "mediapipe", "classic"]),
+@click.option("--detector", type=click.Choice(DETECTORS),
               default="auto", show_default=True,
               help="auto = MediaPipe when installed, else the classic detector.")
 @click.option("--model", "model_name", default="hand", show_default=True,

@@ -10,6 +10,7 @@ from dataclasses import replace
 import click
 
 from digiteyes.camera.default import DEFAULT_HFOV_DEG
+from digiteyes.detect.pose import DETECTORS
 from digiteyes.filters import OneEuroOptions
 from digiteyes.io.frame_sinks import parse_stream_target
 from digiteyes.pipeline import TrackingRun
@@ -143,7 +144,7 @@ def print_run(run: TrackingRun, err: bool = False) -> None:
 @click.option("--stream", metavar="-|tcp://HOST:PORT", default=None,
               help="Send each frame's state and keypoints as a JSON line to standard "
                    "output (-) or a listening TCP socket.")
-@click.option("--detector", type=click.Choice(["auto", "mediapipe", "classic"]),
+@click.option("--detector", type=click.Choice(DETECTORS),
               default="auto", show_default=True,
               help="Detector of --init auto and of the recovery after loss.")
 @click.option("--recover/--no-recover", default=None,

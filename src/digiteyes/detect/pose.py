@@ -22,12 +22,14 @@ from digiteyes.detect.model_fit import FitOptions, KeypointObservation, PoseFit,
 from digiteyes.errors import DigitEyesError
 from digiteyes.kinematics import KinematicModel
 
-DETECTORS = ("auto", "mediapipe", "classic")
+DETECTORS = ("auto", "mediapipe", "mediapipe-lite", "classic")
+"""Detector names of :func:`make_detector` (and of every command's ``--detector``)."""
 
 
 def make_detector(name: str, model: KinematicModel | None = None) -> HandDetector:
-    """``"mediapipe"`` (needs the extra), ``"classic"`` or ``"auto"`` (MediaPipe when
-    installed, else classic)."""
+    """``"mediapipe"`` (needs the extra; its full landmark network), ``"mediapipe-lite"``
+    (its lite landmark network: faster, see docs/initialisation.md for what it costs),
+    ``"classic"`` or ``"auto"`` (MediaPipe when installed, else classic)."""
     from digiteyes.detect.classic import ClassicDetector
     from digiteyes.detect.mediapipe_detector import MediaPipeDetector, mediapipe_available
 
@@ -35,6 +37,8 @@ def make_detector(name: str, model: KinematicModel | None = None) -> HandDetecto
         name = "mediapipe" if mediapipe_available() else "classic"
     if name == "mediapipe":
         return MediaPipeDetector(max_hands=1)
+    if name == "mediapipe-lite":
+        return MediaPipeDetector(max_hands=1, model_complexity=0)
     if name == "classic":
         return ClassicDetector(model)
     raise DigitEyesError(f"unknown detector {name!r}; choose one of {', '.join(DETECTORS)}")
