@@ -318,7 +318,8 @@ def stb_link_length_stage(data: Path, hand) -> dict | None:
 def format_table(result: dict) -> str:
     m = result["machine"]
     lines = [f"Initialisation on real data ({result['data']})",
-             f"machine: {m['cpu']}, {m['cores']} cores, python {m['python']}, numpy "
+             f"machine: {m['cpu']}, {m['cores']} cores ({m.get('cores_usable')} usable), python "
+             f"{m['python']}, numpy "
              f"{m['numpy']}, load average (1 min) {m.get('load_average_start')} at the start"]
     stb = result.get("stb")
     if stb:

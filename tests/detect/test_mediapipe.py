@@ -47,3 +47,32 @@ def test_mediapipe_finds_the_right_hand_of_the_real_video():
     tips = [4, 8, 12, 16, 20]  # both detectors put each named fingertip in the same place
     gap = np.linalg.norm(classic.keypoints[tips] - cand.keypoints[tips], axis=1)
     assert gap.max() < 25.0, gap
+
+
+@pytest.mark.skipif(not mediapipe_available(), reason="optional extra digiteyes[mediapipe]")
+@pytest.mark.parametrize("name", ["mediapipe", "mediapipe-lite"])
+def test_both_networks_find_the_fingertips_of_the_flesh_hand(name):
+    """The desk camera's colour render of the independent flesh hand: both landmark
+    networks (``--detector mediapipe`` and ``mediapipe-lite``) put the five fingertips
+    within 10 px of the true projections."""
+    from digiteyes.benchmarks.tracker import render_sequence
+    from digiteyes.detect.hand21 import DIGITS
+    from digiteyes.detect.pose import make_detector
+    from digiteyes.synth.setups import setup_scenario
+
+    sequence = render_sequence(setup_scenario("desk", 2, n_frames=1), appearance="flesh",
+                               color=True)
+    names = list(sequence.truth.keypoint_names)
+    truth = sequence.truth.keypoints_2d[0, 0, [names.index(f"{d}.tip") for d in DIGITS]]
+    found = make_detector(name).detect(sequence.images[0][0], sequence.rig[0])
+    assert len(found) == 1 and found[0].handedness == "right"
+    error = np.linalg.norm(found[0].keypoints[[4, 8, 12, 16, 20]] - truth, axis=1)
+    assert error.max() < 10.0, error
+
+
+def test_unknown_detector_names_the_choices():
+    from digiteyes.detect.pose import DETECTORS, make_detector
+
+    with pytest.raises(DigitEyesError, match="mediapipe-lite"):
+        make_detector("mediapipe-heavy")
+    assert "mediapipe-lite" in DETECTORS
