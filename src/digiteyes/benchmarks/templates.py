@@ -2,7 +2,9 @@
 synthetic scenarios, and agreement of the predicted visibility orders with the renderer.
 
 Each scenario is tracked with the templates alone and (except ``natural`` with one
-camera) with templates plus edge features.
+camera) with templates plus edge features, in both appearances of the renderer: the
+tracking model's own drawing (``model``) and the independent flesh hand (``flesh``,
+docs/appearance.md), side by side.
 
 * ``two-finger-occlusion`` (thesis Sec. 4.4.2, one camera, 80 frames): largest deviation
   of the middle finger's joints from the truth (rad; target 0.03), index joint-angle RMS
@@ -37,6 +39,7 @@ from digiteyes.occlusion.visibility import predict_visibility
 from digiteyes.occlusion.windows import image_windows
 from digiteyes.pipeline import step_frames
 from digiteyes.synth import RenderOptions, render_views
+from digiteyes.synth.options import APPEARANCES
 from digiteyes.synth.scenarios import build_scenario
 from digiteyes.trackers import LayeredTemplateOptions, create_tracker
 
@@ -45,15 +48,18 @@ STAGES = ("visibility", "template_rendering", "residual", "jacobian", "features"
 
 
 def track_scenario(name: str, n_cameras: int, n_frames: int | None,
-                   options: LayeredTemplateOptions, tracker: str = "templates") -> dict:
-    """Render a scenario, track it from its first true state with the registered
-    ``tracker`` (created by :func:`~digiteyes.trackers.create_tracker`, stepped by the run
-    loop :func:`~digiteyes.pipeline.step_frames`) and score it against the truth (figures
-    of the module docstring)."""
+                   options: LayeredTemplateOptions, tracker: str = "templates",
+                   appearance: str = "model") -> dict:
+    """Render a scenario in ``appearance`` (:data:`~digiteyes.synth.options.APPEARANCES`),
+    track it from its first true state with the registered ``tracker`` (created by
+    :func:`~digiteyes.trackers.create_tracker`, stepped by the run loop
+    :func:`~digiteyes.pipeline.step_frames`) and score it against the truth (figures of
+    the module docstring)."""
     scenario = build_scenario(name, n_frames=n_frames)
     model = scenario.model
     rig = Rig(scenario.rig.cameras[:n_cameras])
-    frames = [[v.image for v in render_views(model, q, rig, RenderOptions(), rng=i)]
+    render = RenderOptions(appearance=appearance)
+    frames = [[v.image for v in render_views(model, q, rig, render, rng=i)]
               for i, q in enumerate(scenario.states)]
     settings = {f.name: getattr(options, f.name) for f in fields(options)}
     runner = create_tracker(tracker, model, rig, **settings)
@@ -74,7 +80,8 @@ def track_scenario(name: str, n_cameras: int, n_frames: int | None,
     kt = forward_kinematics(model, truth).T_world_shape[:, tips, :3, 3]
     ke = forward_kinematics(model, est).T_world_shape[:, tips, :3, 3]
     tip_error = np.linalg.norm(kt - ke, axis=2)
-    out = {"scenario": name, "tracker": tracker, "cameras": n_cameras,
+    out = {"scenario": name, "tracker": tracker, "appearance": appearance,
+           "cameras": n_cameras,
            "frames": len(truth),
            "iterations_per_frame": options.iterations_per_frame,
            "mean_tip_error_mm": float(tip_error.mean()),
@@ -129,16 +136,18 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
             ("natural", 2, 40 if quick else None, "templates+features"),
             ("natural", 1, 40 if quick else None, "templates")]
     with kernel_threads(1, 1):
-        tracking = [track_scenario(n, c, f, options, t) for n, c, f, t in runs]
+        tracking = [track_scenario(n, c, f, options, t, a) for n, c, f, t in runs
+                    for a in APPEARANCES]
         visibility = [visibility_agreement(n, 5 if quick else 30)
                       for n in ("two-finger-occlusion", "natural")]
     result = {"tracking": tracking, "visibility": visibility,
               "machine": machine_info(), "quick": quick}
     lines = [*machine_lines(result["machine"]), "",
-             "scenario              tracker            cams frames  tip mm  max mm  lost   "
-             "fps  idx RMS deg  mid dev rad"]
+             "scenario              tracker            appearance cams frames  tip mm  max mm"
+             "  lost   fps  idx RMS deg  mid dev rad"]
     for t in tracking:
-        lines.append(f"{t['scenario']:<21} {t['tracker']:<18} {t['cameras']:>4} "
+        lines.append(f"{t['scenario']:<21} {t['tracker']:<18} {t['appearance']:<10} "
+                     f"{t['cameras']:>4} "
                      f"{t['frames']:>6} "
                      f"{t['mean_tip_error_mm']:>7.2f} {t['max_frame_tip_error_mm']:>7.2f} "
                      f"{t['lost_frames']:>5} {t['frames_per_second'] or 0:>5.1f}  "
@@ -146,7 +155,8 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
                      f"{t.get('middle_max_deviation_rad', float('nan')):>11.3f}")
     lines += ["", "ms per iteration: " + ", ".join(STAGES)]
     for t in tracking:
-        lines.append(f"{t['scenario']:<21} {t['tracker']:<18} {t['cameras']} cam: " + "  ".join(
+        lines.append(f"{t['scenario']:<21} {t['tracker']:<18} {t['appearance']:<6} "
+                     f"{t['cameras']} cam: " + "  ".join(
             f"{t['ms_per_iteration'][s]:.2f}" for s in STAGES))
     lines += ["", "visibility order vs depth buffer"]
     for v in visibility:
