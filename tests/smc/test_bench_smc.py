@@ -26,3 +26,17 @@ def test_fig3_records_per_frame_errors_and_plots(monkeypatch, tmp_path):
     assert len(errors) == 3 and max(errors) < 8.0
     path = smc.plot_fig3(fig3, tmp_path / "fig3.png")
     assert (tmp_path / "fig3.png").stat().st_size > 10_000 and path.endswith("fig3.png")
+
+
+def test_the_flesh_hand_is_tracked_through_the_same_path(monkeypatch, tmp_path):
+    """Fig. 3 on the independent flesh hand: the same records, finite, sane at the start;
+    the plot takes one panel per appearance and scenario."""
+    monkeypatch.setattr(smc, "FIG3_SCENARIOS", ("natural",))
+    monkeypatch.setattr(smc, "FIG3_TRACKERS", (DivideConquerTracker,))
+    flesh = smc._fig3(n_frames=3, appearance="flesh")
+    errors = flesh["natural"]["DivideConquerTracker"]["finger_rms_deg_per_frame"]
+    assert len(errors) == 3 and max(errors) < 8.0
+    panels = {"natural, own drawing": smc._fig3(n_frames=3)["natural"],
+              "natural, flesh hand": flesh["natural"]}
+    smc.plot_fig3(panels, tmp_path / "fig3.png")
+    assert (tmp_path / "fig3.png").stat().st_size > 10_000

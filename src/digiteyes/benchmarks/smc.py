@@ -12,7 +12,9 @@ the ``natural`` scenario:
   on the first frames of ``natural`` rendered with the cardboard hand;
 * ``fig3``: Huang Fig. 3 with truth: the three trackers' finger joint-angle RMS per frame
   on ``natural`` and on the CyberGlove-driven ``glove-desk-1cam`` (skipped, with the
-  reason, when the glove data are absent), one camera, plotted to ``--plot``.
+  reason, when the glove data are absent), one camera, plotted to ``--plot``; the images
+  drawn from the tracking model (the cardboard hand) and, as ``fig3_flesh``, from the
+  independent flesh hand driven by the same states (docs/appearance.md).
 
 Run with ``digiteyes bench smc [--json FILE] [--quick]``.
 """
@@ -36,7 +38,8 @@ from digiteyes.smc.likelihood import (
 )
 from digiteyes.smc.palm import palm_pose_from_state
 from digiteyes.smc.prior import default_configuration_space
-from digiteyes.synth import render_views
+from digiteyes.synth import RenderOptions, render_views
+from digiteyes.synth.options import APPEARANCES
 from digiteyes.synth.scenarios import build_scenario
 from digiteyes.trackers.divide_conquer import (
     CondensationTracker,
@@ -47,6 +50,7 @@ from digiteyes.trackers.divide_conquer import (
 BATCH = 3000
 FIG3_SCENARIOS = ("natural", "glove-desk-1cam")
 FIG3_TRACKERS = (DivideConquerTracker, CondensationTracker, RandomSearchTracker)
+APPEARANCE_LABELS = {"model": "own drawing", "flesh": "flesh hand"}
 
 
 def _scenario_states(model, scenario) -> np.ndarray:
@@ -79,13 +83,16 @@ def _likelihood_rates(repeat: int, min_time: float) -> dict:
     return out
 
 
-def _track(cls, n_frames: int, scenario_name: str = "natural") -> dict:
+def _track(cls, n_frames: int, scenario_name: str = "natural",
+           appearance: str = "model") -> dict:
     scenario = build_scenario(scenario_name, n_frames=max(n_frames, 20))
     n_frames = min(n_frames, len(scenario.states))
     cam = scenario.rig.cameras[0]
     model = load_model("cardboard-hand")
     states = _scenario_states(model, scenario)
-    images = [render_views(model, states[f], [cam], rng=f)[0].image for f in range(n_frames)]
+    render = RenderOptions(appearance=appearance)
+    images = [render_views(model, states[f], [cam], render, rng=f)[0].image
+              for f in range(n_frames)]
     tracker = cls(model, [cam])
     tracker.reset(states[0])
     times, joint, palm_deg, palm_mm = [], [], [], []
@@ -108,9 +115,10 @@ def _track(cls, n_frames: int, scenario_name: str = "natural") -> dict:
             "finger_rms_deg_per_frame": [float(e) for e in joint]}
 
 
-def _fig3(n_frames: int) -> dict:
-    """Per scenario of :data:`FIG3_SCENARIOS`: each tracker's :func:`_track` record, or
-    ``{"skipped": reason}`` when the scenario cannot be built (no glove data)."""
+def _fig3(n_frames: int, appearance: str = "model") -> dict:
+    """Per scenario of :data:`FIG3_SCENARIOS`: each tracker's :func:`_track` record on
+    images drawn in ``appearance``, or ``{"skipped": reason}`` when the scenario cannot be
+    built (no glove data)."""
     out = {}
     for name in FIG3_SCENARIOS:
         try:
@@ -118,18 +126,23 @@ def _fig3(n_frames: int) -> dict:
         except DigitEyesError as exc:
             out[name] = {"skipped": str(exc)}
             continue
-        out[name] = {cls.__name__: _track(cls, n_frames, name) for cls in FIG3_TRACKERS}
+        out[name] = {cls.__name__: _track(cls, n_frames, name, appearance)
+                     for cls in FIG3_TRACKERS}
     return out
 
 
 def plot_fig3(fig3: dict, path: str) -> str:
-    """Huang Fig. 3 with truth: finger joint-angle RMS per frame, one panel per scenario."""
+    """Huang Fig. 3 with truth: finger joint-angle RMS per frame, one panel per entry of
+    ``fig3`` (panel title -> tracker records), two panels a row."""
     from digiteyes.viz.plots import new_figure, save_figure
 
     shown = {k: v for k, v in fig3.items() if "skipped" not in v}
-    fig = new_figure(6.0 * max(len(shown), 1), 3.8)
-    axes = fig.subplots(1, max(len(shown), 1), squeeze=False)[0]
-    fig.subplots_adjust(left=0.08, right=0.98, bottom=0.14, top=0.9, wspace=0.2)
+    columns = min(max(len(shown), 1), 2)
+    rows = -(-max(len(shown), 1) // columns)
+    fig = new_figure(6.0 * columns, 3.8 * rows)
+    axes = fig.subplots(rows, columns, squeeze=False).ravel()
+    fig.subplots_adjust(left=0.08, right=0.98, bottom=0.14 / rows, top=1 - 0.1 / rows,
+                        wspace=0.2, hspace=0.35)
     labels = {"DivideConquerTracker": "proposed (300)", "CondensationTracker":
               "CONDENSATION (3000)", "RandomSearchTracker": "random search (5000)"}
     for ax, (name, runs) in zip(axes, shown.items(), strict=False):
@@ -154,7 +167,8 @@ def run(json_path: str | None = None, quick: bool = False,
     with kernel_threads(1, 1):
         rates = _likelihood_rates(repeat, min_time)
         trackers = {cls.__name__: _track(cls, n_frames) for cls in FIG3_TRACKERS}
-        fig3 = _fig3(10 if quick else 60)
+        fig3 = {appearance: _fig3(10 if quick else 60, appearance)
+                for appearance in APPEARANCES}
     lines = ["Divide and conquer (Huang et al.), one core, 640x480 (provisional)",
              f"{'model':<16}{'likelihoods/s':>15}{'us each':>10}{'FK share':>10}"]
     for name, r in rates.items():
@@ -167,7 +181,9 @@ def run(json_path: str | None = None, quick: bool = False,
                      f"{r['finger_rms_deg_mean']:>12.1f}{r['finger_rms_deg_max']:>7.1f}"
                      f"{r['palm_deg_mean']:>10.1f}{r['palm_mm_mean']:>9.1f}")
     lines.append("\nFig. 3 (finger joint-angle RMS per frame, deg: mean / max)")
-    for name, runs in fig3.items():
+    panels = {f"{name}, {APPEARANCE_LABELS[appearance]}": runs
+              for appearance, scenarios in fig3.items() for name, runs in scenarios.items()}
+    for name, runs in panels.items():
         if "skipped" in runs:
             lines.append(f"{name}: skipped ({runs['skipped']})")
             continue
@@ -175,7 +191,8 @@ def run(json_path: str | None = None, quick: bool = False,
             f"{t} {r['finger_rms_deg_mean']:.1f} / {r['finger_rms_deg_max']:.1f}"
             for t, r in runs.items()))
     if plot_path:
-        plot_fig3(fig3, plot_path)
-    result = {"likelihood": rates, "trackers": trackers, "fig3": fig3, "batch": BATCH,
+        plot_fig3(panels, plot_path)
+    result = {"likelihood": rates, "trackers": trackers, "fig3": fig3["model"],
+              "fig3_flesh": fig3["flesh"], "batch": BATCH,
               "frames": n_frames, "quick": quick, "machine": machine_info()}
     return emit(result, "\n".join(lines), json_path)
