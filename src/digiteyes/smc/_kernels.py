@@ -62,6 +62,9 @@ def edge_likelihood_kernel(starts, ends, radii, ts, skip, palm, params, edges, h
     hi_u = np.empty(n_links)
     lo_v = np.empty(n_links)
     hi_v = np.empty(n_links)
+    near_z = np.empty(n_links)
+    cands = np.empty((n_links, n_links), dtype=np.int64)
+    n_cands = np.empty(n_links, dtype=np.int64)
     pu = np.empty(4)
     pv = np.empty(4)
     pz = np.empty(4)
@@ -84,6 +87,17 @@ def edge_likelihood_kernel(starts, ends, radii, ts, skip, palm, params, edges, h
             hi_u[li] = max(au[li], bu[li]) + reach
             lo_v[li] = min(av[li], bv[li]) - reach
             hi_v[li] = max(av[li], bv[li]) + reach
+            near_z[li] = zmin
+        for li in range(n_links):  # the patches that may hide a point of patch li
+            far_z = max(az[li], bz[li])
+            count = 0
+            for m in range(n_links):
+                if not skip[li, m] and lo_u[m] <= hi_u[li] and lo_u[li] <= hi_u[m] and \
+                        lo_v[m] <= hi_v[li] and lo_v[li] <= hi_v[m] and \
+                        near_z[m] < far_z - margin:
+                    cands[li, count] = m
+                    count += 1
+            n_cands[li] = count
         total = 0.0
         n_vis = 0.0
         n_hit = 0.0
@@ -106,10 +120,11 @@ def edge_likelihood_kernel(starts, ends, radii, ts, skip, palm, params, edges, h
                     if not (0.0 <= px <= width - 1 and 0.0 <= py <= height - 1):
                         continue
                     hidden = pzmin < cz - margin and _palm_depth(px, py, pu, pv, pz) < cz - margin
-                    m = 0
-                    while not hidden and m < n_links:
-                        if not skip[li, m] and lo_u[m] <= px <= hi_u[m] and \
-                                lo_v[m] <= py <= hi_v[m] and min(az[m], bz[m]) < cz - margin:
+                    j = 0
+                    while not hidden and j < n_cands[li]:
+                        m = cands[li, j]
+                        if lo_u[m] <= px <= hi_u[m] and lo_v[m] <= py <= hi_v[m] and \
+                                near_z[m] < cz - margin:
                             ex, ey = bu[m] - au[m], bv[m] - av[m]
                             ee = ex * ex + ey * ey
                             tau = 0.0
@@ -122,7 +137,7 @@ def edge_likelihood_kernel(starts, ends, radii, ts, skip, palm, params, edges, h
                                 rm = radii[m] * fx * (scale if params[22] != 0.0 else 1.0 / mz)
                                 if qx * qx + qy * qy < rm * rm:
                                     hidden = True
-                        m += 1
+                        j += 1
                     if hidden:
                         continue
                     n_vis += 1.0
@@ -137,19 +152,23 @@ def edge_likelihood_kernel(starts, ends, radii, ts, skip, palm, params, edges, h
                         continue
                     acc = 0.0
                     best = 1e30
+                    # the whole search window inside the image: no test per sample
+                    inside = (0.0 <= px - half_window * abs(nx) and
+                              px + half_window * abs(nx) < width - 0.5 and
+                              0.0 <= py - half_window * abs(ny) and
+                              py + half_window * abs(ny) < height - 0.5)
                     for o in range(-half_window, half_window + 1):
                         ix = int(px + o * nx + 0.5)
                         iy = int(py + o * ny + 0.5)
-                        if ix < 0 or iy < 0 or ix >= width or iy >= height:
+                        if not inside and (ix < 0 or iy < 0 or ix >= width or iy >= height):
                             continue
-                        if edges[iy, ix] != 0:
-                            acc += gauss[abs(o)]
-                            if o * o < best:
-                                best = o * o
-                    if best < 1e30:
+                        hit = edges[iy, ix] != 0  # branch-free: edges are rare
+                        acc += gauss[abs(o)] * hit
+                        best = min(best, o * o if hit else 1e30)
+                    if best < 1e30:  # an edge in the window (acc > 0; log(1 + 0) = 0 else)
                         n_hit += 1.0
                         sq += best
-                    total += np.log(1.0 + acc * inv_c)
+                        total += np.log(1.0 + acc * inv_c)
         log_l[n] = total
         stats[n, 0] = n_vis
         stats[n, 1] = n_hit

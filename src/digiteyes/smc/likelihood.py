@@ -103,10 +103,11 @@ def edge_lookup(edges: np.ndarray, options: LikelihoodOptions = LikelihoodOption
     """The tables of :class:`EdgeLookup` for an edge map (H, W) (255 on edges)."""
     distance = cv2.distanceTransform((edges == 0).astype(np.uint8), cv2.DIST_L2,
                                      cv2.DIST_MASK_PRECISE)
-    score = np.log1p(options.inverse_clutter
-                     * np.exp(-distance.astype(np.float64) ** 2 / (2 * options.sigma_px ** 2)))
-    score[distance > options.search_px] = 0.0
-    return EdgeLookup(distance.astype(np.float32), score.astype(np.float32))
+    score = np.zeros(distance.shape, dtype=np.float32)
+    near = distance <= options.search_px  # the rest of the frame scores 0: skip its exp
+    d = distance[near].astype(np.float64)
+    score[near] = np.log1p(options.inverse_clutter * np.exp(-d ** 2 / (2 * options.sigma_px ** 2)))
+    return EdgeLookup(distance.astype(np.float32, copy=False), score)
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from scipy.ndimage import distance_transform_edt
+from scipy.spatial import cKDTree
 
 from digiteyes.camera import Camera
 from digiteyes.errors import DigitEyesError
@@ -152,10 +152,34 @@ def palm_outline_points(geometry: FingerGeometry, options: IcpOptions = IcpOptio
     return np.concatenate(pts)
 
 
-def nearest_edge_field(edge_map: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Distance (H, W) to the nearest edge pixel, px, and its (row, col) indices (2, H, W)."""
-    dist, idx = distance_transform_edt(edge_map == 0, return_indices=True)
-    return dist, idx
+@dataclass(frozen=True)
+class NearestEdges:
+    """Nearest-edge queries on one edge map: a k-d tree of its edge pixels.
+
+    The ICP asks for the nearest edge of a few dozen outline points per iteration; a tree
+    of the edge pixels answers that exactly (the Euclidean distance transform of the whole
+    frame did the same in 11 ms at 640x480, the tree takes about 1 ms to build).
+    ``shape`` (H, W) of the map; ``edges`` (E, 2) int row, col of its edge pixels.
+    """
+
+    shape: tuple[int, int]
+    edges: np.ndarray
+    tree: cKDTree | None
+
+    def at(self, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Distance (P,) px from pixels (``rows``, ``cols``) (P,) to their nearest edge
+        pixel and its (row, col) (P, 2); ``inf`` and (-1, -1) on a map without edges."""
+        points = np.stack([rows, cols], axis=1).astype(float)
+        if self.tree is None:
+            return np.full(len(points), np.inf), np.full((len(points), 2), -1)
+        dist, k = self.tree.query(points)
+        return dist, self.edges[k]
+
+
+def nearest_edge_field(edge_map: np.ndarray) -> NearestEdges:
+    """The :class:`NearestEdges` of an edge map (H, W) (non-zero on edges)."""
+    edges = np.argwhere(np.asarray(edge_map) != 0)
+    return NearestEdges(edge_map.shape[:2], edges, cKDTree(edges) if len(edges) else None)
 
 
 @dataclass(frozen=True)
@@ -192,7 +216,7 @@ def with_palm_pose(model: KinematicModel, q: np.ndarray, T_world_palm: np.ndarra
 
 
 def icp_palm(model: KinematicModel, geometry: FingerGeometry, q: np.ndarray, camera: Camera,
-             nearest: tuple[np.ndarray, np.ndarray], options: IcpOptions = IcpOptions(),
+             nearest: NearestEdges, options: IcpOptions = IcpOptions(),
              scale: float = 1.0, visible: np.ndarray | None = None) -> PalmFit:
     """ICP of the palm outline against the edge map (Huang Sec. 4.1-4.2), from state ``q``.
 
@@ -205,8 +229,7 @@ def icp_palm(model: KinematicModel, geometry: FingerGeometry, q: np.ndarray, cam
     plane_z = pts[0, 2]
     x_model = pts[:, :2]
     T_world_palm = palm_pose_from_state(model, q)
-    _, idx = nearest
-    h, w = idx.shape[1:]
+    h, w = nearest.shape
     pixels = np.zeros((len(pts), 2))
     rms, it = np.nan, 0
     for it in range(1, options.iterations + 1):
@@ -216,7 +239,7 @@ def icp_palm(model: KinematicModel, geometry: FingerGeometry, q: np.ndarray, cam
         inside &= (uv[:, 0] >= 0) & (uv[:, 0] <= w - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= h - 1)
         col = np.clip(np.rint(uv[:, 0]), 0, w - 1).astype(int)
         row = np.clip(np.rint(uv[:, 1]), 0, h - 1).astype(int)
-        pixels = np.stack([idx[1, row, col], idx[0, row, col]], axis=1).astype(float)
+        pixels = nearest.at(row, col)[1][:, ::-1].astype(float)
         gap = np.linalg.norm(pixels - uv, axis=1)
         limit = max(options.max_distance_px / it, 3.0 * np.median(gap[inside]), 2.0) \
             if inside.any() else 0.0
@@ -263,14 +286,13 @@ def outline_visibility(model: KinematicModel, geometry: FingerGeometry, q: np.nd
 
 
 def calibrate_palm_scale(model: KinematicModel, geometry: FingerGeometry, q: np.ndarray,
-                         camera: Camera, nearest: tuple[np.ndarray, np.ndarray],
+                         camera: Camera, nearest: NearestEdges,
                          scales: np.ndarray = np.linspace(0.8, 1.25, 19),  # noqa: B008
                          options: IcpOptions = IcpOptions()) -> float:
     """Palm size from a frame of the open palm at a known pose ``q`` (Huang Sec. 4.2, last
     paragraph): the outline scale whose projection lies closest to the edges (mean
     distance-transform value, truncated at ``max_distance_px``)."""
-    dist, _ = nearest
-    h, w = dist.shape
+    h, w = nearest.shape
     T = palm_pose_from_state(model, q)
     costs = []
     for s in scales:
@@ -278,5 +300,5 @@ def calibrate_palm_scale(model: KinematicModel, geometry: FingerGeometry, q: np.
         uv = camera.project((T[:3, :3] @ pts.T).T + T[:3, 3])
         col = np.clip(np.rint(uv[:, 0]), 0, w - 1).astype(int)
         row = np.clip(np.rint(uv[:, 1]), 0, h - 1).astype(int)
-        costs.append(np.minimum(dist[row, col], options.max_distance_px).mean())
+        costs.append(np.minimum(nearest.at(row, col)[0], options.max_distance_px).mean())
     return float(scales[int(np.argmin(costs))])
