@@ -10,7 +10,10 @@ Usage::
    size fitted to the labels); root-relative 3D joint error (mm, root = middle MCP, the 20
    finger and thumb joints STB shares with the 21 keypoints), metric error of the root
    position (mm) and 2D keypoint error (px); for MediaPipe also the root-relative error of
-   its own 3D keypoints (world landmarks) in the same run, the figure to beat. STB shows a
+   its own 3D keypoints (world landmarks) in the same run, the figure to beat, and our
+   fit with those 3D keypoints as a shape term too
+   (:class:`~digiteyes.detect.model_fit.KeypointObservation` ``shape_3d``, an option
+   that is off by default). STB shows a
    left hand: the image is flipped and the world mirrored (as in ``real_stb.py``) so the
    right-hand model applies. Also the time of ``digiteyes pose`` on this 640x480 image
    (:func:`digiteyes.detect.pose.estimate_pose`: detection and fit; median of
@@ -85,6 +88,8 @@ def root_errors(points: np.ndarray, truth: np.ndarray) -> dict:
             "root_position_mm": float(np.linalg.norm(points[ROOT] - truth[ROOT]))}
 
 
+SHAPE_SIGMA_MM = 15.0
+"""``FitOptions.sigma_shape_mm`` of the extra fit that also uses a detector's 3D shape."""
 NAMES = ("classic", "mediapipe", "mediapipe-lite")
 """The detectors compared (:func:`digiteyes.detect.pose.make_detector`'s names), in table
 order; the MediaPipe ones when the extra is installed."""
@@ -123,11 +128,14 @@ def stb_stage(data: Path, hand) -> dict | None:
                "px_error_mean": float(np.linalg.norm(c.keypoints[common] - truth_px,
                                                      axis=1).mean())}
         for label, scale in (("default size", 1.0), ("known size", size)):
-            fit = fit_keypoints(hand, [KeypointObservation(cam, c.keypoints,
-                                                           c.keypoint_confidence)],
+            fit = fit_keypoints(hand, [KeypointObservation.of(c, cam)],
                                 options=FitOptions(scale=scale))
             p = fit.keypoints_world
             row[label] = root_errors(p, truth21)
+        if c.keypoints_3d is not None:  # the same fit with the detector's 3D shape too
+            p = fit_keypoints(hand, [KeypointObservation.of(c, cam)],
+                              options=FitOptions(sigma_shape_mm=SHAPE_SIGMA_MM)).keypoints_world
+            row["default size, with its 3D shape"] = root_errors(p, truth21)
         if c.keypoints_3d is not None:  # the detector's own metric 3D (MediaPipe's world)
             row["own_3d_root_relative_mm"] = root_errors(c.keypoints_3d,
                                                          truth21)["root_relative_mm"]
@@ -201,8 +209,7 @@ def video_stage(data: Path, hand, step: int) -> dict | None:
                 found[name] = cand[0].keypoints
                 counts[name] += 1
                 c = cand[0]
-                fit = fit_keypoints(hand, [KeypointObservation(cam, c.keypoints,
-                                                               c.keypoint_confidence)])
+                fit = fit_keypoints(hand, [KeypointObservation.of(c, cam)])
                 if name == "classic":
                     classic_ms.append(1000 * (time.perf_counter() - start))
                 if index < len(stored) and np.abs(stored[index]).sum() > 0:
@@ -259,11 +266,14 @@ def interhand_stage(data: Path, hand) -> dict | None:
                 rows[name].append({"image": image["file_name"], "detected": False})
                 continue
             c = min(found, key=lambda k: np.linalg.norm(k.keypoints - truth_px, axis=1).mean())
-            p = fit_keypoints(hand, [KeypointObservation(camera, c.keypoints,
-                                                         c.keypoint_confidence)]).keypoints_world
+            p = fit_keypoints(hand, [KeypointObservation.of(c, camera)]).keypoints_world
             row = {"image": image["file_name"], "detected": True,
                    "px_error_mean": float(np.linalg.norm(c.keypoints - truth_px, axis=1).mean()),
                    **root_errors(p, truth)}
+            if c.keypoints_3d is not None:  # the same fit with the detector's 3D shape too
+                p2 = fit_keypoints(hand, [KeypointObservation.of(c, camera)], options=FitOptions(
+                    sigma_shape_mm=SHAPE_SIGMA_MM)).keypoints_world
+                row["with_its_3d_shape"] = root_errors(p2, truth)
             if c.keypoints_3d is not None:
                 row["own_3d_root_relative_mm"] = root_errors(c.keypoints_3d,
                                                              truth)["root_relative_mm"]
@@ -307,8 +317,7 @@ def stb_link_length_stage(data: Path, hand) -> dict | None:
         if measured_hand.lengths is not None:
             variants.append(("personal", with_link_lengths(scaled_model(hand, scale),
                                                            measured_hand.lengths), 1.0))
-        left = [KeypointObservation(rig[0], found[0][0].keypoints,
-                                    found[0][0].keypoint_confidence)]
+        left = [KeypointObservation.of(found[0][0], rig[0])]
         for label, model, s in variants:
             p = fit_keypoints(model, left, options=FitOptions(scale=s)).keypoints_world
             out[name][label] = {"scale": scale, **root_errors(p, truth21)}
@@ -340,6 +349,11 @@ def format_table(result: dict) -> str:
             if "own_3d_root_relative_mm" in r:
                 lines.append(f"  {name:<14} its own 3D keypoints (world landmarks): root-relative"
                              f" {r['own_3d_root_relative_mm']:.1f} mm")
+                shaped = r["default size, with its 3D shape"]
+                lines.append(f"  {name:<14} our fit with its 3D shape too (sigma "
+                             f"{SHAPE_SIGMA_MM:g} mm), default size: root-relative "
+                             f"{shaped['root_relative_mm']:.1f} mm, root "
+                             f"{shaped['root_position_mm']:.1f} mm")
     if stb:
         for name in NAMES:
             r = stb.get(name) or {}
@@ -381,7 +395,10 @@ def format_table(result: dict) -> str:
                 lines.append(f"  {name:<14} {r['image']}: 2D {r['px_error_mean']:.1f} px, "
                              f"root-relative {r['root_relative_mm']:.1f} mm, root "
                              f"{r['root_position_mm']:.1f} mm"
-                             + ("" if own is None else f"; its own 3D {own:.1f} mm"))
+                             + ("" if own is None else
+                                f"; its own 3D {own:.1f} mm; our fit with its 3D shape "
+                                f"too: {r['with_its_3d_shape']['root_relative_mm']:.1f} / "
+                                f"{r['with_its_3d_shape']['root_position_mm']:.1f} mm"))
     fh = result.get("freihand")
     if fh:
         lines += ["", "FreiHAND (2D labels)"]
@@ -438,8 +455,7 @@ def write_picture(data: Path, path: Path, frame_index: int = 0) -> None:
         cand = det.detect(rgb, cam)[0]
         if cand.mask is not None:
             canvas[cand.mask] = (0.6 * canvas[cand.mask] + (0, 0, 100)).astype(np.uint8)
-        fit = fit_keypoints(hand, [KeypointObservation(cam, cand.keypoints,
-                                                       cand.keypoint_confidence)])
+        fit = fit_keypoints(hand, [KeypointObservation.of(cand, cam)])
         draw_hand(canvas, cand.keypoints, (255, 220, 0))
         draw_hand(canvas, cam.project(fit.keypoints_world), (255, 0, 255), 3)
         x0, y0, x1, y1 = (int(v) for v in cand.bbox)

@@ -96,8 +96,7 @@ class AutoInitialiser:
         for camera, candidate in zip(self.rig, result.candidates, strict=True):
             if candidate is None or len(self.rig) == 1:
                 continue
-            observation = KeypointObservation(camera, candidate.keypoints,
-                                              candidate.keypoint_confidence)
+            observation = KeypointObservation.of(candidate, camera)
             try:
                 fit = fit_keypoints(self.model, [observation], options=self._options)
             except DigitEyesError:

@@ -5,6 +5,8 @@ The fit minimises, over the state ``q`` of the nominal model and a global hand s
 
 ``E(q, s) = sum_c sum_k rho(c_k |pi_c(s p_k(q)) - u_ck|^2 / sigma_px^2)``   (2D, per camera)
 ``        + sum_k rho(|s p_k(q) - y_k|^2 / sigma_mm^2)``                  (3D, when given)
+``        + sum_c sum_k |R_c s (p_k - p_bar) - z (y_ck - y_bar_c)|^2 / sigma_shape^2``
+                                                            (a detector's 3D shape, when given)
 ``        + sum_j ((theta_j - mu_j) / sigma_theta)^2 + ((s - s0) / sigma_s)^2``   (prior)
 
 with ``rho`` Huber's loss (one sigma), joint limits enforced by projection after every
@@ -18,6 +20,16 @@ hand ``s`` times larger at ``s`` times the depth projects to the same pixels. Th
 then held at ``s0`` (the nominal hand, or the user's calibrated hand), and the depth
 error is the hand-size error: a hand 10 % larger than assumed is placed 10 % too far.
 With 3D keypoints or two or more cameras ``s`` is fitted.
+
+**A detector's own 3D shape.** MediaPipe also estimates metric 3D keypoints (its "world
+landmarks": camera axes, origin near the hand's centre, an average hand's size). When a
+:class:`KeypointObservation` carries them (``shape_3d``), the fit also matches the
+hand's shape to them, translation-free: both point sets about their centroids, ``R_c``
+the camera's rotation, and ``z`` the ratio of the summed bone lengths of the model (at
+``s0``) and of the detector's points, so that the term compares shapes, not sizes. It
+constrains what one view leaves open (a finger bent towards or away from the camera).
+The term is used when ``FitOptions.sigma_shape_mm`` is set (off by default: measured on
+real images it helps as often as it harms, docs/initialisation.md).
 
 The start comes from the palm: the wrist and the four MCP joints are coplanar and fixed
 in the palm frame, so a planar pose (OpenCV's IPPE, both of its solutions) places the
@@ -36,7 +48,8 @@ import cv2
 import numpy as np
 
 from digiteyes.camera import Camera
-from digiteyes.detect.hand21 import DIGITS, HAND21_NAMES, PALM_FIXED, model_anchors
+from digiteyes.detect.candidate import HandCandidate
+from digiteyes.detect.hand21 import BONES, DIGITS, HAND21_NAMES, PALM_FIXED, model_anchors
 from digiteyes.errors import DigitEyesError
 from digiteyes.kinematics import (
     KinematicModel,
@@ -65,6 +78,9 @@ class FitOptions:
     ----------
     sigma_px : expected keypoint error of the detector, px (the Huber scale of 2D terms).
     sigma_mm : expected error of 3D keypoints, mm.
+    sigma_shape_mm : expected error of a detector's 3D shape (``shape_3d``), mm; None (the
+        default) leaves the shape out. Off by default because on the real images we have
+        it helps as often as it harms (docs/initialisation.md, "A detector's 3D shape").
     sigma_joint_deg : width of the prior on each joint angle about ``prior_mean`` (deg).
     scale : assumed hand scale ``s0`` (1 = the model file's hand).
     sigma_scale : width of the prior on the scale when it is fitted.
@@ -75,6 +91,7 @@ class FitOptions:
 
     sigma_px: float = 4.0
     sigma_mm: float = 5.0
+    sigma_shape_mm: float | None = None
     sigma_joint_deg: float = 45.0
     scale: float = 1.0
     sigma_scale: float = 0.15
@@ -84,11 +101,21 @@ class FitOptions:
 
 @dataclass
 class KeypointObservation:
-    """Detected keypoints in one camera: (21, 2) px and (21,) confidences in [0, 1]."""
+    """Detected keypoints in one camera: (21, 2) px and (21,) confidences in [0, 1];
+    optionally the detector's own 3D shape ``shape_3d`` (21, 3) mm in the camera's axes,
+    origin anywhere (module docstring)."""
 
     camera: Camera
     keypoints: np.ndarray
     confidence: np.ndarray = field(default_factory=lambda: np.ones(21))
+    shape_3d: np.ndarray | None = None
+
+    @classmethod
+    def of(cls, candidate: HandCandidate, camera: Camera) -> KeypointObservation:
+        """The observation of a detector's candidate in ``camera``: its keypoints,
+        confidences and, when it has them, its 3D keypoints as the shape."""
+        return cls(camera, candidate.keypoints, candidate.keypoint_confidence,
+                   candidate.keypoints_3d)
 
 
 @dataclass
@@ -162,6 +189,25 @@ class KeypointFitProblem:
         self.n_v = model.n_v + 1
         self._weights = [np.sqrt(np.clip(o.confidence, 0.0, 1.0)) / options.sigma_px
                          for o in self.observations]
+        self._shapes = [self._shape_target(o) for o in self.observations]
+
+    def _shape_target(self, obs: KeypointObservation) -> np.ndarray | None:
+        """The detector's shape of ``obs`` about its centroid, brought to the size of the
+        model at the assumed scale (ratio of summed bone lengths); None without one."""
+        if obs.shape_3d is None or self.options.sigma_shape_mm is None:
+            return None
+        y = np.asarray(obs.shape_3d, dtype=float)
+        if y.shape != (21, 3) or not np.isfinite(y).all():
+            return None
+        p, _ = point_jacobian(forward_kinematics(self.model, self.model.neutral()),
+                              self.rows, self.points)
+        bones = np.array(BONES)
+        length = np.linalg.norm(y[bones[:, 0]] - y[bones[:, 1]], axis=1).sum()
+        model_length = self.options.scale * np.linalg.norm(
+            p[bones[:, 0]] - p[bones[:, 1]], axis=1).sum()
+        if not length > 0:
+            return None
+        return (y - y.mean(axis=0)) * (model_length / length)
 
     def residuals(self, x: np.ndarray, jacobian: bool) -> tuple[np.ndarray, np.ndarray | None]:
         q, s = x[:-1], x[-1]
@@ -176,6 +222,17 @@ class KeypointFitProblem:
                 block[..., :n] = s * (Jw @ Jp)  # batched (2, 3) @ (3, n) per keypoint
                 block[..., n] = (Jw @ p[..., None])[..., 0]
                 jac.append((block * w[:, None, None]).reshape(42, n + 1))
+        for obs, shape in zip(self.observations, self._shapes, strict=True):
+            if shape is None:
+                continue
+            R = obs.camera.T_cam_world[:3, :3]
+            centred = p - p.mean(axis=0)
+            parts.append(((s * centred @ R.T - shape) / self.options.sigma_shape_mm).ravel())
+            if jacobian:
+                block = np.empty((21, 3, n + 1))
+                block[..., :n] = s * (R @ (Jp - Jp.mean(axis=0)))
+                block[..., n] = centred @ R.T
+                jac.append((block / self.options.sigma_shape_mm).reshape(63, n + 1))
         if self.target_3d is not None:
             sigma = self.options.sigma_mm
             w3 = self._weights_3d[:, None] / sigma
@@ -207,8 +264,10 @@ class KeypointFitProblem:
         r, _ = self.residuals(x, False)
         n_2d = 42 * len(self.observations)
         errors = (r[:n_2d].reshape(-1, 21, 2) ** 2).sum(axis=(0, 2))
-        if self.target_3d is not None:
-            errors = errors + (r[n_2d:n_2d + 63].reshape(21, 3) ** 2).sum(axis=1)
+        n_3d = 63 * (sum(shape is not None for shape in self._shapes)
+                     + (self.target_3d is not None))
+        if n_3d:
+            errors = errors + (r[n_2d:n_2d + n_3d].reshape(-1, 21, 3) ** 2).sum(axis=(0, 2))
         return errors
 
     def retract(self, x: np.ndarray, dv: np.ndarray) -> np.ndarray:

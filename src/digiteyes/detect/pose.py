@@ -70,7 +70,7 @@ def estimate_pose(images: Sequence[np.ndarray], rig: Rig, detector: HandDetector
         found = detector.detect(image, camera)
         candidates.append(found[0] if found else None)
     detected = time.perf_counter()
-    observations = [KeypointObservation(cam, c.keypoints, c.keypoint_confidence)
+    observations = [KeypointObservation.of(c, cam)
                     for cam, c in zip(rig, candidates, strict=True) if c is not None]
     options = FitOptions() if options is None else options
     fit = fit_keypoints(model, observations, options=options) if observations else None
