@@ -83,3 +83,20 @@ def test_icp_palm_pose_on_rendered_frame(natural_cardboard):
     # off from a 2-degree, 4-mm perturbed start; see docs/divide-and-conquer.md).
     assert _angle_deg(fit.T_world_palm[:3, :3], T_true[:3, :3]) < 6.5
     assert np.linalg.norm(fit.T_world_palm[:3, 3] - T_true[:3, 3]) < 8.0
+
+
+def test_nearest_edges_agree_with_the_exact_distance_transform():
+    """The k-d tree's nearest edge pixel is at the exact Euclidean distance that scipy's
+    distance transform gives, for every pixel of a random edge map; a map without edges
+    answers inf."""
+    from scipy.ndimage import distance_transform_edt
+
+    rng = np.random.default_rng(0)
+    edges = (rng.random((60, 80)) < 0.01).astype(np.uint8) * 255
+    rows, cols = np.indices(edges.shape).reshape(2, -1)
+    dist, pixel = nearest_edge_field(edges).at(rows, cols)
+    np.testing.assert_allclose(dist, distance_transform_edt(edges == 0).ravel(), atol=1e-9)
+    assert (edges[pixel[:, 0], pixel[:, 1]] == 255).all()
+    np.testing.assert_allclose(np.hypot(pixel[:, 0] - rows, pixel[:, 1] - cols), dist)
+    empty, _ = nearest_edge_field(np.zeros((5, 5), np.uint8)).at(np.array([2]), np.array([2]))
+    assert np.isinf(empty).all()
