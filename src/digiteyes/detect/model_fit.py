@@ -199,8 +199,7 @@ class KeypointFitProblem:
         y = np.asarray(obs.shape_3d, dtype=float)
         if y.shape != (21, 3) or not np.isfinite(y).all():
             return None
-        p, _ = point_jacobian(forward_kinematics(self.model, self.model.neutral()),
-                              self.rows, self.points)
+        p = forward_kinematics(self.model, self.model.neutral()).points(self.rows, self.points)
         bones = np.array(BONES)
         length = np.linalg.norm(y[bones[:, 0]] - y[bones[:, 1]], axis=1).sum()
         model_length = self.options.scale * np.linalg.norm(

@@ -152,15 +152,10 @@ def edge_likelihood_kernel(starts, ends, radii, ts, skip, palm, params, edges, h
                         continue
                     acc = 0.0
                     best = 1e30
-                    # the whole search window inside the image: no test per sample
-                    inside = (0.0 <= px - half_window * abs(nx) and
-                              px + half_window * abs(nx) < width - 0.5 and
-                              0.0 <= py - half_window * abs(ny) and
-                              py + half_window * abs(ny) < height - 0.5)
                     for o in range(-half_window, half_window + 1):
                         ix = int(px + o * nx + 0.5)
                         iy = int(py + o * ny + 0.5)
-                        if not inside and (ix < 0 or iy < 0 or ix >= width or iy >= height):
+                        if ix < 0 or iy < 0 or ix >= width or iy >= height:
                             continue
                         hit = edges[iy, ix] != 0  # branch-free: edges are rare
                         acc += gauss[abs(o)] * hit
