@@ -19,7 +19,7 @@ def test_likelihood_rates_and_a_short_track(monkeypatch):
 
 def test_fig3_records_per_frame_errors_and_plots(monkeypatch, tmp_path):
     monkeypatch.setattr(smc, "FIG3_SCENARIOS", ("natural", "no-such-scenario"))
-    monkeypatch.setattr(smc, "FIG3_TRACKERS", (DivideConquerTracker,))
+    monkeypatch.setattr(smc, "FIG3_RUNS", {"DivideConquerTracker": (DivideConquerTracker, None)})
     fig3 = smc._fig3(n_frames=3)
     assert "skipped" in fig3["no-such-scenario"]
     errors = fig3["natural"]["DivideConquerTracker"]["finger_rms_deg_per_frame"]
@@ -32,7 +32,7 @@ def test_the_flesh_hand_is_tracked_through_the_same_path(monkeypatch, tmp_path):
     """Fig. 3 on the independent flesh hand: the same records, finite, sane at the start;
     the plot takes one panel per appearance and scenario."""
     monkeypatch.setattr(smc, "FIG3_SCENARIOS", ("natural",))
-    monkeypatch.setattr(smc, "FIG3_TRACKERS", (DivideConquerTracker,))
+    monkeypatch.setattr(smc, "FIG3_RUNS", {"DivideConquerTracker": (DivideConquerTracker, None)})
     flesh = smc._fig3(n_frames=3, appearance="flesh")
     errors = flesh["natural"]["DivideConquerTracker"]["finger_rms_deg_per_frame"]
     assert len(errors) == 3 and max(errors) < 8.0
@@ -40,3 +40,17 @@ def test_the_flesh_hand_is_tracked_through_the_same_path(monkeypatch, tmp_path):
               "natural, flesh hand": flesh["natural"]}
     smc.plot_fig3(panels, tmp_path / "fig3.png")
     assert (tmp_path / "fig3.png").stat().st_size > 10_000
+
+
+def test_long_run_scores_both_variants_against_the_truth():
+    """The long-run record: per appearance, the proposed tracker and Huang alone, one run
+    per seed with fingertip error and loss counts, and their means."""
+    out = smc._long_run(n_frames=4, seeds=(0,))
+    assert set(out) == {"model", "flesh"}
+    for variants in out.values():
+        assert set(variants) == {"proposed", "huang_only"}
+        for record in variants.values():
+            run = record["runs"][0]
+            assert run["frames"] == 4 and run["seed"] == 0
+            assert 0 <= run["fingertip_mm_mean"] < 15.0 and run["truly_lost_frames"] == 0
+            assert record["mean"]["finger_rms_deg_mean"] == run["finger_rms_deg_mean"]

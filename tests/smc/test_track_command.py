@@ -33,8 +33,8 @@ def test_track_overlay_and_evaluate(sequence, tmp_path):
                  "--option", "n_particles=120", "--quiet"]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["tracker"] == "divide-conquer"
-    assert summary["stages"] == ["edges", "proposal", "palm_icp", "likelihood", "resampling",
-                                 "silhouette"]
+    assert summary["stages"] == ["edges", "proposal", "palm_icp", "likelihood", "digit_search",
+                                 "resampling", "silhouette"]
     assert summary["lost_frames"] == 0
     assert (out / "overlay.mp4").stat().st_size > 1000
     assert main(["evaluate", str(out), str(sequence)]) == 0

@@ -23,13 +23,16 @@ from __future__ import annotations
 
 import statistics
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from digiteyes.benchmarks._machine import emit, kernel_threads, machine_info, seconds_per_call
 from digiteyes.errors import DigitEyesError
+from digiteyes.evaluate.truth_loss import truth_loss
 from digiteyes.kinematics import forward_kinematics, load_model
+from digiteyes.smc.digit_search import DigitSearchOptions
 from digiteyes.smc.likelihood import (
     FingerGeometry,
     edge_lookup,
@@ -43,6 +46,7 @@ from digiteyes.synth.options import APPEARANCES
 from digiteyes.synth.scenarios import build_scenario
 from digiteyes.trackers.divide_conquer import (
     CondensationTracker,
+    DivideConquerOptions,
     DivideConquerTracker,
     RandomSearchTracker,
 )
@@ -50,6 +54,18 @@ from digiteyes.trackers.divide_conquer import (
 BATCH = 3000
 FIG3_SCENARIOS = ("natural", "glove-desk-1cam")
 FIG3_TRACKERS = (DivideConquerTracker, CondensationTracker, RandomSearchTracker)
+FIG3_RUNS = {
+    "DivideConquerTracker": (DivideConquerTracker, None),
+    "DivideConquerTracker, Huang only": (
+        DivideConquerTracker, DivideConquerOptions(digit_search=DigitSearchOptions(passes=0))),
+    "CondensationTracker": (CondensationTracker, None),
+    "RandomSearchTracker": (RandomSearchTracker, None),
+}
+"""Fig. 3 runs: label -> (tracker class, options or None for its defaults). "Huang only"
+is the proposed tracker without our digit search (:mod:`digiteyes.smc.digit_search`);
+the baselines are Huang's and never search digit by digit."""
+LONG_RUN_FRAMES = 200
+LONG_RUN_SEEDS = (0, 1, 2)
 APPEARANCE_LABELS = {"model": "own drawing", "flesh": "flesh hand"}
 
 
@@ -83,36 +99,76 @@ def _likelihood_rates(repeat: int, min_time: float) -> dict:
     return out
 
 
-def _track(cls, n_frames: int, scenario_name: str = "natural",
-           appearance: str = "model") -> dict:
+def _frames(n_frames: int, scenario_name: str = "natural", appearance: str = "model"):
+    """(model, camera, true states, images) of the first ``n_frames`` of a scenario drawn in
+    ``appearance``, one camera, the cardboard hand as the tracking model."""
     scenario = build_scenario(scenario_name, n_frames=max(n_frames, 20))
     n_frames = min(n_frames, len(scenario.states))
     cam = scenario.rig.cameras[0]
     model = load_model("cardboard-hand")
-    states = _scenario_states(model, scenario)
+    states = _scenario_states(model, scenario)[:n_frames]
     render = RenderOptions(appearance=appearance)
     images = [render_views(model, states[f], [cam], render, rng=f)[0].image
               for f in range(n_frames)]
-    tracker = cls(model, [cam])
+    return model, cam, states, images
+
+
+def _track(cls, n_frames: int, scenario_name: str = "natural",
+           appearance: str = "model", options=None, frames=None) -> dict:
+    """Track with ``cls`` (options: its defaults unless given) from the true first state
+    and score it against the truth; ``frames``: a :func:`_frames` result to reuse."""
+    model, cam, states, images = frames or _frames(n_frames, scenario_name, appearance)
+    tracker = cls(model, [cam], options=options)
     tracker.reset(states[0])
-    times, joint, palm_deg, palm_mm = [], [], [], []
+    times, joint, palm_deg, palm_mm, estimates, flagged = [], [], [], [], [], []
     for f, image in enumerate(images):
         t = time.perf_counter()
         r = tracker.step([image])
         times.append(time.perf_counter() - t)
+        estimates.append(r.state)
+        flagged.append(r.lost)
         idx = tracker.joint_index
         joint.append(np.degrees(np.sqrt(np.mean((r.state[idx] - states[f][idx]) ** 2))))
         Ta, Tb = palm_pose_from_state(model, r.state), palm_pose_from_state(model, states[f])
         palm_deg.append(np.degrees(np.arccos(np.clip((np.trace(Ta[:3, :3].T @ Tb[:3, :3]) - 1)
                                                      / 2, -1, 1))))
         palm_mm.append(float(np.linalg.norm(Ta[:3, 3] - Tb[:3, 3])))
-    return {"particles": tracker.options.n_particles, "frames": n_frames,
+    truth = truth_loss(model, np.array(estimates), states)
+    return {"particles": tracker.options.n_particles, "frames": len(images),
             "ms_per_frame_median": 1e3 * statistics.median(times[1:] or times),
             "frames_per_s": 1.0 / statistics.median(times[1:] or times),
             "finger_rms_deg_mean": float(np.mean(joint)),
             "finger_rms_deg_max": float(np.max(joint)),
             "palm_deg_mean": float(np.mean(palm_deg)), "palm_mm_mean": float(np.mean(palm_mm)),
+            "fingertip_mm_mean": float(truth.mean_tip_error_mm.mean()),
+            "truly_lost_frames": int(truth.lost.sum()),
+            "flagged_frames": int(np.sum(flagged)),
             "finger_rms_deg_per_frame": [float(e) for e in joint]}
+
+
+def _long_run(n_frames: int, seeds: tuple[int, ...]) -> dict:
+    """Issue 15's long-run target: ``natural`` (``n_frames``, one camera) tracked by
+    :class:`DivideConquerTracker` with and without the digit search (Huang alone), for
+    each seed and appearance; per run the :func:`_track` record without the per-frame
+    series, and the mean over seeds of each figure."""
+    variants = {"proposed": DivideConquerOptions(),
+                "huang_only": DivideConquerOptions(digit_search=DigitSearchOptions(passes=0))}
+    out = {}
+    for appearance in APPEARANCES:
+        frames = _frames(n_frames, "natural", appearance)
+        out[appearance] = {}
+        for name, options in variants.items():
+            runs = []
+            for seed in seeds:
+                record = _track(DivideConquerTracker, n_frames,
+                                options=replace(options, seed=seed), frames=frames)
+                record.pop("finger_rms_deg_per_frame")
+                runs.append(record | {"seed": seed})
+            keys = ("finger_rms_deg_mean", "palm_deg_mean", "palm_mm_mean",
+                    "fingertip_mm_mean", "truly_lost_frames", "flagged_frames")
+            out[appearance][name] = {"runs": runs, "mean": {
+                k: float(np.mean([r[k] for r in runs])) for k in keys}}
+    return out
 
 
 def _fig3(n_frames: int, appearance: str = "model") -> dict:
@@ -126,8 +182,9 @@ def _fig3(n_frames: int, appearance: str = "model") -> dict:
         except DigitEyesError as exc:
             out[name] = {"skipped": str(exc)}
             continue
-        out[name] = {cls.__name__: _track(cls, n_frames, name, appearance)
-                     for cls in FIG3_TRACKERS}
+        frames = _frames(n_frames, name, appearance)
+        out[name] = {label: _track(cls, n_frames, options=options, frames=frames)
+                     for label, (cls, options) in FIG3_RUNS.items()}
     return out
 
 
@@ -143,7 +200,9 @@ def plot_fig3(fig3: dict, path: str) -> str:
     axes = fig.subplots(rows, columns, squeeze=False).ravel()
     fig.subplots_adjust(left=0.08, right=0.98, bottom=0.14 / rows, top=1 - 0.1 / rows,
                         wspace=0.2, hspace=0.35)
-    labels = {"DivideConquerTracker": "proposed (300)", "CondensationTracker":
+    labels = {"DivideConquerTracker": "proposed (300)",
+              "DivideConquerTracker, Huang only": "proposed without digit search (300)",
+              "CondensationTracker":
               "CONDENSATION (3000)", "RandomSearchTracker": "random search (5000)"}
     for ax, (name, runs) in zip(axes, shown.items(), strict=False):
         for tracker, record in runs.items():
@@ -169,6 +228,8 @@ def run(json_path: str | None = None, quick: bool = False,
         trackers = {cls.__name__: _track(cls, n_frames) for cls in FIG3_TRACKERS}
         fig3 = {appearance: _fig3(10 if quick else 60, appearance)
                 for appearance in APPEARANCES}
+        long_run = _long_run(12 if quick else LONG_RUN_FRAMES,
+                             LONG_RUN_SEEDS[:1] if quick else LONG_RUN_SEEDS)
     lines = ["Divide and conquer (Huang et al.), one core, 640x480 (provisional)",
              f"{'model':<16}{'likelihoods/s':>15}{'us each':>10}{'FK share':>10}"]
     for name, r in rates.items():
@@ -190,9 +251,20 @@ def run(json_path: str | None = None, quick: bool = False,
         lines.append(f"{name} ({next(iter(runs.values()))['frames']} frames): " + ", ".join(
             f"{t} {r['finger_rms_deg_mean']:.1f} / {r['finger_rms_deg_max']:.1f}"
             for t, r in runs.items()))
+    lines.append(f"\nnatural, one camera, whole sequence, mean over seeds "
+                 f"{', '.join(str(r['seed']) for r in long_run['model']['proposed']['runs'])}"
+                 f"\n{'images':<13}{'tracker':<12}{'finger deg':>11}{'palm deg':>9}"
+                 f"{'palm mm':>8}{'tip mm':>8}{'lost':>6}{'flagged':>8}")
+    for appearance, variants in long_run.items():
+        for name, record in variants.items():
+            m = record["mean"]
+            lines.append(f"{APPEARANCE_LABELS[appearance]:<13}{name:<12}"
+                         f"{m['finger_rms_deg_mean']:>11.1f}{m['palm_deg_mean']:>9.1f}"
+                         f"{m['palm_mm_mean']:>8.1f}{m['fingertip_mm_mean']:>8.1f}"
+                         f"{m['truly_lost_frames']:>6.1f}{m['flagged_frames']:>8.1f}")
     if plot_path:
         plot_fig3(panels, plot_path)
     result = {"likelihood": rates, "trackers": trackers, "fig3": fig3["model"],
-              "fig3_flesh": fig3["flesh"], "batch": BATCH,
+              "fig3_flesh": fig3["flesh"], "long_run": long_run, "batch": BATCH,
               "frames": n_frames, "quick": quick, "machine": machine_info()}
     return emit(result, "\n".join(lines), json_path)

@@ -11,8 +11,12 @@ proposal, eq. 3-5, or a baseline of Sec. 6), then alternate EM-fashion
 2. finger weights (eq. 6, likelihood of Sec. 5.2) with the palm held at that pose;
 
 until the palm moves less than ``em_tolerance_mm`` (and ``em_tolerance_deg``) or after
-``em_iterations`` rounds. The best-weighted hypothesis is the estimate; the set is then
-resampled (systematic, from the tracker's Generator) for the next frame.
+``em_iterations`` rounds. Then ``refine_rounds`` times: the digit-by-digit search
+(:mod:`digiteyes.smc.digit_search`, ours: each digit moved along its curl, the palm
+held) and the palm refinement (:mod:`digiteyes.smc.palm_search`, the fingers held), both
+on the best hypothesis, which they replace. The best-weighted hypothesis is the
+estimate; the set is then resampled (systematic, from the tracker's Generator) for the
+next frame.
 
 Three samplers share everything else (same likelihood, same palm step):
 :class:`DivideConquerTracker` (``"manifold"``, 300 particles by default),
@@ -42,6 +46,7 @@ from digiteyes.errors import DigitEyesError
 from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import KinematicModel
 from digiteyes.smc.configuration import ConfigurationSpace
+from digiteyes.smc.digit_search import DigitSearchOptions, digit_curl_directions, search_digits
 from digiteyes.smc.likelihood import (
     FingerGeometry,
     LikelihoodOptions,
@@ -104,6 +109,10 @@ class DivideConquerOptions(SilhouetteLossOptions):
     silhouette_check, silhouette_tolerance_px, max_unexplained, max_finger_outside : the
         silhouette loss rule (:class:`~digiteyes.trackers.silhouette_loss.SilhouetteLoss`;
         defaults as the feature tracker's).
+    refine_rounds : rounds of digit search then palm refinement after the EM rounds.
+    digit_search : the digit-by-digit search (:mod:`digiteyes.smc.digit_search`;
+        ``passes=0`` turns it off: Huang's tracker alone). Off in the baselines' options
+        (:class:`CondensationOptions`, :class:`RandomSearchOptions`), as Huang runs them.
     palm_search : the palm refinement after the EM rounds (:mod:`digiteyes.smc.palm_search`;
         ``rounds=0`` turns it off).
     proposal, likelihood, icp : options of the parts.
@@ -121,12 +130,14 @@ class DivideConquerOptions(SilhouetteLossOptions):
     condensation_sigma: float = 0.08
     search_sigma: float = 0.15
     walk_fraction: float = 0.1
+    refine_rounds: int = 1
     anneal_layers: int = 0
     min_edge_fraction: float = 0.3
     proposal: ProposalOptions = field(default_factory=ProposalOptions)
     likelihood: LikelihoodOptions = field(default_factory=LikelihoodOptions)
     icp: IcpOptions = field(default_factory=IcpOptions)
     palm_search: PalmSearchOptions = field(default_factory=PalmSearchOptions)
+    digit_search: DigitSearchOptions = field(default_factory=DigitSearchOptions)
     seed: int = 0
 
 
@@ -163,19 +174,23 @@ class DivideConquerDetails:
 @dataclass(frozen=True)
 class CondensationOptions(DivideConquerOptions):
     """:class:`DivideConquerOptions` with the CONDENSATION baseline's defaults (Huang
-    Sec. 6: 3000 samples, random-walk dynamics)."""
+    Sec. 6: 3000 samples, random-walk dynamics, no digit search)."""
 
     sampler: str = "condensation"
     n_particles: int = 3000
+    digit_search: DigitSearchOptions = field(
+        default_factory=lambda: DigitSearchOptions(passes=0))
 
 
 @dataclass(frozen=True)
 class RandomSearchOptions(DivideConquerOptions):
     """:class:`DivideConquerOptions` with the random-search baseline's defaults (Huang
-    Sec. 6: 5000 samples per frame around the last estimate)."""
+    Sec. 6: 5000 samples per frame around the last estimate, no digit search)."""
 
     sampler: str = "random-search"
     n_particles: int = 5000
+    digit_search: DigitSearchOptions = field(
+        default_factory=lambda: DigitSearchOptions(passes=0))
 
 
 def _as_rig(rig: Rig | Camera | Sequence[Camera]) -> Rig:
@@ -206,7 +221,8 @@ class DivideConquerTracker:
     space : the configuration space (default: :func:`default_configuration_space`).
     """
 
-    stages = ("edges", "proposal", "palm_icp", "likelihood", "resampling", "silhouette")
+    stages = ("edges", "proposal", "palm_icp", "likelihood", "digit_search", "resampling",
+              "silhouette")
     """Timing stages of :attr:`TrackResult.timings` (``silhouette``: the silhouette loss
     rule)."""
     options_type: type[DivideConquerOptions] = DivideConquerOptions
@@ -227,6 +243,7 @@ class DivideConquerTracker:
         self.joint_index = self.space.joint_indices(model)
         self.geometry = FingerGeometry.of(model)
         self.pairs = manifold_pairs(len(self.space.basis))
+        self.curl_directions = digit_curl_directions(self.space)
         self.palm_scale = 1.0
         self.rng = np.random.default_rng(options.seed)
         self.state: np.ndarray | None = None
@@ -337,19 +354,40 @@ class DivideConquerTracker:
                     < opt.em_tolerance_deg):
                 stop = "converged"
                 break
-        if opt.track_palm and opt.palm_search.rounds > 0:
-            t = time.perf_counter()
-            q_best = self.space.states(self.model, q, X[best])[0]
-            q_new, new_score, old_score = search_palm_pose(
-                self.model, self.geometry, q_best, self.cameras, edge_maps, lookups,
-                self.rng, opt.palm_search, opt.likelihood)
-            timings["palm_icp"] += time.perf_counter() - t
-            if new_score > old_score:
-                i = self.model.base_state
-                q = q.copy()
-                q[i:i + 7] = q_new[i:i + 7]
-                lik, log_w = weigh(q)
-                best = int(np.argmax(log_w))
+        x_best, changed = X[best], False
+        for _ in range(opt.refine_rounds):
+            if opt.digit_search.passes > 0:
+                t = time.perf_counter()
+
+                def finger_score(coordinates: np.ndarray, q_palm: np.ndarray = q
+                                 ) -> np.ndarray:
+                    return finger_log_likelihood(
+                        self.model, self.geometry,
+                        self.space.states(self.model, q_palm, coordinates), self.cameras,
+                        edge_maps, opt.likelihood, lookups).log_likelihood
+
+                x_new, new_score, old_score = search_digits(
+                    self.space, x_best, finger_score, opt.digit_search, self.curl_directions)
+                timings["digit_search"] += time.perf_counter() - t
+                if new_score > old_score:
+                    x_best, changed = x_new, True
+            if opt.track_palm and opt.palm_search.rounds > 0:
+                t = time.perf_counter()
+                q_new, new_score, old_score = search_palm_pose(
+                    self.model, self.geometry, self.space.states(self.model, q, x_best)[0],
+                    self.cameras, edge_maps, lookups, self.rng, opt.palm_search,
+                    opt.likelihood)
+                timings["palm_icp"] += time.perf_counter() - t
+                if new_score > old_score:
+                    i = self.model.base_state
+                    q = q.copy()
+                    q[i:i + 7] = q_new[i:i + 7]
+                    changed = True
+        if changed:
+            X = X.copy()
+            X[best] = x_best
+            lik, log_w = weigh(q)
+            best = int(np.argmax(log_w))
         weights = normalised_weights(log_w)
 
         t = time.perf_counter()
