@@ -355,6 +355,7 @@ class DivideConquerTracker:
                 stop = "converged"
                 break
         x_best, changed = X[best], False
+        greys = [prepare_image(f) for f in frames] if opt.silhouette_check else []
         for _ in range(opt.refine_rounds):
             if opt.digit_search.passes > 0:
                 t = time.perf_counter()
@@ -405,8 +406,7 @@ class DivideConquerTracker:
         finger_lost: dict[str, bool] = {}
         if opt.silhouette_check:
             t = time.perf_counter()
-            verdict = self.silhouette_loss.check([prepare_image(f) for f in frames], q,
-                                                 predicted)
+            verdict = self.silhouette_loss.check(greys, q, predicted)
             reasons += verdict.reasons
             finger_lost = verdict.finger_lost
             timings["silhouette"] = time.perf_counter() - t
