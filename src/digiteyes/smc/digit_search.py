@@ -17,7 +17,12 @@ done here deterministically on the best hypothesis:
   describe) and all of them are scored in one batch;
 * each digit's best step is kept if it beats the current hypothesis; the kept steps are
   then tried together, and the better of "together" and "the best single step" wins;
-* :attr:`DigitSearchOptions.passes` repeats this from the result.
+* :attr:`DigitSearchOptions.palms`: all of this is done under a few palm poses at once
+  (the current one and random perturbations of it), and the best pair of palm and
+  fingers wins. The fingers hang off the palm: a palm tilted a little and a finger bent
+  a little can draw the same edges, and searching one while the other is held cannot
+  leave such a ridge (scoring palm and fingers together, docs/divide-and-conquer.md);
+* :attr:`DigitSearchOptions.passes` repeats this from the result, under its palm.
 
 The search only ever returns a hypothesis at least as likely as the one it started from.
 """
@@ -40,10 +45,17 @@ class DigitSearchOptions:
     steps : moves tried for each digit, as fractions of its path from fully extended
         (0) to fully curled (1); negative values open the digit.
     passes : search rounds (0: off).
+    palms : palm poses the moves are tried under: the current one and ``palms - 1``
+        random perturbations of it (1: the palm held).
+    palm_sigma_deg, palm_sigma_mm : spread of the perturbed palms' rotation (palm frame,
+        deg) and translation (world, mm).
     """
 
     steps: tuple[float, ...] = (-0.6, -0.3, -0.12, 0.12, 0.3, 0.6)
     passes: int = 1
+    palms: int = 9
+    palm_sigma_deg: float = 2.0
+    palm_sigma_mm: float = 1.5
 
 
 def digit_curl_directions(space: ConfigurationSpace) -> np.ndarray:
@@ -60,37 +72,53 @@ def digit_curl_directions(space: ConfigurationSpace) -> np.ndarray:
 
 
 def search_digits(space: ConfigurationSpace, coordinates: np.ndarray,
-                  score: Callable[[np.ndarray], np.ndarray],
+                  score: Callable[[np.ndarray, np.ndarray], np.ndarray],
                   options: DigitSearchOptions = DigitSearchOptions(),
-                  directions: np.ndarray | None = None) -> tuple[np.ndarray, float, float]:
-    """The best hypothesis found from ``coordinates`` (D,) by moving one digit at a time.
+                  directions: np.ndarray | None = None, n_palms: int = 1
+                  ) -> tuple[np.ndarray, int, float, float]:
+    """The best hypothesis found from ``coordinates`` (D,) by moving one digit at a time,
+    under each of ``n_palms`` palm poses held by the caller.
 
-    ``score`` maps PCA coordinates (N, D) to log-likelihoods (N,) (the palm held by the
-    caller). Returns the coordinates (D,), their score, and the score of the start.
+    ``score(X, palm)`` maps PCA coordinates (N, D) and palm indices (N,) (0 is the current
+    palm) to log scores (N,). The first pass tries every move under every palm in one
+    batch and keeps the best (palm, hypothesis) pair; later passes keep that palm.
+    Returns the coordinates (D,), the palm index, their score and the score of the start
+    (``coordinates`` under palm 0).
     """
     directions = digit_curl_directions(space) if directions is None else directions
     steps = np.asarray(options.steps, dtype=float)
-    best = np.asarray(coordinates, dtype=float).copy()
-    start_score = best_score = float(score(best[None])[0])
+    n_digits, n_steps = len(directions), len(steps)
+    best, palm = np.asarray(coordinates, dtype=float).copy(), 0
+    palms = np.arange(n_palms)
+    start_score = best_score = None
     for _ in range(options.passes):
         joints = space.to_joints(best)
         moves = steps[None, :, None] * directions[:, None, :]            # (5, S, J)
-        candidates = space.to_coordinates(
-            np.clip(joints + moves, space.lower, space.upper).reshape(-1, len(joints)))
-        scores = score(candidates).reshape(len(directions), len(steps))
-        pick = np.argmax(scores, axis=1)
-        better = scores[np.arange(len(directions)), pick] > best_score
-        if not better.any():
-            break
-        single = np.unravel_index(np.argmax(scores), scores.shape)
-        choice, choice_score = candidates[np.ravel_multi_index(single, scores.shape)], \
-            float(scores[single])
-        if better.sum() > 1:
-            together = np.clip(joints + (steps[pick[better], None] * directions[better]).sum(0),
-                               space.lower, space.upper)
+        candidates = np.concatenate([best[None], space.to_coordinates(
+            np.clip(joints + moves, space.lower, space.upper).reshape(-1, len(joints)))])
+        scores = score(np.tile(candidates, (len(palms), 1)),
+                       np.repeat(palms, len(candidates))).reshape(len(palms), -1)
+        if start_score is None:
+            start_score = best_score = float(scores[0, 0])
+        held, moved = scores[:, 0], scores[:, 1:].reshape(len(palms), n_digits, n_steps)
+        pick = np.argmax(moved, axis=2)                                  # (P, 5)
+        gain = np.take_along_axis(moved, pick[..., None], axis=2)[..., 0] > held[:, None]
+        k = np.unravel_index(np.argmax(scores), scores.shape)
+        choice, choice_palm, choice_score = candidates[k[1]], palms[k[0]], float(scores[k])
+        several = np.flatnonzero(gain.sum(axis=1) > 1)
+        if several.size:
+            together = np.stack([np.clip(
+                joints + (steps[pick[p, gain[p]], None] * directions[gain[p]]).sum(0),
+                space.lower, space.upper) for p in several])
             x = space.to_coordinates(together)
-            s = float(score(x[None])[0])
-            if s > choice_score:
-                choice, choice_score = x, s
-        best, best_score = choice, choice_score
-    return best, best_score, start_score
+            s = score(x, palms[several])
+            j = int(np.argmax(s))
+            if s[j] > choice_score:
+                choice, choice_palm, choice_score = x[j], palms[several[j]], float(s[j])
+        if choice_score <= best_score:
+            break
+        best, palm, best_score = choice, int(choice_palm), choice_score
+        palms = np.array([palm])
+    if start_score is None:
+        start_score = best_score = float(score(best[None], np.zeros(1, dtype=int))[0])
+    return best, palm, float(best_score), float(start_score)

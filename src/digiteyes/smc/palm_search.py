@@ -36,6 +36,11 @@ class PalmSearchOptions:
     sigma_deg, sigma_mm : spread of the first round's rotation (palm frame, deg) and
         translation (world, mm); each later round halves them.
     outline_points : points sampled along the palm outline for its edge term.
+    outline_check_fraction, outline_check_px : the tracker drops the outline term for a
+        track when, on its first frame at the state it starts from, fewer than this
+        fraction of the outline points lie within ``outline_check_px`` of an edge (the
+        hand's palm is not drawn like the model's: a fleshier palm, a wrist, a sleeve);
+        0 keeps it always.
     """
 
     rounds: int = 3
@@ -43,6 +48,8 @@ class PalmSearchOptions:
     sigma_deg: float = 2.0
     sigma_mm: float = 1.5
     outline_points: int = 40
+    outline_check_fraction: float = 0.5
+    outline_check_px: float = 4.0
 
 
 def palm_outline_samples(geometry: FingerGeometry, count: int) -> np.ndarray:
@@ -78,6 +85,33 @@ def outline_log_score(model: KinematicModel, geometry: FingerGeometry, q: np.nda
     return total
 
 
+def perturbed_palms(model: KinematicModel, q: np.ndarray, rng: np.random.Generator, count: int,
+                    sigma_deg: float, sigma_mm: float) -> np.ndarray:
+    """(count, n_q) copies of state ``q`` with the root pose perturbed: a rotation vector
+    of std ``sigma_deg`` per axis in the palm frame, a translation of std ``sigma_mm`` per
+    world axis."""
+    i = model.base_state
+    Q = np.repeat(np.asarray(q, dtype=float)[None], count, axis=0)
+    rotvec = np.radians(sigma_deg) * rng.standard_normal((count, 3))
+    Q[:, i:i + 4] = quaternion_multiply(Q[0, i:i + 4], quaternion_from_rotvec(rotvec))
+    Q[:, i + 4:i + 7] += sigma_mm * rng.standard_normal((count, 3))
+    return Q
+
+
+def outline_edge_fraction(model: KinematicModel, geometry: FingerGeometry, q: np.ndarray,
+                          camera: Camera, lookup: EdgeLookup, points: np.ndarray,
+                          max_px: float) -> float:
+    """Fraction of the palm outline ``points`` (P, 3) of state ``q`` (n_q,) that project
+    into ``camera``'s image within ``max_px`` of an edge (:attr:`EdgeLookup.distance`)."""
+    T = forward_kinematics(model, np.atleast_2d(q)).T_world_shape[0, geometry.palm_row]
+    uv = camera.project(points @ T[:3, :3].T + T[:3, 3])
+    col, row = np.rint(uv[:, 0]).astype(int), np.rint(uv[:, 1]).astype(int)
+    h, w = lookup.distance.shape
+    inside = (col >= 0) & (col < w) & (row >= 0) & (row < h)
+    near = lookup.distance[row[inside], col[inside]] <= max_px
+    return float(near.sum()) / len(points) if len(points) else 0.0
+
+
 def search_palm_pose(model: KinematicModel, geometry: FingerGeometry, q: np.ndarray,
                      cameras: tuple[Camera, ...] | list[Camera], edge_maps: list[np.ndarray],
                      lookups: list[EdgeLookup], rng: np.random.Generator,
@@ -90,7 +124,6 @@ def search_palm_pose(model: KinematicModel, geometry: FingerGeometry, q: np.ndar
     (finger log-likelihood + outline term; the state is ``q`` itself when nothing beat it).
     """
     likelihood = likelihood or LikelihoodOptions()
-    i = model.base_state
     points = palm_outline_samples(geometry, options.outline_points)
 
     def score(Q: np.ndarray) -> np.ndarray:
@@ -102,10 +135,8 @@ def search_palm_pose(model: KinematicModel, geometry: FingerGeometry, q: np.ndar
     start_score = best_score = float(score(best[None])[0])
     for r in range(options.rounds):
         shrink = 0.5 ** r
-        Q = np.repeat(best[None], options.samples, axis=0)
-        rotvec = np.radians(options.sigma_deg) * shrink * rng.standard_normal((len(Q), 3))
-        Q[:, i:i + 4] = quaternion_multiply(best[i:i + 4], quaternion_from_rotvec(rotvec))
-        Q[:, i + 4:i + 7] += options.sigma_mm * shrink * rng.standard_normal((len(Q), 3))
+        Q = perturbed_palms(model, best, rng, options.samples, options.sigma_deg * shrink,
+                            options.sigma_mm * shrink)
         s = score(Q)
         k = int(np.argmax(s))
         if s[k] > best_score:

@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -66,7 +66,14 @@ from digiteyes.smc.palm import (
     palm_pose_from_state,
     with_palm_pose,
 )
-from digiteyes.smc.palm_search import PalmSearchOptions, search_palm_pose
+from digiteyes.smc.palm_search import (
+    PalmSearchOptions,
+    outline_edge_fraction,
+    outline_log_score,
+    palm_outline_samples,
+    perturbed_palms,
+    search_palm_pose,
+)
 from digiteyes.smc.prior import default_configuration_space
 from digiteyes.smc.proposal import (
     ProposalOptions,
@@ -250,6 +257,8 @@ class DivideConquerTracker:
         self.particles = np.zeros((0, self.space.n_dims))
         self.frame_index = -1
         self.silhouette_loss = SilhouetteLoss.from_options(model, self.rig, options)
+        self.palm_search_options = options.palm_search
+        self.outline_fit: float | None = None
 
     # ------------------------------------------------------------------ protocol
     def reset(self, initial_state: np.ndarray) -> None:
@@ -264,6 +273,8 @@ class DivideConquerTracker:
         self.rng = np.random.default_rng(self.options.seed)
         self.frame_index = -1
         self.silhouette_loss.reset()
+        self.palm_search_options = self.options.palm_search
+        self.outline_fit = None
 
     def calibrate(self, frame: np.ndarray, state: np.ndarray) -> float:
         """Palm size from a frame of the open palm at a known ``state`` (Huang Sec. 4.2);
@@ -287,6 +298,8 @@ class DivideConquerTracker:
         edge_maps = [observe_edges(f, opt.likelihood) for f in frames]
         lookups = [edge_lookup(e, opt.likelihood) for e in edge_maps]
         nearest = nearest_edge_field(edge_maps[0]) if opt.track_palm else None
+        if self.frame_index == 0 and opt.track_palm:
+            self._check_outline(lookups[0])
         timings["edges"] = time.perf_counter() - t
 
         t = time.perf_counter()
@@ -359,24 +372,14 @@ class DivideConquerTracker:
         for _ in range(opt.refine_rounds):
             if opt.digit_search.passes > 0:
                 t = time.perf_counter()
-
-                def finger_score(coordinates: np.ndarray, q_palm: np.ndarray = q
-                                 ) -> np.ndarray:
-                    return finger_log_likelihood(
-                        self.model, self.geometry,
-                        self.space.states(self.model, q_palm, coordinates), self.cameras,
-                        edge_maps, opt.likelihood, lookups).log_likelihood
-
-                x_new, new_score, old_score = search_digits(
-                    self.space, x_best, finger_score, opt.digit_search, self.curl_directions)
+                x_best, q, moved = self._search_digits(x_best, q, edge_maps, lookups)
+                changed = changed or moved
                 timings["digit_search"] += time.perf_counter() - t
-                if new_score > old_score:
-                    x_best, changed = x_new, True
             if opt.track_palm and opt.palm_search.rounds > 0:
                 t = time.perf_counter()
                 q_new, new_score, old_score = search_palm_pose(
                     self.model, self.geometry, self.space.states(self.model, q, x_best)[0],
-                    self.cameras, edge_maps, lookups, self.rng, opt.palm_search,
+                    self.cameras, edge_maps, lookups, self.rng, self.palm_search_options,
                     opt.likelihood)
                 timings["palm_icp"] += time.perf_counter() - t
                 if new_score > old_score:
@@ -424,6 +427,49 @@ class DivideConquerTracker:
             lost=bool(reasons), loss_reason="; ".join(reasons), iterations=rounds,
             predicted_state=predicted, frame_index=self.frame_index, timings=timings,
             finger_lost=finger_lost, details=details)
+
+    # ------------------------------------------------------------------ refinement
+    def _check_outline(self, lookup) -> None:
+        """On the first frame, at the state the track starts from: keep the palm outline's
+        edge term only if enough of the outline lies on edges (:class:`PalmSearchOptions`);
+        the fraction is kept in :attr:`outline_fit`."""
+        options = self.options.palm_search
+        points = palm_outline_samples(self.geometry, options.outline_points)
+        self.outline_fit = outline_edge_fraction(self.model, self.geometry, self.state,
+                                                 self.cameras[0], lookup, points,
+                                                 options.outline_check_px)
+        if self.outline_fit < options.outline_check_fraction:
+            self.palm_search_options = replace(options, outline_points=0)
+
+    def _search_digits(self, x: np.ndarray, q: np.ndarray, edge_maps: list[np.ndarray],
+                       lookups: list) -> tuple[np.ndarray, np.ndarray, bool]:
+        """The digit-by-digit search (:mod:`digiteyes.smc.digit_search`) from hypothesis
+        ``x`` (D,) under the palm of ``q`` and, when the palm is tracked, perturbations of
+        it; scored by the finger likelihood plus the palm outline's edge term. Returns the
+        hypothesis, the state carrying the chosen palm, and whether either changed."""
+        opt, search = self.options, self.options.digit_search
+        i = self.model.base_state
+        palms = q[None]
+        if opt.track_palm and search.palms > 1:
+            palms = np.concatenate([palms, perturbed_palms(
+                self.model, q, self.rng, search.palms - 1, search.palm_sigma_deg,
+                search.palm_sigma_mm)])
+        points = palm_outline_samples(self.geometry, self.palm_search_options.outline_points)
+        outline = outline_log_score(self.model, self.geometry, palms, self.cameras, lookups,
+                                    points)
+
+        def score(coordinates: np.ndarray, palm: np.ndarray) -> np.ndarray:
+            Q = self.space.states(self.model, q, coordinates)
+            Q[:, i:i + 7] = palms[palm, i:i + 7]
+            return finger_log_likelihood(self.model, self.geometry, Q, self.cameras,
+                                         edge_maps, opt.likelihood, lookups
+                                         ).log_likelihood + outline[palm]
+
+        x_new, palm, new_score, old_score = search_digits(
+            self.space, x, score, search, self.curl_directions, len(palms))
+        if new_score <= old_score:
+            return x, q, False
+        return x_new, palms[palm].copy(), True
 
     # ------------------------------------------------------------------ samplers
     def _draw(self) -> tuple[np.ndarray, np.ndarray]:
