@@ -70,11 +70,20 @@ def test_projection_onto_manifolds_matches_brute_force():
 
 
 def test_glove_mapping_signs_and_bad_input():
-    glove = np.zeros((2, 23))
-    glove[:, 4] = -1.0         # I MCP flexed (glove: negative)
-    names = ("index.mcp", "thumb.mp_abd")
-    out = glove_joint_angles(glove, names)
-    np.testing.assert_allclose(out, [[1.0, 0.0], [1.0, 0.0]])
+    """The prior reads glove recordings through the scenarios' mapping: flexion turns
+    positive, abduction is taken from its median, a joint without a sensor stays 0."""
+    from digiteyes.synth.glove import glove_to_states
+    model = load_model("hand")
+    glove = np.zeros((3, 23))
+    glove[:, 4] = -1.0                      # I MCP flexed (glove: negative)
+    glove[:, 7] = [0.0, 0.1, 0.2]           # I ABD: median 0.1
+    names = ("index.mcp", "index.abd", "thumb.mp_abd")
+    out = glove_joint_angles(model, glove, names)
+    np.testing.assert_allclose(out[:, 0], 1.0)
+    np.testing.assert_allclose(out[:, 1], np.radians(-8.0) - np.array([-0.1, 0.0, 0.1]))
+    np.testing.assert_allclose(out[:, 2], 0.0)
+    np.testing.assert_array_equal(out, glove_to_states(model, glove)[
+        :, [model.state_index(n) for n in names]])
     with pytest.raises(PriorError, match="samples must be"):
         fit_configuration_space(np.zeros((10, 3)), ("a", "b"), np.zeros((1, 2)), ("x",),
                                 np.zeros(2), np.ones(2))

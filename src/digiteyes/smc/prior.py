@@ -11,7 +11,9 @@ of joint-angle vectors generated deterministically (fixed seed) from the hand mo
 * 1 degree of Gaussian jitter on every joint, then clipping to the model's joint limits.
 
 :func:`glove_joint_angles` maps CyberGlove recordings (23 DOF, West & Hogan's order) to a
-model's finger states for ``digiteyes prior fit``; that data stays outside the package.
+model's finger states for ``digiteyes prior fit``, by the one glove mapping of the package
+(:func:`digiteyes.synth.glove.glove_to_states`, the same that drives the ``glove``
+scenarios); that data stays outside the package.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ from digiteyes.smc.manifolds import (
     manifold_pairs,
     model_joint_names,
 )
+from digiteyes.synth.glove import glove_to_states
 
 DEFAULT_PRIOR_SEED = 20011
 """Seed of the generated samples of the default prior (so it is the same everywhere)."""
@@ -43,29 +46,6 @@ GLOVE_COLUMNS = ("T_ROT", "T_MCP", "T_IP", "T_ABD", "I_MCP", "I_PIP", "I_DIP", "
                  "M_MCP", "M_PIP", "M_DIP", "M_ABD", "R_MCP", "R_PIP", "R_DIP", "R_ABD",
                  "L_MCP", "L_PIP", "L_DIP", "L_ABD", "PA", "W_PITCH", "W_YAW")
 """The 23 CyberGlove DOF in West & Hogan's order (radians; flexion negative)."""
-
-GLOVE_TO_MODEL = {
-    "index.mcp": ("I_MCP", -1.0), "index.pip": ("I_PIP", -1.0), "index.dip": ("I_DIP", -1.0),
-    "index.abd": ("I_ABD", -1.0),
-    "middle.mcp": ("M_MCP", -1.0), "middle.pip": ("M_PIP", -1.0),
-    "middle.dip": ("M_DIP", -1.0), "middle.abd": ("M_ABD", -0.25),
-    "ring.mcp": ("R_MCP", -1.0), "ring.pip": ("R_PIP", -1.0), "ring.dip": ("R_DIP", -1.0),
-    "ring.abd": ("R_ABD", 0.5),
-    "little.mcp": ("L_MCP", -1.0), "little.pip": ("L_PIP", -1.0),
-    "little.dip": ("L_DIP", -1.0), "little.abd": ("L_ABD", 1.0),
-    "thumb.cmc_abd": ("T_ABD", 1.0), "thumb.cmc_flex": ("T_ROT", 1.0),
-    "thumb.mp": ("T_MCP", 1.0), "thumb.ip": ("T_IP", 1.0),
-}
-"""Model state <- (glove column, factor). The glove measures flexion as negative angles and
-the model as positive, hence -1 on MCP/PIP/DIP. Its abduction sensors sit between
-neighbouring fingers; we give the index finger the index-middle spread (towards the thumb,
-negative in the model), the ring and little fingers their sensors with a positive sign
-(towards the little-finger side) and the middle finger a quarter of its sensor, a rough
-split of the spread into per-finger abduction. Thumb: rotation -> CMC flexion, abduction ->
-CMC abduction, MCP -> MP, IP -> IP, with the glove's signs (thumb flexion is negative in
-both). ``thumb.mp_abd`` (``hand`` only) has no sensor and stays 0; palm arch and wrist are
-not finger states. An approximate mapping, good enough for a prior, not for truth."""
-
 
 def _generated_samples(joint_names: tuple[str, ...], rng: np.random.Generator,
                        n: int = 4000) -> np.ndarray:
@@ -112,8 +92,9 @@ def default_configuration_space(model: KinematicModel, n_dims: int = 7) -> Confi
     return _default_for(names, tuple(model.lower[idx]), tuple(model.upper[idx]), n_dims)
 
 
-def read_glove_file(path: str | Path) -> np.ndarray:
-    """Every (n, 23) joint-angle array in a glove file, stacked (S, 23), rad.
+def read_glove_file(path: str | Path) -> list[np.ndarray]:
+    """The recordings in a glove file: every (n, 23) joint-angle array, rad, rows with a
+    non-finite value dropped.
 
     ``.mat`` (any variable holding (n, 23) arrays, cell arrays of them or (n, 23, k)
     stacks), ``.npy`` or ``.csv``/``.txt`` (23 numeric columns, ``#`` comments). Raises
@@ -144,22 +125,21 @@ def read_glove_file(path: str | Path) -> np.ndarray:
             collect(np.loadtxt(path, delimiter=",", comments="#", ndmin=2))
     except (OSError, ValueError) as exc:
         raise PriorError(f"{path}: cannot read joint angles ({exc})") from exc
-    if not blocks:
+    recordings = [b[np.isfinite(b).all(axis=1)] for b in blocks]
+    recordings = [r for r in recordings if len(r)]
+    if not recordings:
         raise PriorError(f"{path}: no (n, {len(GLOVE_COLUMNS)}) joint-angle arrays found "
                          f"(expected CyberGlove columns {' '.join(GLOVE_COLUMNS)})")
-    data = np.concatenate(blocks)
-    return data[np.isfinite(data).all(axis=1)]
+    return recordings
 
 
-def glove_joint_angles(glove: np.ndarray, joint_names: tuple[str, ...]) -> np.ndarray:
-    """Map glove samples (S, 23) to the model's finger joints (S, J) by
-    :data:`GLOVE_TO_MODEL` (joints without a sensor are 0), rad."""
-    out = np.zeros((len(glove), len(joint_names)))
-    for j, name in enumerate(joint_names):
-        if name in GLOVE_TO_MODEL:
-            column, factor = GLOVE_TO_MODEL[name]
-            out[:, j] = factor * glove[:, GLOVE_COLUMNS.index(column)]
-    return out
+def glove_joint_angles(model: KinematicModel, recording: np.ndarray,
+                       joint_names: tuple[str, ...]) -> np.ndarray:
+    """One glove recording (S, 23) as ``model``'s finger joints ``joint_names`` (S, J),
+    rad, by :func:`digiteyes.synth.glove.glove_to_states` (abduction relative to its
+    median over the recording, so pass whole recordings, not pieces)."""
+    states = glove_to_states(model, recording)
+    return states[:, [model.state_index(name) for name in joint_names]]
 
 
 def fit_glove_prior(paths: list[str | Path], model: KinematicModel,
@@ -170,8 +150,9 @@ def fit_glove_prior(paths: list[str | Path], model: KinematicModel,
     names = model_joint_names(model)
     idx = [model.state_index(n) for n in names]
     lo, hi = model.lower[idx], model.upper[idx]
-    glove = np.concatenate([read_glove_file(p) for p in paths])
-    samples = np.clip(glove_joint_angles(glove, names), lo, hi)
+    recordings = [r for p in paths for r in read_glove_file(p)]
+    samples = np.clip(np.concatenate([glove_joint_angles(model, r, names)
+                                      for r in recordings]), lo, hi)
     return fit_configuration_space(samples, names, basis_joint_angles(names), basis_names(),
                                    lo, hi, n_dims,
                                    source=f"glove: {len(samples)} samples from "
