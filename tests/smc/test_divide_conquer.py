@@ -116,21 +116,35 @@ def test_full_hand_model_runs(natural_cardboard):
         assert _joint_rms_deg(tracker, result.state, scenario.states[f]) < 6.0
 
 
-def test_outline_term_is_dropped_when_the_palm_is_not_drawn_like_the_model(natural_cardboard):
-    """The first frame's outline check: our own drawing keeps the palm outline's edge
-    term, the flesh hand (a fleshier palm reaching the wrist) loses it."""
+def test_first_frame_fits_the_palm_outline_or_drops_its_term(natural_cardboard):
+    """On the first frame: our own drawing's palm is the model's (nothing moves, the
+    outline term stays); the flesh hand's fleshier palm moves the radial and ulnar sides
+    8-16 mm out, after which the outline fits and its term stays. Without that
+    calibration the flesh palm's outline misses its edges and the term is dropped."""
     from digiteyes.synth import RenderOptions
     model, cam, states = natural_cardboard
-    fits = {}
-    for appearance in ("model", "flesh"):
-        image = render_views(model, states[0], [cam], RenderOptions(appearance=appearance),
-                             rng=0)[0].image
-        tracker = DivideConquerTracker(model, [cam])
+    images = {a: render_views(model, states[0], [cam], RenderOptions(appearance=a),
+                              rng=0)[0].image for a in ("model", "flesh")}
+
+    def first_frame(appearance, **options):
+        tracker = DivideConquerTracker(model, [cam], options=DivideConquerOptions(**options))
         tracker.reset(states[0])
-        assert tracker.outline_fit is None
-        tracker.step([image])
-        fits[appearance] = (tracker.outline_fit, tracker.palm_search_options.outline_points)
-        tracker.reset(states[0])
-        assert tracker.palm_search_options == tracker.options.palm_search
-    assert fits["model"][0] > 0.6 and fits["model"][1] == 40, fits
-    assert fits["flesh"][0] < 0.4 and fits["flesh"][1] == 0, fits
+        assert tracker.outline_fit is None and tracker.geometry is tracker.model_geometry
+        tracker.step([images[appearance]])
+        return tracker
+
+    own = first_frame("model")
+    np.testing.assert_array_equal(own.outline_calibration.offsets_mm, 0.0)
+    assert own.outline_fit > 0.6 and own.palm_search_options.outline_points == 40
+    flesh = first_frame("flesh")
+    assert 8.0 <= flesh.outline_calibration.offsets_mm[1] <= 16.0
+    assert 8.0 <= flesh.outline_calibration.offsets_mm[3] <= 16.0
+    assert flesh.outline_fit > 0.5 and flesh.palm_search_options.outline_points == 40
+    assert not np.array_equal(flesh.geometry.palm_outline, flesh.model_geometry.palm_outline)
+    flesh.reset(states[0])
+    assert flesh.geometry is flesh.model_geometry and flesh.outline_calibration is None
+    plain = first_frame("flesh", calibrate_outline=False)
+    assert plain.outline_calibration is None
+    assert plain.outline_fit < 0.4 and plain.palm_search_options.outline_points == 0
+    plain.reset(states[0])
+    assert plain.palm_search_options == plain.options.palm_search

@@ -100,3 +100,40 @@ def test_nearest_edges_agree_with_the_exact_distance_transform():
     np.testing.assert_allclose(np.hypot(pixel[:, 0] - rows, pixel[:, 1] - cols), dist)
     empty, _ = nearest_edge_field(np.zeros((5, 5), np.uint8)).at(np.array([2]), np.array([2]))
     assert np.isinf(empty).all()
+
+
+def _outline_edge_map(model, geometry, q, camera, corners):
+    """An edge map (255 on edges) with the outline ``corners`` (4, 3) drawn at state ``q``."""
+    import cv2
+
+    from digiteyes.kinematics import forward_kinematics
+    T = forward_kinematics(model, q[None]).T_world_shape[0, geometry.palm_row]
+    uv = camera.project(corners @ T[:3, :3].T + T[:3, 3])
+    edges = np.zeros((camera.height, camera.width), np.uint8)
+    cv2.polylines(edges, [np.rint(uv).astype(np.int32)], True, 255, 1)
+    return edges
+
+
+def test_outline_calibration_recovers_moved_sides(natural_cardboard):
+    """Edges drawn from an outline whose radial side is 9 mm further out and whose wrist
+    side is 6 mm further in: the calibration finds both (to the 1 mm grid, within a
+    pixel's worth), leaves the ulnar side and the unfitted distal side in place."""
+    from digiteyes.smc.likelihood import edge_lookup
+    from digiteyes.smc.palm import calibrate_palm_outline
+    model, cam, states = natural_cardboard
+    geometry = FingerGeometry.of(model)
+    c = geometry.palm_outline.copy()                     # sides: 0 wrist (y min), 1 radial
+    moved = c.copy()                                     # (x max), 2 distal, 3 ulnar
+    moved[[1, 2], 0] += 9.0
+    moved[[0, 1], 1] += 6.0
+    edges = _outline_edge_map(model, geometry, states[0], cam, moved)
+    fit = calibrate_palm_outline(model, geometry, states[0], cam, edge_lookup(edges))
+    assert abs(fit.offsets_mm[1] - 9.0) <= 1.5 and abs(fit.offsets_mm[0] + 6.0) <= 1.5
+    assert fit.offsets_mm[3] == 0.0 and fit.offsets_mm[2] == 0.0 and np.isnan(fit.scores[2])
+    np.testing.assert_allclose(fit.corners[2], [c[2, 0] + fit.offsets_mm[1], c[2, 1], 0.0])
+    # the model's own outline: nothing moves
+    same = calibrate_palm_outline(model, geometry, states[0], cam,
+                                  edge_lookup(_outline_edge_map(model, geometry, states[0],
+                                                                cam, c)))
+    np.testing.assert_array_equal(same.offsets_mm, 0.0)
+    np.testing.assert_array_equal(same.corners, c)

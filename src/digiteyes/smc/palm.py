@@ -302,3 +302,65 @@ def calibrate_palm_scale(model: KinematicModel, geometry: FingerGeometry, q: np.
         row = np.clip(np.rint(uv[:, 1]), 0, h - 1).astype(int)
         costs.append(np.minimum(nearest.at(row, col)[0], options.max_distance_px).mean())
     return float(scales[int(np.argmin(costs))])
+
+
+@dataclass(frozen=True)
+class OutlineCalibration:
+    """The palm outline fitted to a user's palm on one frame (:func:`calibrate_palm_outline`).
+
+    corners : (4, 3) the new outline corners, palm shape frame, mm (wrist-radial first, in
+        the order of :attr:`FingerGeometry.palm_outline`).
+    offsets_mm : (4,) how far each side (0 wrist, 1 radial, 2 distal, 3 ulnar) moved
+        outwards (negative: inwards); sides not fitted, or without an edge, stay at 0.
+    scores : (4,) the fitted sides' mean per-point edge score (:attr:`EdgeLookup.score`),
+        NaN for sides not fitted.
+    """
+
+    corners: np.ndarray
+    offsets_mm: np.ndarray
+    scores: np.ndarray
+
+
+def calibrate_palm_outline(model: KinematicModel, geometry: FingerGeometry, q: np.ndarray,
+                           camera: Camera, lookup, sides: tuple[int, ...] = (0, 1, 3),
+                           offsets_mm: np.ndarray = np.arange(-10.0, 26.0, 1.0),  # noqa: B008
+                           points_per_side: int = 12, min_score: float = 1.0,
+                           min_offset_mm: float = 3.0) -> OutlineCalibration:
+    """Fit the palm outline's sides to a frame at a known state ``q`` (n_q,): each of
+    ``sides`` moves along its outward normal (in the palm plane) to the offset whose
+    points lie best on the frame's edges (largest mean :attr:`EdgeLookup.score` of
+    ``lookup``, Huang Sec. 5.2's per-point factor); a side whose best mean score is below
+    ``min_score``, or whose best offset is within ``min_offset_mm`` of the model's (about
+    the size of a pixel at arm's length: not a measurable difference), keeps its place. The patch-size calibration of Huang Sec. 4.2 (last
+    paragraph), per side: a user's palm is not the model's rectangle scaled (a fleshier
+    palm reaches further towards the wrist and the thumb)."""
+    corners = np.asarray(geometry.palm_outline, dtype=float)
+    T = forward_kinematics(model, np.atleast_2d(q)).T_world_shape[0, geometry.palm_row]
+    centre = corners.mean(axis=0)
+    h, w = lookup.score.shape
+    t = (np.arange(points_per_side) + 0.5) / points_per_side
+    normals = np.zeros((4, 3))
+    offsets, scores = np.zeros(4), np.full(4, np.nan)
+    for side in range(4):
+        a, b = corners[side], corners[(side + 1) % 4]
+        along = (b - a) / np.linalg.norm(b - a)
+        out = (a + b) / 2 - centre
+        out -= along * (out @ along)
+        normals[side] = out / np.linalg.norm(out)
+        if side not in sides:
+            continue
+        base = a + t[:, None] * (b - a)                                    # (K, 3)
+        shifted = base[None] + offsets_mm[:, None, None] * normals[side]   # (O, K, 3)
+        uv = camera.project(shifted.reshape(-1, 3) @ T[:3, :3].T + T[:3, 3])
+        col, row = np.rint(uv[:, 0]).astype(int), np.rint(uv[:, 1]).astype(int)
+        inside = (col >= 0) & (col < w) & (row >= 0) & (row < h)
+        score = np.where(inside, lookup.score[np.clip(row, 0, h - 1), np.clip(col, 0, w - 1)],
+                         0.0).reshape(len(offsets_mm), -1).mean(axis=1)
+        k = int(np.argmax(score))
+        scores[side] = score[k]
+        if score[k] >= min_score and abs(offsets_mm[k]) >= min_offset_mm:
+            offsets[side] = offsets_mm[k]
+    # Corner k joins side k-1 and side k: it moves with both (the sides are perpendicular).
+    moved = corners + offsets[:, None] * normals + np.roll(offsets, 1)[:, None] * np.roll(
+        normals, 1, axis=0)
+    return OutlineCalibration(moved, offsets, scores)

@@ -57,7 +57,9 @@ from digiteyes.smc.likelihood import (
 from digiteyes.smc.manifolds import manifold_pairs
 from digiteyes.smc.palm import (
     IcpOptions,
+    OutlineCalibration,
     PalmPoseError,
+    calibrate_palm_outline,
     calibrate_palm_scale,
     icp_palm,
     nearest_edge_field,
@@ -117,6 +119,10 @@ class DivideConquerOptions(SilhouetteLossOptions):
         silhouette loss rule (:class:`~digiteyes.trackers.silhouette_loss.SilhouetteLoss`;
         defaults as the feature tracker's).
     refine_rounds : rounds of digit search then palm refinement after the EM rounds.
+    calibrate_outline : fit the palm outline's sides to the user's palm on the first
+        frame, at the state the track starts from (:func:`~digiteyes.smc.palm.
+        calibrate_palm_outline`; the outline serves the ICP, the outline term and the
+        occlusion map).
     digit_search : the digit-by-digit search (:mod:`digiteyes.smc.digit_search`;
         ``passes=0`` turns it off: Huang's tracker alone). Off in the baselines' options
         (:class:`CondensationOptions`, :class:`RandomSearchOptions`), as Huang runs them.
@@ -138,6 +144,7 @@ class DivideConquerOptions(SilhouetteLossOptions):
     search_sigma: float = 0.15
     walk_fraction: float = 0.1
     refine_rounds: int = 1
+    calibrate_outline: bool = True
     anneal_layers: int = 0
     min_edge_fraction: float = 0.3
     proposal: ProposalOptions = field(default_factory=ProposalOptions)
@@ -259,6 +266,8 @@ class DivideConquerTracker:
         self.silhouette_loss = SilhouetteLoss.from_options(model, self.rig, options)
         self.palm_search_options = options.palm_search
         self.outline_fit: float | None = None
+        self.outline_calibration: OutlineCalibration | None = None
+        self.model_geometry = self.geometry
 
     # ------------------------------------------------------------------ protocol
     def reset(self, initial_state: np.ndarray) -> None:
@@ -275,6 +284,8 @@ class DivideConquerTracker:
         self.silhouette_loss.reset()
         self.palm_search_options = self.options.palm_search
         self.outline_fit = None
+        self.outline_calibration = None
+        self.geometry = self.model_geometry
 
     def calibrate(self, frame: np.ndarray, state: np.ndarray) -> float:
         """Palm size from a frame of the open palm at a known ``state`` (Huang Sec. 4.2);
@@ -299,7 +310,7 @@ class DivideConquerTracker:
         lookups = [edge_lookup(e, opt.likelihood) for e in edge_maps]
         nearest = nearest_edge_field(edge_maps[0]) if opt.track_palm else None
         if self.frame_index == 0 and opt.track_palm:
-            self._check_outline(lookups[0])
+            self._fit_outline(lookups[0])
         timings["edges"] = time.perf_counter() - t
 
         t = time.perf_counter()
@@ -429,10 +440,18 @@ class DivideConquerTracker:
             finger_lost=finger_lost, details=details)
 
     # ------------------------------------------------------------------ refinement
-    def _check_outline(self, lookup) -> None:
-        """On the first frame, at the state the track starts from: keep the palm outline's
-        edge term only if enough of the outline lies on edges (:class:`PalmSearchOptions`);
-        the fraction is kept in :attr:`outline_fit`."""
+    def _fit_outline(self, lookup) -> None:
+        """On the first frame, at the state the track starts from: fit the palm outline's
+        sides to the user's palm (``calibrate_outline``,
+        :func:`~digiteyes.smc.palm.calibrate_palm_outline`; kept in
+        :attr:`outline_calibration`), then keep the outline's edge term only if enough of
+        the outline lies on edges (:class:`PalmSearchOptions`; the fraction is kept in
+        :attr:`outline_fit`)."""
+        if self.options.calibrate_outline:
+            self.outline_calibration = calibrate_palm_outline(
+                self.model, self.geometry, self.state, self.cameras[0], lookup)
+            self.geometry = replace(self.geometry,
+                                    palm_outline=self.outline_calibration.corners)
         options = self.options.palm_search
         points = palm_outline_samples(self.geometry, options.outline_points)
         self.outline_fit = outline_edge_fraction(self.model, self.geometry, self.state,
