@@ -26,7 +26,7 @@ from digiteyes.camera import Camera
 from digiteyes.errors import DigitEyesError
 from digiteyes.kinematics import KinematicModel, forward_kinematics
 from digiteyes.kinematics.rotations import matrix_from_quaternion, quaternion_from_matrix
-from digiteyes.smc.likelihood import FingerGeometry
+from digiteyes.smc.likelihood import EdgeLookup, FingerGeometry
 
 
 class PalmPoseError(DigitEyesError, ValueError):
@@ -322,7 +322,8 @@ class OutlineCalibration:
 
 
 def calibrate_palm_outline(model: KinematicModel, geometry: FingerGeometry, q: np.ndarray,
-                           camera: Camera, lookup, sides: tuple[int, ...] = (0, 1, 3),
+                           camera: Camera, lookup: EdgeLookup,
+                           sides: tuple[int, ...] = (0, 1, 3),
                            offsets_mm: np.ndarray = np.arange(-10.0, 26.0, 1.0),  # noqa: B008
                            points_per_side: int = 12, min_score: float = 1.0,
                            min_offset_mm: float = 3.0) -> OutlineCalibration:
@@ -331,9 +332,10 @@ def calibrate_palm_outline(model: KinematicModel, geometry: FingerGeometry, q: n
     points lie best on the frame's edges (largest mean :attr:`EdgeLookup.score` of
     ``lookup``, Huang Sec. 5.2's per-point factor); a side whose best mean score is below
     ``min_score``, or whose best offset is within ``min_offset_mm`` of the model's (about
-    the size of a pixel at arm's length: not a measurable difference), keeps its place. The patch-size calibration of Huang Sec. 4.2 (last
-    paragraph), per side: a user's palm is not the model's rectangle scaled (a fleshier
-    palm reaches further towards the wrist and the thumb)."""
+    a pixel at arm's length: not a measurable difference), keeps its place. The
+    patch-size calibration of Huang Sec. 4.2 (last paragraph), per side: a user's palm is
+    not the model's rectangle scaled (a fleshier palm reaches further towards the wrist
+    and the thumb)."""
     corners = np.asarray(geometry.palm_outline, dtype=float)
     T = forward_kinematics(model, np.atleast_2d(q)).T_world_shape[0, geometry.palm_row]
     centre = corners.mean(axis=0)

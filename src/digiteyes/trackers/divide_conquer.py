@@ -48,6 +48,7 @@ from digiteyes.kinematics import KinematicModel
 from digiteyes.smc.configuration import ConfigurationSpace
 from digiteyes.smc.digit_search import DigitSearchOptions, digit_curl_directions, search_digits
 from digiteyes.smc.likelihood import (
+    EdgeLookup,
     FingerGeometry,
     LikelihoodOptions,
     edge_lookup,
@@ -440,7 +441,7 @@ class DivideConquerTracker:
             finger_lost=finger_lost, details=details)
 
     # ------------------------------------------------------------------ refinement
-    def _fit_outline(self, lookup) -> None:
+    def _fit_outline(self, lookup: EdgeLookup) -> None:
         """On the first frame, at the state the track starts from: fit the palm outline's
         sides to the user's palm (``calibrate_outline``,
         :func:`~digiteyes.smc.palm.calibrate_palm_outline`; kept in
@@ -461,7 +462,7 @@ class DivideConquerTracker:
             self.palm_search_options = replace(options, outline_points=0)
 
     def _search_digits(self, x: np.ndarray, q: np.ndarray, edge_maps: list[np.ndarray],
-                       lookups: list) -> tuple[np.ndarray, np.ndarray, bool]:
+                       lookups: list[EdgeLookup]) -> tuple[np.ndarray, np.ndarray, bool]:
         """The digit-by-digit search (:mod:`digiteyes.smc.digit_search`) from hypothesis
         ``x`` (D,) under the palm of ``q`` and, when the palm is tracked, perturbations of
         it; scored by the finger likelihood plus the palm outline's edge term. Returns the
