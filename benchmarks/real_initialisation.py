@@ -65,7 +65,7 @@ from digiteyes.detect.link_lengths import (
     triangulate,
     with_link_lengths,
 )
-from digiteyes.detect.mediapipe_detector import MediaPipeDetector, mediapipe_available
+from digiteyes.detect.mediapipe_detector import mediapipe_available
 from digiteyes.detect.model_fit import FitOptions, KeypointObservation, fit_keypoints
 from digiteyes.detect.pose import estimate_pose, make_detector
 from digiteyes.io.video import VideoReader
@@ -95,8 +95,8 @@ NAMES = ("classic", "mediapipe", "mediapipe-lite")
 order; the MediaPipe ones when the extra is installed."""
 
 
-def detectors() -> dict:
-    return {name: make_detector(name) for name in NAMES
+def detectors(video: bool = False) -> dict:
+    return {name: make_detector(name, video=video) for name in NAMES
             if name == "classic" or mediapipe_available()}
 
 
@@ -182,11 +182,7 @@ def video_stage(data: Path, hand, step: int) -> dict | None:
     if not (folder / "human_hand_video.mp4").is_file():
         return None
     stored = np.asarray(pickle.loads((folder / "mediapipe_joints_right.pkl").read_bytes()))
-    dets = detectors()
-    for name, complexity in (("mediapipe", 1), ("mediapipe-lite", 0)):
-        if name in dets:  # as track uses it: landmarks followed from frame to frame
-            dets[name] = MediaPipeDetector(max_hands=1, static_image_mode=False,
-                                           model_complexity=complexity)
+    dets = detectors(video=True)  # landmarks followed from frame to frame
     counts = dict.fromkeys(dets, 0)
     gaps = {n: [] for n in dets}
     classic_ms = []

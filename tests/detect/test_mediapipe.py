@@ -76,3 +76,22 @@ def test_unknown_detector_names_the_choices():
     with pytest.raises(DigitEyesError, match="mediapipe-lite"):
         make_detector("mediapipe-heavy")
     assert "mediapipe-lite" in DETECTORS
+
+
+def test_video_mode_reaches_mediapipe(monkeypatch):
+    """``make_detector(..., video=True)`` asks MediaPipe for its video mode (landmarks
+    followed from frame to frame), the default for its image mode, each network at its
+    complexity; the classic detector is the same either way."""
+    import digiteyes.detect.mediapipe_detector as mp_module
+    from digiteyes.detect.classic import ClassicDetector
+    from digiteyes.detect.pose import make_detector
+
+    made = []
+    monkeypatch.setattr(mp_module, "MediaPipeDetector", lambda **kw: made.append(kw) or kw)
+    for name in ("mediapipe", "mediapipe-lite"):
+        for video in (False, True):
+            make_detector(name, video=video)
+    assert [(k["static_image_mode"], k["model_complexity"]) for k in made] == [
+        (True, 1), (False, 1), (True, 0), (False, 0)]
+    assert all(k["max_hands"] == 1 for k in made)
+    assert isinstance(make_detector("classic", video=True), ClassicDetector)

@@ -26,19 +26,21 @@ DETECTORS = ("auto", "mediapipe", "mediapipe-lite", "classic")
 """Detector names of :func:`make_detector` (and of every command's ``--detector``)."""
 
 
-def make_detector(name: str, model: KinematicModel | None = None) -> HandDetector:
+def make_detector(name: str, model: KinematicModel | None = None,
+                  video: bool = False) -> HandDetector:
     """``"mediapipe"`` (needs the extra; its full landmark network), ``"mediapipe-lite"``
     (its lite landmark network: faster, see docs/initialisation.md for what it costs),
-    ``"classic"`` or ``"auto"`` (MediaPipe when installed, else classic)."""
+    ``"classic"`` or ``"auto"`` (MediaPipe when installed, else classic). ``video``:
+    images come in order from one video, and MediaPipe follows its landmarks from one to
+    the next instead of detecting afresh in each (the classic detector has no such mode)."""
     from digiteyes.detect.classic import ClassicDetector
     from digiteyes.detect.mediapipe_detector import MediaPipeDetector, mediapipe_available
 
     if name == "auto":
         name = "mediapipe" if mediapipe_available() else "classic"
-    if name == "mediapipe":
-        return MediaPipeDetector(max_hands=1)
-    if name == "mediapipe-lite":
-        return MediaPipeDetector(max_hands=1, model_complexity=0)
+    if name in ("mediapipe", "mediapipe-lite"):
+        return MediaPipeDetector(max_hands=1, static_image_mode=not video,
+                                 model_complexity=0 if name == "mediapipe-lite" else 1)
     if name == "classic":
         return ClassicDetector(model)
     raise DigitEyesError(f"unknown detector {name!r}; choose one of {', '.join(DETECTORS)}")
