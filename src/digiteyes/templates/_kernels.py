@@ -151,3 +151,64 @@ def transform_kernel(frames, part_of, p_shape, out):  # pragma: no cover - compi
         x, y, z = p_shape[i, 0], p_shape[i, 1], p_shape[i, 2]
         for a in range(3):
             out[i, a] = T[a, 0] * x + T[a, 1] * y + T[a, 2] * z + T[a, 3]
+
+
+@njit(cache=True)
+def background_kernel(image, pixels, values, weights, win_kind, win_pts, win_r, tau, margin,
+                      b_pts, b_r, r_out, v_out):  # pragma: no cover - compiled
+    """One pass over fixed image pixels ``pixels`` (B, 2) int (column, row) for the
+    background template (thesis Sec. 4.4.2): returns ``E = sum_u weight_u V_u r_u^2 / 2``
+    with ``r_u = I(u) - B(u)`` and ``V_u = prod_j (1 - M_j(u))`` over every part's window
+    (the background lies behind all of them; outlines grown by ``margin`` px). ``r`` does
+    not depend on the state; ``V`` does, through the windows: the boundary terms
+    ``r^2 / 2 dV`` go to ``b_pts[j]`` and ``b_r[j]`` as in :func:`layered_kernel`.
+    """
+    n_win = win_kind.shape[0]
+    gw = np.empty(2)
+    gp = np.empty((4, 2))
+    Ms = np.empty(n_win)
+    ds = np.empty(n_win)
+    reach = BOUNDARY_REACH * tau
+    energy = 0.0
+    for i in range(pixels.shape[0]):
+        x, y = pixels[i, 0], pixels[i, 1]
+        r_out[i] = 0.0
+        v_out[i] = 0.0
+        wt = weights[i]
+        if wt <= 0.0:
+            continue
+        V = 1.0
+        boundary = False
+        for j in range(n_win):
+            d = window_distance(win_kind[j], win_pts[j], win_r[j], float(x), float(y),
+                                gw, gp) + margin
+            M, _ = window_value(d, tau)
+            Ms[j] = M
+            ds[j] = d
+            V *= 1.0 - M
+            if tau > 0.0 and abs(d) < reach:
+                boundary = True
+        r = float(image[y, x]) - values[i]
+        r_out[i] = r
+        v_out[i] = V
+        energy += 0.5 * wt * V * r * r
+        if not boundary:
+            continue
+        half = 0.5 * wt * r * r
+        for j in range(n_win):
+            if abs(ds[j]) >= reach:
+                continue
+            d = window_distance(win_kind[j], win_pts[j], win_r[j], float(x), float(y),
+                                gw, gp) + margin
+            M, dM = window_value(d, tau)
+            others = 1.0
+            for j2 in range(n_win):
+                if j2 != j:
+                    others *= 1.0 - Ms[j2]
+            f = -dM * others  # dV / dd_j
+            for q in range(4):
+                b_pts[j, q, 0] += half * f * gp[q, 0]
+                b_pts[j, q, 1] += half * f * gp[q, 1]
+            if win_kind[j] == 0:
+                b_r[j] += half * f
+    return energy

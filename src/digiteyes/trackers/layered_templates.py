@@ -53,6 +53,12 @@ from digiteyes.occlusion.visibility import (
 )
 from digiteyes.occlusion.windows import image_windows
 from digiteyes.solvers import SolverSummary, hand_conditioning, solve_normal_equations
+from digiteyes.templates.background import (
+    BackgroundTemplate,
+    acquire_background,
+    evaluate_background,
+    window_region,
+)
 from digiteyes.templates.filtering import TemplateError
 from digiteyes.templates.layered import (
     CameraTemplates,
@@ -82,6 +88,7 @@ normal equations, ``jacobian`` chaining the twist and window sums into ``H`` and
 0 for the templates alone), ``silhouette`` the silhouette loss rule."""
 
 SOLVERS = ("gauss-newton", "gradient-descent")
+BACKGROUNDS = ("none", "filtered", "grey")
 
 
 @dataclass(frozen=True)
@@ -111,6 +118,13 @@ class LayeredTemplateOptions(SilhouetteLossOptions):
     silhouette_check, silhouette_tolerance_px, max_unexplained, max_finger_outside : the
         silhouette loss rule (:class:`~digiteyes.trackers.silhouette_loss.SilhouetteLoss`;
         defaults as the feature tracker's).
+    background : the background template of thesis Sec. 4.4.2
+        (:mod:`digiteyes.templates.background`; a static camera, smooth windows):
+        ``"none"``, ``"filtered"`` (compared in the LoG-filtered image, as the templates)
+        or ``"grey"`` (in the plain grey image, where a finger and the backdrop differ
+        inside the outline too, not only at edges).
+    background_weight : its error's weight, times ``template_weight``.
+    background_pad_px : how far around the hand's windows its pixels reach, px.
     """
 
     templates: TemplateOptions = field(default_factory=TemplateOptions)
@@ -129,6 +143,9 @@ class LayeredTemplateOptions(SilhouetteLossOptions):
     growth_frames: int = 5
     growth_factor: float = 2.5
     growth_min: float = 15.0
+    background: str = "none"
+    background_weight: float = 1.0
+    background_pad_px: float = 20.0
 
     def __post_init__(self) -> None:
         if isinstance(self.iterations_per_frame, bool) or int(self.iterations_per_frame) != \
@@ -147,6 +164,12 @@ class LayeredTemplateOptions(SilhouetteLossOptions):
         if not 0.0 <= self.min_visible_fraction <= 1.0:
             raise TemplateError(f"min_visible_fraction must be in [0, 1], got "
                                 f"{self.min_visible_fraction!r}")
+        if self.background not in BACKGROUNDS:
+            raise TemplateError(f"background must be one of {', '.join(BACKGROUNDS)}, got "
+                                f"{self.background!r}")
+        if not self.background_weight > 0 or not self.background_pad_px >= 0:
+            raise TemplateError("background_weight must be positive and background_pad_px "
+                                "not negative")
 
 
 @dataclass
@@ -220,6 +243,7 @@ class LayeredTemplateTracker:
         self.predictor = StatePredictor(model, self.options.prediction,
                                         self.options.clip_to_limits)
         self.templates: list[CameraTemplates] = []
+        self.backgrounds: list[BackgroundTemplate] = []
         self.state: np.ndarray | None = None
         self._orders: list[VisibilityOrder | None] = []
         self._rms_history: deque[float] = deque(maxlen=self.options.growth_frames)
@@ -245,6 +269,7 @@ class LayeredTemplateTracker:
         self.state = q
         self.predictor.reset(q)
         self.templates = []
+        self.backgrounds = []
         self._orders = [None] * len(self.rig)
         self._rms_history.clear()
         self._frame_index = 0
@@ -263,7 +288,8 @@ class LayeredTemplateTracker:
         timings["prediction"] = time.perf_counter() - tic
         tic = time.perf_counter()
         images = [self.options.templates.log.apply(f) for f in frames]
-        greys = [prepare_image(f) for f in frames] if self.options.edge_features else []
+        greys = [prepare_image(f) for f in frames] if (
+            self.options.edge_features or self.options.background == "grey") else []
         timings["filtering"] = time.perf_counter() - tic
         if not self.templates:
             kin = forward_kinematics(self.model, predicted)
@@ -271,6 +297,13 @@ class LayeredTemplateTracker:
             self.templates = [acquire_templates(self.parts, image, cam, kin, topts.spacing_px,
                                                 topts.occlusion_margin_px)
                               for image, cam in zip(images, self.rig, strict=True)]
+            if self.options.background != "none":
+                self.backgrounds = [
+                    acquire_background(image, image_windows(self.parts, t.planes(kin, cam),
+                                                            kin, cam),
+                                       topts.occlusion_margin_px, self.options.background_pad_px)
+                    for image, cam, t in zip(self._background_images(images, greys),
+                                             self.rig, self.templates, strict=True)]
         setup = self._frame_setup(predicted, timings)
         q, summary = self._solve(predicted, images, greys, setup, timings)
         final = [self._evaluate(q, images, setup, c, timings) for c in range(len(self.rig))]
@@ -295,16 +328,20 @@ class LayeredTemplateTracker:
         points = [t.shape_points(p) for t, p in zip(self.templates, planes, strict=True)]
         timings["template_rendering"] += time.perf_counter() - tic
         tic = time.perf_counter()
-        orders, events = [], []
+        orders, events, regions = [], [], []
         for c, cam in enumerate(self.rig):
             windows = image_windows(self.parts, planes[c], kin, cam)
+            if self.backgrounds:
+                regions.append(window_region(windows, self.backgrounds[c].values.shape,
+                                             self.options.background_pad_px))
             order = predict_visibility(self.parts, windows, cam,
                                        self.options.templates.occlusion_margin_px)
             events.append(occlusion_events(self._orders[c], order))
             orders.append(order)
         self._orders = list(orders)
         timings["visibility"] += time.perf_counter() - tic
-        return {"planes": planes, "points": points, "orders": orders, "events": events}
+        return {"planes": planes, "points": points, "orders": orders, "events": events,
+                "regions": regions}
 
     def _evaluate(self, q: np.ndarray, images: list[np.ndarray], setup: dict, c: int,
                   timings: dict[str, float], kin=None) -> LayeredEvaluation:
@@ -316,6 +353,11 @@ class LayeredTemplateTracker:
                               margin=self.options.templates.occlusion_margin_px)
         timings["residual"] += time.perf_counter() - tic
         return ev
+
+    def _background_images(self, images: list[np.ndarray], greys: list[np.ndarray]
+                           ) -> list[np.ndarray]:
+        """The images the background template is compared in (``background`` option)."""
+        return greys if self.options.background == "grey" else images
 
     def _unoccluded_links(self, order: VisibilityOrder) -> list[str]:
         """Cylinder links that no part occludes and that occlude no part's middle."""
@@ -346,6 +388,16 @@ class LayeredTemplateTracker:
                 g += weight * ev.gradient
                 energy += weight * ev.energy
                 timings["jacobian"] += time.perf_counter() - tic
+                if self.backgrounds:
+                    tic = time.perf_counter()
+                    bg = evaluate_background(self.backgrounds[c],
+                                             self._background_images(images, greys)[c],
+                                             ev.windows, opts.templates.tau,
+                                             opts.templates.occlusion_margin_px,
+                                             setup["regions"][c])
+                    g += opts.background_weight * weight * bg.gradient
+                    energy += opts.background_weight * weight * bg.energy
+                    timings["residual"] += time.perf_counter() - tic
             if opts.edge_features:
                 tic = time.perf_counter()
                 for c, cam in enumerate(self.rig):
