@@ -54,3 +54,12 @@ def test_long_run_scores_both_variants_against_the_truth():
             assert run["frames"] == 4 and run["seed"] == 0
             assert 0 <= run["fingertip_mm_mean"] < 15.0 and run["truly_lost_frames"] == 0
             assert record["mean"]["finger_rms_deg_mean"] == run["finger_rms_deg_mean"]
+
+
+def test_recovery_starts_far_off_and_converges_on_both_appearances():
+    out = smc._recovery(n_frames=4)
+    assert set(out) == {"model", "flesh"}
+    for record in out.values():
+        assert record["start_error_deg"] > 20.0
+        assert len(record["finger_rms_deg_per_frame"]) == 4
+        assert record["first_frame_below"] is not None and record["first_frame_below"] <= 3

@@ -146,6 +146,40 @@ def _track(cls, n_frames: int, scenario_name: str = "natural",
             "finger_rms_deg_per_frame": [float(e) for e in joint]}
 
 
+RECOVERY_OFFSET_DEG = 30.0
+RECOVERY_FRAMES = 20
+RECOVERY_CONVERGED_DEG = 5.0
+
+
+def _recovery(n_frames: int = RECOVERY_FRAMES) -> dict:
+    """Issue 15's recovery target, both appearances: :class:`DivideConquerTracker` at its
+    defaults (palm tracked) started with every finger flexion joint (MCP, PIP, DIP of the
+    four fingers) :data:`RECOVERY_OFFSET_DEG` off (clipped to the limits) on ``natural``;
+    the finger joint RMS per frame and the first frame below
+    :data:`RECOVERY_CONVERGED_DEG` (None: never)."""
+    out = {}
+    for appearance in APPEARANCES:
+        model, cam, states, images = _frames(n_frames, "natural", appearance)
+        start = states[0].copy()
+        for finger in ("index", "middle", "ring", "little"):
+            for joint in ("mcp", "pip", "dip"):
+                start[model.state_index(f"{finger}.{joint}")] += np.radians(RECOVERY_OFFSET_DEG)
+        start = np.clip(start, model.lower, model.upper)
+        tracker = DivideConquerTracker(model, [cam])
+        tracker.reset(start)
+        idx = tracker.joint_index
+        errors = [float(np.degrees(np.sqrt(np.mean(
+            (tracker.step([image]).state[idx] - states[f][idx]) ** 2))))
+            for f, image in enumerate(images)]
+        below = [f for f, e in enumerate(errors) if e < RECOVERY_CONVERGED_DEG]
+        out[appearance] = {
+            "start_error_deg": float(np.degrees(np.sqrt(np.mean((start[idx] - states[0][idx])
+                                                                  ** 2)))),
+            "first_frame_below": below[0] if below else None,
+            "finger_rms_deg_per_frame": errors}
+    return out
+
+
 def _long_run(n_frames: int, seeds: tuple[int, ...]) -> dict:
     """Issue 15's long-run target: ``natural`` (``n_frames``, one camera) tracked by
     :class:`DivideConquerTracker` with and without the digit search (Huang alone), for
@@ -230,6 +264,7 @@ def run(json_path: str | None = None, quick: bool = False,
                 for appearance in APPEARANCES}
         long_run = _long_run(12 if quick else LONG_RUN_FRAMES,
                              LONG_RUN_SEEDS[:1] if quick else LONG_RUN_SEEDS)
+        recovery = _recovery(6 if quick else RECOVERY_FRAMES)
     lines = ["Divide and conquer (Huang et al.), one core, 640x480 (provisional)",
              f"{'model':<16}{'likelihoods/s':>15}{'us each':>10}{'FK share':>10}"]
     for name, r in rates.items():
@@ -262,9 +297,17 @@ def run(json_path: str | None = None, quick: bool = False,
                          f"{m['finger_rms_deg_mean']:>11.1f}{m['palm_deg_mean']:>9.1f}"
                          f"{m['palm_mm_mean']:>8.1f}{m['fingertip_mm_mean']:>8.1f}"
                          f"{m['truly_lost_frames']:>6.1f}{m['flagged_frames']:>8.1f}")
+    lines.append(f"\nrecovery: every finger flexion joint {RECOVERY_OFFSET_DEG:.0f} deg off at "
+                 f"the start (finger joint RMS, deg, frames 0-9; first frame below "
+                 f"{RECOVERY_CONVERGED_DEG:.0f})")
+    for appearance, r in recovery.items():
+        lines.append(f"{APPEARANCE_LABELS[appearance]:<13} start {r['start_error_deg']:.1f}: "
+                     + " ".join(f"{e:.1f}" for e in r["finger_rms_deg_per_frame"][:10])
+                     + f"; first below: {r['first_frame_below']}")
     if plot_path:
         plot_fig3(panels, plot_path)
     result = {"likelihood": rates, "trackers": trackers, "fig3": fig3["model"],
-              "fig3_flesh": fig3["flesh"], "long_run": long_run, "batch": BATCH,
+              "fig3_flesh": fig3["flesh"], "long_run": long_run, "recovery": recovery,
+              "batch": BATCH,
               "frames": n_frames, "quick": quick, "machine": machine_info()}
     return emit(result, "\n".join(lines), json_path)
