@@ -34,3 +34,18 @@ def fd_gradient():
         return out
 
     return gradient
+
+
+@pytest.fixture(scope="session")
+def setup(two_finger):
+    """(scenario, images, model, camera, templates acquired on frame 0 at its state)."""
+    from digiteyes.kinematics import forward_kinematics
+    from digiteyes.occlusion.parts import template_parts
+    from digiteyes.templates.layered import acquire_templates
+
+    scenario, images = two_finger
+    model, cam = scenario.model, scenario.rig[0]
+    kin0 = forward_kinematics(model, scenario.states[0])
+    templates = acquire_templates(template_parts(model), images[0], cam, kin0,
+                                  spacing_px=2.0, margin=2.0)
+    return scenario, images, model, cam, templates

@@ -2,6 +2,7 @@
 frame, and its boundary gradient against finite differences."""
 
 import numpy as np
+import pytest
 
 from digiteyes.kinematics import forward_kinematics, integrate
 from digiteyes.occlusion.parts import template_parts
@@ -11,7 +12,6 @@ from digiteyes.templates.background import (
     evaluate_background,
     window_region,
 )
-from digiteyes.templates.layered import acquire_templates
 
 
 def _windows(model, cam, parts, templates, q, planes=None):
@@ -20,14 +20,18 @@ def _windows(model, cam, parts, templates, q, planes=None):
     return image_windows(parts, planes, kin, cam), planes
 
 
-def test_background_is_known_off_the_hand_and_fits_its_own_frame(two_finger):
-    scenario, images = two_finger
-    model, cam = scenario.model, scenario.rig[0]
+@pytest.fixture(scope="module")
+def background(setup):
+    """The background template of frame 0 (windows at its state, margin 2 px)."""
+    scenario, images, model, cam, templates = setup
+    windows, _ = _windows(model, cam, template_parts(model), templates, scenario.states[0])
+    return acquire_background(images[0], windows, margin=2.0)
+
+
+def test_background_is_known_off_the_hand_and_fits_its_own_frame(setup, background):
+    scenario, images, model, cam, templates = setup
     parts = template_parts(model)
-    kin0 = forward_kinematics(model, scenario.states[0])
-    templates = acquire_templates(parts, images[0], cam, kin0, spacing_px=2.0, margin=2.0)
     windows, _ = _windows(model, cam, parts, templates, scenario.states[0])
-    background = acquire_background(images[0], windows, margin=2.0)
     pixels = window_region(windows, images[0].shape, 20.0)
     inside = windows.bounds()
     # far from the hand everything is known; some pixels under the hand are not
@@ -41,16 +45,11 @@ def test_background_is_known_off_the_hand_and_fits_its_own_frame(two_finger):
                                                                        pixels[:, 0]]] > 0)
 
 
-def test_background_gradient_matches_finite_differences(two_finger, fd_gradient):
+def test_background_gradient_matches_finite_differences(setup, background, fd_gradient):
     """On frame 12 (the index moved in front of the middle finger), at a state off the
     truth: the gradient of E_B (boundary terms only) against central differences."""
-    scenario, images = two_finger
-    model, cam = scenario.model, scenario.rig[0]
+    scenario, images, model, cam, templates = setup
     parts = template_parts(model)
-    kin0 = forward_kinematics(model, scenario.states[0])
-    templates = acquire_templates(parts, images[0], cam, kin0, spacing_px=2.0, margin=2.0)
-    windows0, _ = _windows(model, cam, parts, templates, scenario.states[0])
-    background = acquire_background(images[0], windows0, margin=2.0)
     q = integrate(model, scenario.states[12],
                   np.r_[0.8, -0.5, 0.6, 0.05, -0.04, 0.06, 0.03, -0.02, 0.04])
     windows, planes = _windows(model, cam, parts, templates, q)

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from digiteyes.kinematics import forward_kinematics, integrate
-from digiteyes.occlusion.parts import template_parts
 from digiteyes.occlusion.segmentation import segment_image
 from digiteyes.templates.layered import (
     TemplateOptions,
@@ -14,16 +13,6 @@ from digiteyes.templates.layered import (
     evaluate_layered,
     refresh_templates,
 )
-
-
-@pytest.fixture(scope="module")
-def setup(two_finger):
-    scenario, images = two_finger
-    model, cam = scenario.model, scenario.rig[0]
-    parts = template_parts(model)
-    kin0 = forward_kinematics(model, scenario.states[0])
-    templates = acquire_templates(parts, images[0], cam, kin0, spacing_px=2.0, margin=2.0)
-    return scenario, images, model, cam, templates
 
 
 def test_acquired_templates_fit_their_own_frame(setup):

@@ -31,6 +31,47 @@ def bilinear_gradient(image, x, y):  # pragma: no cover - compiled
     return value, gx, bottom - top
 
 
+@njit(cache=True, inline="always")
+def _seen_through(win_kind, win_pts, win_r, windows, wx, wy, margin, tau, reach, gw, gp, Ms,
+                  ds):  # pragma: no cover - compiled
+    """``V = prod (1 - M_j)`` at pixel ``(wx, wy)`` over the windows ``windows`` (indices),
+    their outlines grown by ``margin``; fills ``Ms``/``ds`` (window values and signed
+    distances, in the order of ``windows``) and says whether any boundary is in reach."""
+    V = 1.0
+    boundary = False
+    for o in range(windows.shape[0]):
+        j = windows[o]
+        d = window_distance(win_kind[j], win_pts[j], win_r[j], wx, wy, gw, gp) + margin
+        M, _ = window_value(d, tau)
+        Ms[o] = M
+        ds[o] = d
+        V *= 1.0 - M
+        if tau > 0.0 and abs(d) < reach:
+            boundary = True
+    return V, boundary
+
+
+@njit(cache=True, inline="always")
+def _through_others(Ms, count, o):  # pragma: no cover - compiled
+    """``prod (1 - M)`` over the first ``count`` windows but window ``o``."""
+    others = 1.0
+    for o2 in range(count):
+        if o2 != o:
+            others *= 1.0 - Ms[o2]
+    return others
+
+
+@njit(cache=True, inline="always")
+def _add_outline_terms(j, kind, c, gp, b_pts, b_r):  # pragma: no cover - compiled
+    """Add ``c`` times window ``j``'s distance gradient ``gp`` (by its outline points) to
+    ``b_pts[j]``, and ``c`` to ``b_r[j]`` for a capsule (the radius)."""
+    for q in range(4):
+        b_pts[j, q, 0] += c * gp[q, 0]
+        b_pts[j, q, 1] += c * gp[q, 1]
+    if kind == 0:
+        b_r[j] += c
+
+
 @njit(cache=True)
 def layered_kernel(image, pix_part, p_world, w, Jp, values, weights, twists, occ_start,
                    occ_index, win_kind, win_pts, win_r, win_dpts, win_dr, tau, margin, H6,
@@ -68,18 +109,10 @@ def layered_kernel(image, pix_part, p_world, w, Jp, values, weights, twists, occ
         if weights[i] <= 0.0 or not (0.0 <= wx < width - 1 and 0.0 <= wy < height - 1):
             continue
         # visibility through the occluders' windows
-        V = 1.0
-        boundary = False
         n_occ = occ_start[k + 1] - occ_start[k]
-        for o in range(n_occ):
-            j = occ_index[occ_start[k] + o]
-            d = window_distance(win_kind[j], win_pts[j], win_r[j], wx, wy, gw, gp) + margin
-            M, _ = window_value(d, tau)
-            Ms[o] = M
-            ds[o] = d
-            V *= 1.0 - M
-            if tau > 0.0 and abs(d) < reach:
-                boundary = True
+        V, boundary = _seen_through(win_kind, win_pts, win_r,
+                                    occ_index[occ_start[k]:occ_start[k + 1]], wx, wy, margin,
+                                    tau, reach, gw, gp, Ms, ds)
         value, ix, iy = bilinear_gradient(image, wx, wy)
         r = value - values[i]
         r_out[i] = r
@@ -112,23 +145,15 @@ def layered_kernel(image, pix_part, p_world, w, Jp, values, weights, twists, occ
                 continue
             j = occ_index[occ_start[k] + o]
             d = window_distance(win_kind[j], win_pts[j], win_r[j], wx, wy, gw, gp) + margin
-            M, dM = window_value(d, tau)
-            others = 1.0
-            for o2 in range(n_occ):
-                if o2 != o:
-                    others *= 1.0 - Ms[o2]
-            f = -dM * others  # dV / dd_j
+            _, dM = window_value(d, tau)
+            f = -dM * _through_others(Ms, n_occ, o)  # dV / dd_j
             bx = gw[0] * Jp[i, 0, 0] + gw[1] * Jp[i, 1, 0]
             by = gw[0] * Jp[i, 0, 1] + gw[1] * Jp[i, 1, 1]
             bz = gw[0] * Jp[i, 0, 2] + gw[1] * Jp[i, 1, 2]
             n = (py * bz - pz * by, pz * bx - px * bz, px * by - py * bx, bx, by, bz)
             for a in range(6):
                 b6[k, a] += half * f * n[a]
-            for q in range(4):
-                b_pts[j, q, 0] += half * f * gp[q, 0]
-                b_pts[j, q, 1] += half * f * gp[q, 1]
-            if win_kind[j] == 0:
-                b_r[j] += half * f
+            _add_outline_terms(j, win_kind[j], half * f, gp, b_pts, b_r)
             if form_rows:
                 for c in range(n_v):
                     acc = 0.0
@@ -168,6 +193,7 @@ def background_kernel(image, pixels, values, weights, win_kind, win_pts, win_r, 
     gp = np.empty((4, 2))
     Ms = np.empty(n_win)
     ds = np.empty(n_win)
+    every = np.arange(n_win)
     reach = BOUNDARY_REACH * tau
     energy = 0.0
     for i in range(pixels.shape[0]):
@@ -177,17 +203,8 @@ def background_kernel(image, pixels, values, weights, win_kind, win_pts, win_r, 
         wt = weights[i]
         if wt <= 0.0:
             continue
-        V = 1.0
-        boundary = False
-        for j in range(n_win):
-            d = window_distance(win_kind[j], win_pts[j], win_r[j], float(x), float(y),
-                                gw, gp) + margin
-            M, _ = window_value(d, tau)
-            Ms[j] = M
-            ds[j] = d
-            V *= 1.0 - M
-            if tau > 0.0 and abs(d) < reach:
-                boundary = True
+        V, boundary = _seen_through(win_kind, win_pts, win_r, every, float(x), float(y),
+                                    margin, tau, reach, gw, gp, Ms, ds)
         r = float(image[y, x]) - values[i]
         r_out[i] = r
         v_out[i] = V
@@ -200,15 +217,7 @@ def background_kernel(image, pixels, values, weights, win_kind, win_pts, win_r, 
                 continue
             d = window_distance(win_kind[j], win_pts[j], win_r[j], float(x), float(y),
                                 gw, gp) + margin
-            M, dM = window_value(d, tau)
-            others = 1.0
-            for j2 in range(n_win):
-                if j2 != j:
-                    others *= 1.0 - Ms[j2]
-            f = -dM * others  # dV / dd_j
-            for q in range(4):
-                b_pts[j, q, 0] += half * f * gp[q, 0]
-                b_pts[j, q, 1] += half * f * gp[q, 1]
-            if win_kind[j] == 0:
-                b_r[j] += half * f
+            _, dM = window_value(d, tau)
+            _add_outline_terms(j, win_kind[j], -half * dM * _through_others(Ms, n_win, j), gp,
+                               b_pts, b_r)
     return energy
