@@ -143,7 +143,9 @@ def test_scenario_tracked_on_the_fly_until_sigterm(driver, tmp_path, model):
     np.testing.assert_allclose(page_poles(state), pole_from_state(model, streamed), atol=1.0)
     latency = np.array([f["latency_ms"] for f in state["frames"]])
     tracking = np.array([f["tracking_ms"] for f in state["frames"]])
-    assert (latency >= tracking).all()
+    # The page's clock is the browser's (coarsened to a fraction of a millisecond), the
+    # tracking time the server's: frame-to-page includes tracking, within that resolution.
+    assert (latency >= tracking - 0.5).all(), latency - tracking
     print(f"tracked frame-to-page latency: median {np.median(latency):.1f} ms "
           f"(tracking {np.median(tracking):.1f} ms)")
     assert driver.find_element("id", "pole-height").text != "-"

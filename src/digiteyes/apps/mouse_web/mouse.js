@@ -161,7 +161,9 @@ function onFrame(msg) {
   mouse.lost = msg.lost;
   updateSphere(previousThumb);
   draw();
-  const now = Date.now();  // wall clock, as the server's time.time()
+  // wall clock, as the server's time.time(), below a millisecond (Date.now() floors to
+  // whole milliseconds, which can put the page before the server's own timestamps)
+  const now = performance.timeOrigin + performance.now();
   mouse.latencyMs = now - msg.t_frame_ms;
   mouse.frames.push({ index: msg.index, pole: msg.pole.slice(), buttons: Object.assign({}, msg.buttons),
                       sphere: mouse.sphere.centre.slice(), held: mouse.sphere.held,
