@@ -53,7 +53,7 @@ from digiteyes.camera import Rig
 from digiteyes.io import StateLogWriter, VideoWriter
 from digiteyes.io.safe_paths import atomic_write_json
 from digiteyes.kinematics import KinematicModel
-from digiteyes.trackers import Tracker, TrackResult, restart, warm_up
+from digiteyes.trackers import Tracker, TrackResult, residual_unit, restart, warm_up
 from digiteyes.viz.model_view import write_model_png
 from digiteyes.viz.track_overlay import overlay_image
 from digiteyes.viz.trajectory import write_trajectory_plots
@@ -94,6 +94,7 @@ class TrackingRun:
     tracker: str = ""
     fps: float | None = None
     stages: tuple[str, ...] = ()
+    residual_unit: str = "px"
     n_frames: int = 0
     n_lost: int = 0
     first_lost_frame: int | None = None
@@ -133,6 +134,7 @@ class TrackingRun:
             "tracker": self.tracker,
             "fps": self.fps,
             "stages": list(self.stages),
+            "residual_unit": self.residual_unit,
             "frames": self.n_frames,
             "lost_frames": self.n_lost,
             "first_lost_frame": self.first_lost_frame,
@@ -199,7 +201,8 @@ def run_tracker(
     (out / "views").mkdir(parents=True, exist_ok=True)
     stages = tuple(tracker.stages)
     run = TrackingRun(out, tracker=tracker_name or type(tracker).__name__, fps=float(fps),
-                      stages=stages, stage_seconds=dict.fromkeys(stages, 0.0))
+                      stages=stages, residual_unit=residual_unit(tracker),
+                      stage_seconds=dict.fromkeys(stages, 0.0))
     states: list[np.ndarray] = []
     frames = iter(frames)
     first = next(frames, None)
@@ -236,7 +239,8 @@ def run_tracker(
                     video.write(overlay_image(images, result, rig, model))
                 if views_every and index % views_every == views_every - 1:
                     _write_view(model, result.state, out, index, view, run)
-                bar.set_postfix(rms_px=f"{result.residual_rms_px:.2f}", lost=run.n_lost)
+                bar.set_postfix(rms=f"{result.residual_rms_px:.2f} {run.residual_unit}",
+                                lost=run.n_lost)
     except KeyboardInterrupt:
         run.interrupted = True
     finally:

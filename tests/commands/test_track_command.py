@@ -43,6 +43,7 @@ def test_track_dataset_writes_log_overlay_views_and_plots(whole_hand, tmp_path, 
     assert error.mean() < 5.0, f"fingertip error {error.mean():.2f} mm"
     summary = json.loads((out / "summary.json").read_text())
     assert summary["frames"] == 6 and summary["lost_frames"] == 0
+    assert summary["residual_unit"] == "px"
     assert summary["ms_per_iteration"] > 0
     for name in ("overlay.mp4", "trajectory-palm.png", "trajectory-joints.png",
                  "views/estimate-000005.png"):

@@ -30,13 +30,18 @@ def test_track_templates_then_evaluate(occlusion, tmp_path, capsys, tracker):
     assert summary["tracker"] == tracker and summary["frames"] == N_FRAMES
     assert summary["iterations"] == 2 * N_FRAMES
     assert "visibility" in summary["stages"] and "residual" in summary["stages"]
+    assert summary["residual_unit"] == "grey level"   # not pixels: filtered grey levels
     assert summary["lost_frames"] == 0
     assert summary["lost_frames_per_finger"] == {"index": 0, "middle": 0}
     assert (out / "overlay.mp4").stat().st_size > 1000
     capsys.readouterr()
     assert main(["evaluate", str(out), str(occlusion)]) == 0
-    assert "track life" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "track life" in printed
+    residual = next(line for line in printed.splitlines() if "residual RMS" in line)
+    assert residual.rstrip().endswith("grey level"), residual
     metrics = json.loads((out / "evaluation" / "metrics.json").read_text())
+    assert metrics["run"]["residual_unit"] == "grey level"
     assert metrics["model"] == "two-finger"
     assert metrics["fingertip_error_mm"]["count"] == 2 * N_FRAMES
     assert metrics["fingertip_error_mm"]["mean"] < 1.5

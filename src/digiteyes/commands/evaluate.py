@@ -26,6 +26,7 @@ def evaluate(result: Path, gt_dir: Path, output: Path | None, loss_threshold_mm:
     from digiteyes.evaluate import evaluate_run, headline_rows, write_report
     from digiteyes.evaluate.report_page import write_report_page
     from digiteyes.io import open_sequence, read_state_log
+    from digiteyes.io.track_extras import track_residual_unit
 
     log_path = result if result.is_file() else result / "states.csv"
     with open_sequence(gt_dir) as seq:
@@ -35,6 +36,7 @@ def evaluate(result: Path, gt_dir: Path, output: Path | None, loss_threshold_mm:
         log = read_state_log(log_path, seq.model)
         metrics = evaluate_run(log, seq.truth, seq.model, seq.rig,
                                loss_threshold_mm=loss_threshold_mm)
+        metrics["run"]["residual_unit"] = track_residual_unit(log_path.parent)
         out = output or (log_path.parent / "evaluation")
         report = write_report(metrics, log, seq.truth, seq.model, out, fps=seq.fps,
                               title=f"Evaluation of {log_path} on {seq.name}")

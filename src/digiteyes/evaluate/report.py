@@ -79,7 +79,8 @@ def headline_rows(metrics: dict[str, Any]) -> list[tuple[str, str]]:
     run = metrics["run"]
     rows.append(("frames flagged lost by the tracker", str(run["lost_frames"])))
     res = run["residual_rms_px"]
-    rows.append(("image residual RMS, mean", _fmt(res["mean"] if res else None, "px")))
+    rows.append(("tracker residual RMS, mean", _fmt(res["mean"] if res else None,
+                                                    run.get("residual_unit", "px"))))
     rows.append(("iterations per frame, mean", _fmt(run["iterations_mean"], "", 1)))
     rows.append(("time per frame, mean", _fmt(1000 * run["time_s_mean"], "ms", 1)))
     return rows

@@ -83,16 +83,32 @@ def model_of_log(path: str | Path) -> KinematicModel:
     return load_model(fits[0])
 
 
-def track_fps(track_dir: str | Path) -> float | None:
-    """The frame rate recorded in ``summary.json`` (key ``fps``), or None."""
+def _summary(track_dir: str | Path) -> dict:
+    """A track folder's ``summary.json`` ({} when there is none)."""
     path = Path(track_dir) / "summary.json"
     if not path.is_file():
-        return None
+        return {}
     try:
-        value = json.loads(path.read_text(encoding="utf-8")).get("fps")
+        summary = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise DatasetError(f"{path}: cannot read ({exc})") from None
+    if not isinstance(summary, dict):
+        raise DatasetError(f"{path}: expected a JSON object")
+    return summary
+
+
+def track_fps(track_dir: str | Path) -> float | None:
+    """The frame rate recorded in ``summary.json`` (key ``fps``), or None."""
+    value = _summary(track_dir).get("fps")
     return float(value) if isinstance(value, int | float) and value > 0 else None
+
+
+def track_residual_unit(track_dir: str | Path) -> str:
+    """The unit of the state log's ``residual_rms_px`` column recorded in ``summary.json``
+    (key ``residual_unit``: ``"px"``, or ``"grey level"`` for the template trackers);
+    ``"px"`` when the folder does not say."""
+    value = _summary(track_dir).get("residual_unit")
+    return value if isinstance(value, str) and value else "px"
 
 
 def read_track(track_dir: str | Path, model: KinematicModel | None, fps: float | None,

@@ -8,7 +8,7 @@ conquer (``"divide-conquer"``), with its baselines ``"condensation"`` and
 ``"random-search"``. :func:`create_tracker` builds any registered tracker by name.
 """
 
-from digiteyes.trackers.base import Tracker, TrackResult, restart, warm_up
+from digiteyes.trackers.base import Tracker, TrackResult, residual_unit, restart, warm_up
 from digiteyes.trackers.divide_conquer import (
     CondensationOptions,
     CondensationTracker,
@@ -70,5 +70,6 @@ __all__ = [
     "LayeredTemplateTracker", "RandomSearchOptions", "RandomSearchTracker",
     "StateParameterisation", "StatePredictor", "TemplateDetails", "TrackResult", "Tracker",
     "TrackerEntry", "TrackerError", "all_features", "create_tracker", "register_tracker",
-    "restart", "thesis_whole_hand_links", "tracker_entry", "tracker_names", "warm_up",
+    "residual_unit", "restart", "thesis_whole_hand_links", "tracker_entry", "tracker_names",
+    "warm_up",
 ]

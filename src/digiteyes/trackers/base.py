@@ -30,8 +30,10 @@ class TrackResult:
     state : (n_q,) estimated state (mm, rad, unit quaternion).
     cost : the tracker's final cost for the frame (for least-squares trackers
         ``sum_i rho(r_i)``, px^2; NaN when it has none).
-    residual_rms_px : root mean square of the final residual vector, pixels (NaN when
-        nothing was measured).
+    residual_rms_px : root mean square of the final residual vector (NaN when nothing was
+        measured), in the tracker's :data:`residual_unit`: pixels for the feature and
+        particle trackers, grey levels of the filtered image for the template trackers
+        (the name keeps the log files' column).
     lost : the track-loss rules fired in this frame; tracking goes on regardless.
     loss_reason : why (``""`` when not lost; several reasons are joined by ``"; "``).
     iterations : solver iterations (or particle generations) spent on this frame.
@@ -71,6 +73,9 @@ class Tracker(Protocol):
     stages : names of the timing stages the tracker reports in
         :attr:`TrackResult.timings` (``"total"`` is always there too and not listed).
     model, rig : the kinematic model and the cameras it tracks with.
+
+    A tracker whose residual is not in pixels says so in a class attribute
+    ``residual_unit`` (read by :func:`residual_unit`; ``"px"`` when absent).
     """
 
     stages: ClassVar[tuple[str, ...]]
@@ -88,6 +93,12 @@ class Tracker(Protocol):
     def step(self, frames: Sequence[np.ndarray]) -> TrackResult:
         """Estimate the state for the next set of frames."""
         ...
+
+
+def residual_unit(tracker: Tracker) -> str:
+    """The unit of ``tracker``'s :attr:`TrackResult.residual_rms_px`: its
+    ``residual_unit`` attribute, ``"px"`` when it has none."""
+    return str(getattr(tracker, "residual_unit", "px"))
 
 
 def restart(tracker: Tracker, state: np.ndarray) -> None:

@@ -230,6 +230,9 @@ class LayeredTemplateTracker:
     """
 
     stages = TEMPLATE_TIMING_STAGES
+    residual_unit = "grey level"
+    """:attr:`TrackResult.residual_rms_px` holds the visible template residual's RMS in
+    grey levels of the LoG-filtered image (0-255 scale), not pixels."""
 
     def __init__(self, model: KinematicModel, rig: Rig,
                  options: LayeredTemplateOptions | None = None) -> None:
