@@ -117,10 +117,11 @@ def test_full_hand_model_runs(natural_cardboard):
 
 
 def test_first_frame_fits_the_palm_outline_or_drops_its_term(natural_cardboard):
-    """On the first frame: our own drawing's palm is the model's (nothing moves, the
-    outline term stays); the flesh hand's fleshier palm moves the radial and ulnar sides
-    8-16 mm out, after which the outline fits and its term stays. Without that
-    calibration the flesh palm's outline misses its edges and the term is dropped."""
+    """On the first frame: our own drawing's palm and fingers are the model's (nothing
+    changes, the outline term stays); the flesh hand's fleshier palm moves the radial and
+    ulnar sides 8-16 mm out, after which the outline fits and its term stays, and its
+    fingers come out thinner. Without that fit the flesh palm's outline misses its edges
+    and the term is dropped."""
     from digiteyes.synth import RenderOptions
     model, cam, states = natural_cardboard
     images = {a: render_views(model, states[0], [cam], RenderOptions(appearance=a),
@@ -135,16 +136,22 @@ def test_first_frame_fits_the_palm_outline_or_drops_its_term(natural_cardboard):
 
     own = first_frame("model")
     np.testing.assert_array_equal(own.outline_calibration.offsets_mm, 0.0)
+    assert own.finger_width_scale == 1.0 and np.array_equal(own.geometry.radii,
+                                                            own.model_geometry.radii)
     assert own.outline_fit > 0.6 and own.palm_search_options.outline_points == 40
     flesh = first_frame("flesh")
     assert 8.0 <= flesh.outline_calibration.offsets_mm[1] <= 16.0
     assert 8.0 <= flesh.outline_calibration.offsets_mm[3] <= 16.0
     assert flesh.outline_fit > 0.5 and flesh.palm_search_options.outline_points == 40
     assert not np.array_equal(flesh.geometry.palm_outline, flesh.model_geometry.palm_outline)
+    # the flesh fingers taper: thinner than the model's cylinders on the whole
+    assert 0.75 <= flesh.finger_width_scale <= 0.95
+    np.testing.assert_allclose(flesh.geometry.radii,
+                               flesh.model_geometry.radii * flesh.finger_width_scale)
     flesh.reset(states[0])
     assert flesh.geometry is flesh.model_geometry and flesh.outline_calibration is None
-    plain = first_frame("flesh", calibrate_outline=False)
-    assert plain.outline_calibration is None
+    plain = first_frame("flesh", fit_first_frame=False)
+    assert plain.outline_calibration is None and plain.finger_width_scale == 1.0
     assert plain.outline_fit < 0.4 and plain.palm_search_options.outline_points == 0
     plain.reset(states[0])
     assert plain.palm_search_options == plain.options.palm_search

@@ -146,3 +146,29 @@ def test_the_compiled_likelihood_matches_a_plain_reference(natural_cardboard):
         total, visible = _reference_log_likelihood(model, geometry, q, cam, edges, options)
         assert result.visible[k] == visible
         assert result.log_likelihood[k] == pytest.approx(total, rel=1e-9, abs=1e-9)
+
+
+def test_finger_width_fit_finds_a_thinner_drawing():
+    """Edges drawn from the model with every finger patch 20 % thinner: the fit finds
+    0.8 (to its 0.05 grid); the model's own drawing gives 1."""
+    import dataclasses
+
+    from digiteyes import load_model
+    from digiteyes.kinematics import KinematicModel
+    from digiteyes.kinematics.model_file import ShapeSpec
+    from digiteyes.smc.likelihood import FingerGeometry, fit_finger_width
+    from digiteyes.synth.scenarios import build_scenario
+
+    scenario = build_scenario("natural", n_frames=1)
+    model = load_model("cardboard-hand")
+    q = np.delete(scenario.states[0], scenario.model.state_index("thumb.mp_abd"))
+    cam = scenario.rig.cameras[0]
+    geometry = FingerGeometry.of(model)
+    own = [observe_edges(render_views(model, q, [cam], rng=0)[0].image)]
+    assert fit_finger_width(model, geometry, q, [cam], own) == 1.0
+    frames = tuple(dataclasses.replace(row, shape=ShapeSpec("cyl", (0.8 * row.shape.params[0],)))
+                   if row.shape is not None and row.shape.kind == "cyl" else row
+                   for row in model.spec.frames)
+    thin = KinematicModel(dataclasses.replace(model.spec, frames=frames))
+    edges = [observe_edges(render_views(thin, q, [cam], rng=0)[0].image)]
+    assert abs(fit_finger_width(model, geometry, q, [cam], edges) - 0.8) <= 0.051

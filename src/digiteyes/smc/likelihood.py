@@ -22,7 +22,7 @@ width uses the undistorted focal length.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -213,3 +213,26 @@ def finger_log_likelihood(model: KinematicModel, geometry: FingerGeometry, q: np
     with np.errstate(invalid="ignore", divide="ignore"):
         rms = np.sqrt(stats[:, 2] / stats[:, 1])
     return LikelihoodResult(log_l, stats[:, 0], stats[:, 1], rms)
+
+
+def fit_finger_width(model: KinematicModel, geometry: FingerGeometry, q: np.ndarray,
+                     cameras, edge_maps: list[np.ndarray],
+                     scales: np.ndarray = np.arange(0.7, 1.31, 0.05),  # noqa: B008
+                     options: LikelihoodOptions = LikelihoodOptions(),
+                     lookups: list[EdgeLookup] | None = None,
+                     min_change: float = 0.1) -> float:
+    """The scale of every finger patch's half-width (one for the hand) under which the
+    frame's likelihood at the known state ``q`` (n_q,) is highest: the patch-size
+    calibration of Huang Sec. 4.2 for the fingers (a user's fingers are thinner or
+    thicker than the model's; the flesh hand's taper). Returns the scale: 1 when nothing
+    beats the model's widths or the best differs from 1 by less than ``min_change`` (one
+    step of ``scales`` is within what the likelihood can tell on one frame)."""
+    Q = np.asarray(q, dtype=float)[None]
+    scores = [finger_log_likelihood(model, replace(geometry, radii=geometry.radii * s), Q,
+                                    cameras, edge_maps, options, lookups).log_likelihood[0]
+              for s in scales]
+    k = int(np.argmax(scores))
+    at_one = finger_log_likelihood(model, geometry, Q, cameras, edge_maps, options,
+                                   lookups).log_likelihood[0]
+    best = float(scales[k])
+    return best if scores[k] > at_one and abs(best - 1.0) >= min_change - 1e-9 else 1.0

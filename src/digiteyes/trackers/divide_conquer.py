@@ -53,6 +53,7 @@ from digiteyes.smc.likelihood import (
     LikelihoodOptions,
     edge_lookup,
     finger_log_likelihood,
+    fit_finger_width,
     observe_edges,
 )
 from digiteyes.smc.manifolds import manifold_pairs
@@ -120,10 +121,11 @@ class DivideConquerOptions(SilhouetteLossOptions):
         silhouette loss rule (:class:`~digiteyes.trackers.silhouette_loss.SilhouetteLoss`;
         defaults as the feature tracker's).
     refine_rounds : rounds of digit search then palm refinement after the EM rounds.
-    calibrate_outline : fit the palm outline's sides to the user's palm on the first
-        frame, at the state the track starts from (:func:`~digiteyes.smc.palm.
-        calibrate_palm_outline`; the outline serves the ICP, the outline term and the
-        occlusion map).
+    fit_first_frame : fit the model's patches to the user's hand on the first frame, at
+        the state the track starts from: the palm outline's sides
+        (:func:`~digiteyes.smc.palm.calibrate_palm_outline`; the outline serves the ICP,
+        the outline term and the occlusion map) and the fingers' width
+        (:func:`~digiteyes.smc.likelihood.fit_finger_width`).
     digit_search : the digit-by-digit search (:mod:`digiteyes.smc.digit_search`;
         ``passes=0`` turns it off: Huang's tracker alone). Off in the baselines' options
         (:class:`CondensationOptions`, :class:`RandomSearchOptions`), as Huang runs them.
@@ -145,7 +147,7 @@ class DivideConquerOptions(SilhouetteLossOptions):
     search_sigma: float = 0.15
     walk_fraction: float = 0.1
     refine_rounds: int = 1
-    calibrate_outline: bool = True
+    fit_first_frame: bool = True
     anneal_layers: int = 0
     min_edge_fraction: float = 0.3
     proposal: ProposalOptions = field(default_factory=ProposalOptions)
@@ -268,6 +270,7 @@ class DivideConquerTracker:
         self.palm_search_options = options.palm_search
         self.outline_fit: float | None = None
         self.outline_calibration: OutlineCalibration | None = None
+        self.finger_width_scale = 1.0
         self.model_geometry = self.geometry
 
     # ------------------------------------------------------------------ protocol
@@ -286,6 +289,7 @@ class DivideConquerTracker:
         self.palm_search_options = self.options.palm_search
         self.outline_fit = None
         self.outline_calibration = None
+        self.finger_width_scale = 1.0
         self.geometry = self.model_geometry
 
     def calibrate(self, frame: np.ndarray, state: np.ndarray) -> float:
@@ -311,7 +315,7 @@ class DivideConquerTracker:
         lookups = [edge_lookup(e, opt.likelihood) for e in edge_maps]
         nearest = nearest_edge_field(edge_maps[0]) if opt.track_palm else None
         if self.frame_index == 0 and opt.track_palm:
-            self._fit_outline(lookups[0])
+            self._fit_first_frame(edge_maps, lookups)
         timings["edges"] = time.perf_counter() - t
 
         t = time.perf_counter()
@@ -441,18 +445,26 @@ class DivideConquerTracker:
             finger_lost=finger_lost, details=details)
 
     # ------------------------------------------------------------------ refinement
-    def _fit_outline(self, lookup: EdgeLookup) -> None:
-        """On the first frame, at the state the track starts from: fit the palm outline's
-        sides to the user's palm (``calibrate_outline``,
-        :func:`~digiteyes.smc.palm.calibrate_palm_outline`; kept in
-        :attr:`outline_calibration`), then keep the outline's edge term only if enough of
+    def _fit_first_frame(self, edge_maps: list[np.ndarray], lookups: list[EdgeLookup]
+                         ) -> None:
+        """On the first frame, at the state the track starts from (``fit_first_frame``):
+        fit the palm outline's sides to the user's palm
+        (:func:`~digiteyes.smc.palm.calibrate_palm_outline`; kept in
+        :attr:`outline_calibration`) and the fingers' width
+        (:func:`~digiteyes.smc.likelihood.fit_finger_width`; kept in
+        :attr:`finger_width_scale`); then keep the outline's edge term only if enough of
         the outline lies on edges (:class:`PalmSearchOptions`; the fraction is kept in
         :attr:`outline_fit`)."""
-        if self.options.calibrate_outline:
+        lookup = lookups[0]
+        if self.options.fit_first_frame:
             self.outline_calibration = calibrate_palm_outline(
                 self.model, self.geometry, self.state, self.cameras[0], lookup)
+            self.finger_width_scale = fit_finger_width(
+                self.model, self.geometry, self.state, self.cameras, edge_maps,
+                options=self.options.likelihood, lookups=lookups)
             self.geometry = replace(self.geometry,
-                                    palm_outline=self.outline_calibration.corners)
+                                    palm_outline=self.outline_calibration.corners,
+                                    radii=self.geometry.radii * self.finger_width_scale)
         options = self.options.palm_search
         points = palm_outline_samples(self.geometry, options.outline_points)
         self.outline_fit = outline_edge_fraction(self.model, self.geometry, self.state,
