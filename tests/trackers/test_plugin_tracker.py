@@ -110,6 +110,33 @@ def test_registry_creates_by_name_and_rejects_unknown_names_and_options(sequence
     assert features.options.iterations_per_frame == 2 and features.options.form == "quaternion"
 
 
+def test_dotted_options_set_nested_settings(sequence):
+    """``digit_search.passes=0`` sets one field of a nested settings object, keeping the
+    rest of it and every other option at their defaults; a dotted key that names nothing
+    or a plain field, or a bad value, is one clear error."""
+    from digiteyes.trackers import DivideConquerOptions
+    seq = open_sequence(sequence)
+    default = DivideConquerOptions()
+    tracker = create_tracker("divide-conquer", seq.model, seq.rig, n_particles=50,
+                             **{"digit_search.passes": 0, "palm_search.rounds": 1,
+                                "palm_search.samples": 8})
+    opts = tracker.options
+    assert opts.n_particles == 50 and opts.digit_search.passes == 0
+    assert opts.digit_search.palms == default.digit_search.palms
+    assert (opts.palm_search.rounds, opts.palm_search.samples) == (1, 8)
+    assert opts.palm_search.sigma_deg == default.palm_search.sigma_deg
+    assert opts.likelihood == default.likelihood
+    with pytest.raises(TrackerError, match=r"no option 'digit_search.pases'; digit_search's "
+                                           r"options are .*passes"):
+        create_tracker("divide-conquer", seq.model, seq.rig, **{"digit_search.pases": 0})
+    with pytest.raises(TrackerError, match=r"option 'n_particles' has no parts"):
+        create_tracker("divide-conquer", seq.model, seq.rig, **{"n_particles.x": 0})
+    with pytest.raises(TrackerError, match=r"digit_search.palms must be an integer"):
+        create_tracker("divide-conquer", seq.model, seq.rig, **{"digit_search.palms": 0.5})
+    with pytest.raises(TrackerError, match=r"digit_search.steps must be a list"):
+        create_tracker("divide-conquer", seq.model, seq.rig, **{"digit_search.steps": "abc"})
+
+
 def test_track_help_lists_the_registered_trackers(capsys):
     assert main(["track", "--help"]) == 0
     out = " ".join(capsys.readouterr().out.split()).replace("- ", "-")  # unwrap

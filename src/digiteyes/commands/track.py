@@ -156,8 +156,9 @@ def print_run(run: TrackingRun, err: bool = False) -> None:
               default=DEFAULT_TRACKER, show_default=True)
 @click.option("--option", "option_pairs", multiple=True, metavar="KEY=VALUE",
               help="A field of the tracker's options (repeatable), e.g. "
-                   "--option iterations_per_frame=3; for the features tracker on top of "
-                   "the flags below.")
+                   "--option iterations_per_frame=3; a dotted key sets a field of nested "
+                   "settings (--option digit_search.passes=0); for the features tracker "
+                   "on top of the flags below.")
 @click.option("--iterations", type=click.IntRange(min=1), default=5, show_default=True,
               help="Gauss-Newton iterations per frame (features tracker).")
 @click.option("--window", type=click.FloatRange(min=2.0), default=20.0, show_default=True,

@@ -57,6 +57,23 @@ class DigitSearchOptions:
     palm_sigma_deg: float = 2.0
     palm_sigma_mm: float = 1.5
 
+    def __post_init__(self) -> None:
+        for name, low in (("passes", 0), ("palms", 1)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                raise ValueError(f"digit_search.{name} must be an integer of at least {low}, "
+                                 f"got {value!r}")
+        try:
+            steps = np.asarray(self.steps, dtype=float)
+        except (TypeError, ValueError):
+            steps = np.array([np.nan])
+        if steps.ndim != 1 or not steps.size or not np.isfinite(steps).all():
+            raise ValueError(f"digit_search.steps must be a list of finite numbers, got "
+                             f"{self.steps!r}")
+        if not (self.palm_sigma_deg >= 0 and self.palm_sigma_mm >= 0):
+            raise ValueError("digit_search.palm_sigma_deg and palm_sigma_mm must not be "
+                             "negative")
+
 
 def digit_curl_directions(space: ConfigurationSpace) -> np.ndarray:
     """(5, J) joint-angle change (rad) from each digit's fully extended to its fully curled

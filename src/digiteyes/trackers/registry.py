@@ -80,18 +80,62 @@ def tracker_entry(name: str) -> TrackerEntry:
 
 def create_tracker(name: str, model: KinematicModel, rig: Rig, **options: Any) -> Tracker:
     """A new tracker ``name`` for ``model`` and ``rig``, with ``options`` as fields of its
-    options type (unset fields keep their defaults).
+    options type (unset fields keep their defaults). A dotted key sets a field of a nested
+    settings object (``digit_search.passes=0``, ``templates.window_px=2``), the rest of
+    which keeps its defaults.
 
     Raises :class:`TrackerError` for an unknown name or option, naming the choices.
     """
     entry = tracker_entry(name)
-    fields = {f.name for f in dataclasses.fields(entry.options_type)}
-    unknown = sorted(set(options) - fields)
-    if unknown:
-        raise TrackerError(f"tracker {name!r} has no option {', '.join(map(repr, unknown))}; "
-                           f"its options are {', '.join(sorted(fields)) or 'none'}")
+    nested: dict[str, Any] = {}
+    for key, value in options.items():
+        node = nested
+        *path, last = key.split(".")
+        for part in path:
+            node = node.setdefault(part, _Nested())
+            if not isinstance(node, _Nested):
+                raise TrackerError(f"tracker {name!r}: option {part!r} is set and has "
+                                   f"parts set too")
+        node[last] = value
     try:
-        settings = entry.options_type(**options)
+        settings = _settings(entry.options_type, None, nested, name, "")
+    except TrackerError:
+        raise
     except (TypeError, ValueError) as exc:
         raise TrackerError(f"tracker {name!r}: {exc}") from None
     return entry.factory(model, rig, settings)
+
+
+class _Nested(dict):
+    """Options under a dotted key's prefix (a nested settings object's fields)."""
+
+
+def _settings(options_type: type, base: Any, options: dict[str, Any], name: str,
+              prefix: str) -> Any:
+    """``base`` (or a new ``options_type``) with ``options`` set, nested ones applied to
+    the settings object their prefix names."""
+    fields = {f.name: f for f in dataclasses.fields(options_type)}
+    unknown = sorted(set(options) - set(fields))
+    if unknown:
+        where = f"{prefix[:-1]}'s options" if prefix else "its options"
+        raise TrackerError(f"tracker {name!r} has no option "
+                           f"{', '.join(repr(prefix + u) for u in unknown)}; {where} are "
+                           f"{', '.join(sorted(fields)) or 'none'}")
+    values = {}
+    for key, value in options.items():
+        if isinstance(value, _Nested):
+            current = getattr(base, key) if base is not None else _default(fields[key])
+            if not dataclasses.is_dataclass(current):
+                raise TrackerError(f"tracker {name!r}: option {prefix + key!r} has no "
+                                   f"parts to set")
+            value = _settings(type(current), current, value, name, f"{prefix}{key}.")
+        values[key] = value
+    return dataclasses.replace(base, **values) if base is not None else options_type(**values)
+
+
+def _default(field: dataclasses.Field) -> Any:
+    if field.default is not dataclasses.MISSING:
+        return field.default
+    if field.default_factory is not dataclasses.MISSING:
+        return field.default_factory()
+    return None
