@@ -133,6 +133,10 @@ def test_dotted_options_set_nested_settings(sequence):
         create_tracker("divide-conquer", seq.model, seq.rig, **{"n_particles.x": 0})
     with pytest.raises(TrackerError, match=r"digit_search.palms must be an integer"):
         create_tracker("divide-conquer", seq.model, seq.rig, **{"digit_search.palms": 0.5})
+    for order in ({"digit_search": 0, "digit_search.passes": 0},
+                  {"digit_search.passes": 0, "digit_search": 0}):
+        with pytest.raises(TrackerError, match=r"is set and has parts set too"):
+            create_tracker("divide-conquer", seq.model, seq.rig, **order)
     with pytest.raises(TrackerError, match=r"digit_search.steps must be a list"):
         create_tracker("divide-conquer", seq.model, seq.rig, **{"digit_search.steps": "abc"})
 

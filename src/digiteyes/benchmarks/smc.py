@@ -54,10 +54,11 @@ from digiteyes.trackers.divide_conquer import (
 BATCH = 3000
 FIG3_SCENARIOS = ("natural", "glove-desk-1cam")
 FIG3_TRACKERS = (DivideConquerTracker, CondensationTracker, RandomSearchTracker)
+HUANG_ONLY = DivideConquerOptions(digit_search=DigitSearchOptions(passes=0))
+"""The proposed tracker without our digit search: Huang's method alone."""
 FIG3_RUNS = {
     "DivideConquerTracker": (DivideConquerTracker, None),
-    "DivideConquerTracker, Huang only": (
-        DivideConquerTracker, DivideConquerOptions(digit_search=DigitSearchOptions(passes=0))),
+    "DivideConquerTracker, Huang only": (DivideConquerTracker, HUANG_ONLY),
     "CondensationTracker": (CondensationTracker, None),
     "RandomSearchTracker": (RandomSearchTracker, None),
 }
@@ -99,6 +100,11 @@ def _likelihood_rates(repeat: int, min_time: float) -> dict:
     return out
 
 
+def _finger_rms_deg(joint_index: np.ndarray, q: np.ndarray, truth: np.ndarray) -> float:
+    """RMS over the finger joints ``joint_index`` of ``q - truth``, degrees."""
+    return float(np.degrees(np.sqrt(np.mean((q[joint_index] - truth[joint_index]) ** 2))))
+
+
 def _frames(n_frames: int, scenario_name: str = "natural", appearance: str = "model"):
     """(model, camera, true states, images) of the first ``n_frames`` of a scenario drawn in
     ``appearance``, one camera, the cardboard hand as the tracking model."""
@@ -128,7 +134,7 @@ def _track(cls, n_frames: int, scenario_name: str = "natural",
         estimates.append(r.state)
         flagged.append(r.lost)
         idx = tracker.joint_index
-        joint.append(np.degrees(np.sqrt(np.mean((r.state[idx] - states[f][idx]) ** 2))))
+        joint.append(_finger_rms_deg(idx, r.state, states[f]))
         Ta, Tb = palm_pose_from_state(model, r.state), palm_pose_from_state(model, states[f])
         palm_deg.append(np.degrees(np.arccos(np.clip((np.trace(Ta[:3, :3].T @ Tb[:3, :3]) - 1)
                                                      / 2, -1, 1))))
@@ -168,13 +174,11 @@ def _recovery(n_frames: int = RECOVERY_FRAMES) -> dict:
         tracker = DivideConquerTracker(model, [cam])
         tracker.reset(start)
         idx = tracker.joint_index
-        errors = [float(np.degrees(np.sqrt(np.mean(
-            (tracker.step([image]).state[idx] - states[f][idx]) ** 2))))
-            for f, image in enumerate(images)]
+        errors = [_finger_rms_deg(idx, tracker.step([image]).state, states[f])
+                  for f, image in enumerate(images)]
         below = [f for f, e in enumerate(errors) if e < RECOVERY_CONVERGED_DEG]
         out[appearance] = {
-            "start_error_deg": float(np.degrees(np.sqrt(np.mean((start[idx] - states[0][idx])
-                                                                  ** 2)))),
+            "start_error_deg": _finger_rms_deg(idx, start, states[0]),
             "first_frame_below": below[0] if below else None,
             "finger_rms_deg_per_frame": errors}
     return out
@@ -185,8 +189,7 @@ def _long_run(n_frames: int, seeds: tuple[int, ...]) -> dict:
     :class:`DivideConquerTracker` with and without the digit search (Huang alone), for
     each seed and appearance; per run the :func:`_track` record without the per-frame
     series, and the mean over seeds of each figure."""
-    variants = {"proposed": DivideConquerOptions(),
-                "huang_only": DivideConquerOptions(digit_search=DigitSearchOptions(passes=0))}
+    variants = {"proposed": DivideConquerOptions(), "huang_only": HUANG_ONLY}
     out = {}
     for appearance in APPEARANCES:
         frames = _frames(n_frames, "natural", appearance)

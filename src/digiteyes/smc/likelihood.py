@@ -97,6 +97,17 @@ class EdgeLookup:
     distance: np.ndarray
     score: np.ndarray
 
+    def at(self, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The tables at image points ``uv`` (..., 2) px, rounded to the pixel: ``score``
+        (0 outside the image) and ``distance`` (inf outside), each of shape (...)."""
+        col = np.rint(uv[..., 0]).astype(np.int64, copy=False)
+        row = np.rint(uv[..., 1]).astype(np.int64, copy=False)
+        h, w = self.score.shape
+        inside = (col >= 0) & (col < w) & (row >= 0) & (row < h)
+        r, c = np.clip(row, 0, h - 1), np.clip(col, 0, w - 1)
+        return (np.where(inside, self.score[r, c], 0.0),
+                np.where(inside, self.distance[r, c], np.inf))
+
 
 def edge_lookup(edges: np.ndarray, options: LikelihoodOptions = LikelihoodOptions()
                 ) -> EdgeLookup:

@@ -339,7 +339,6 @@ def calibrate_palm_outline(model: KinematicModel, geometry: FingerGeometry, q: n
     corners = np.asarray(geometry.palm_outline, dtype=float)
     T = forward_kinematics(model, np.atleast_2d(q)).T_world_shape[0, geometry.palm_row]
     centre = corners.mean(axis=0)
-    h, w = lookup.score.shape
     t = (np.arange(points_per_side) + 0.5) / points_per_side
     normals = np.zeros((4, 3))
     offsets, scores = np.zeros(4), np.full(4, np.nan)
@@ -354,10 +353,7 @@ def calibrate_palm_outline(model: KinematicModel, geometry: FingerGeometry, q: n
         base = a + t[:, None] * (b - a)                                    # (K, 3)
         shifted = base[None] + offsets_mm[:, None, None] * normals[side]   # (O, K, 3)
         uv = camera.project(shifted.reshape(-1, 3) @ T[:3, :3].T + T[:3, 3])
-        col, row = np.rint(uv[:, 0]).astype(int), np.rint(uv[:, 1]).astype(int)
-        inside = (col >= 0) & (col < w) & (row >= 0) & (row < h)
-        score = np.where(inside, lookup.score[np.clip(row, 0, h - 1), np.clip(col, 0, w - 1)],
-                         0.0).reshape(len(offsets_mm), -1).mean(axis=1)
+        score = lookup.at(uv)[0].reshape(len(offsets_mm), -1).mean(axis=1)
         k = int(np.argmax(score))
         scores[side] = score[k]
         if score[k] >= min_score and abs(offsets_mm[k]) >= min_offset_mm:

@@ -76,12 +76,7 @@ def outline_log_score(model: KinematicModel, geometry: FingerGeometry, q: np.nda
     total = np.zeros(len(world))
     for camera, lookup in zip(cameras, lookups, strict=True):
         uv = camera.project(world.reshape(-1, 3)).reshape(len(world), -1, 2)
-        col = np.rint(uv[..., 0]).astype(np.int64, copy=False)
-        row = np.rint(uv[..., 1]).astype(np.int64, copy=False)
-        h, w = lookup.score.shape
-        inside = (col >= 0) & (col < w) & (row >= 0) & (row < h)
-        total += np.where(inside, lookup.score[np.clip(row, 0, h - 1), np.clip(col, 0, w - 1)],
-                          0.0).sum(axis=1)
+        total += lookup.at(uv)[0].sum(axis=1)
     return total
 
 
@@ -104,11 +99,7 @@ def outline_edge_fraction(model: KinematicModel, geometry: FingerGeometry, q: np
     """Fraction of the palm outline ``points`` (P, 3) of state ``q`` (n_q,) that project
     into ``camera``'s image within ``max_px`` of an edge (:attr:`EdgeLookup.distance`)."""
     T = forward_kinematics(model, np.atleast_2d(q)).T_world_shape[0, geometry.palm_row]
-    uv = camera.project(points @ T[:3, :3].T + T[:3, 3])
-    col, row = np.rint(uv[:, 0]).astype(int), np.rint(uv[:, 1]).astype(int)
-    h, w = lookup.distance.shape
-    inside = (col >= 0) & (col < w) & (row >= 0) & (row < h)
-    near = lookup.distance[row[inside], col[inside]] <= max_px
+    near = lookup.at(camera.project(points @ T[:3, :3].T + T[:3, 3]))[1] <= max_px
     return float(near.sum()) / len(points) if len(points) else 0.0
 
 

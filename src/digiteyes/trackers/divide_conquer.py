@@ -384,7 +384,6 @@ class DivideConquerTracker:
                 stop = "converged"
                 break
         x_best, changed = X[best], False
-        greys = [prepare_image(f) for f in frames] if opt.silhouette_check else []
         for _ in range(opt.refine_rounds):
             if opt.digit_search.passes > 0:
                 t = time.perf_counter()
@@ -425,7 +424,8 @@ class DivideConquerTracker:
         finger_lost: dict[str, bool] = {}
         if opt.silhouette_check:
             t = time.perf_counter()
-            verdict = self.silhouette_loss.check(greys, q, predicted)
+            verdict = self.silhouette_loss.check([prepare_image(f) for f in frames], q,
+                                                 predicted)
             reasons += verdict.reasons
             finger_lost = verdict.finger_lost
             timings["silhouette"] = time.perf_counter() - t

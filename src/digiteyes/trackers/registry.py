@@ -96,6 +96,9 @@ def create_tracker(name: str, model: KinematicModel, rig: Rig, **options: Any) -
             if not isinstance(node, _Nested):
                 raise TrackerError(f"tracker {name!r}: option {part!r} is set and has "
                                    f"parts set too")
+        if isinstance(node.get(last), _Nested):
+            raise TrackerError(f"tracker {name!r}: option {key!r} is set and has parts set "
+                               f"too")
         node[last] = value
     try:
         settings = _settings(entry.options_type, None, nested, name, "")
