@@ -106,7 +106,9 @@ def test_tracks_finger_flexion_and_palm_motion(rig, true_states, frames, form):
 
 
 def test_blank_frames_flag_loss_and_tracking_resumes(rig, true_states, frames):
-    tracker = FeatureTracker(HAND, rig)
+    """Blank frames are lost; tracking resumes, and the flag is held for 3 frames after
+    the last frame the rules call lost (:mod:`digiteyes.trackers.loss_hold`)."""
+    tracker = FeatureTracker(HAND, rig, FeatureTrackerOptions(hold_lost_frames=3))
     blank = [np.zeros((480, 640), dtype=np.uint8)] * 2
     sequence = frames[:6] + [blank] * 3 + frames[9:]
     results = track(tracker, true_states, sequence)
@@ -119,7 +121,8 @@ def test_blank_frames_flag_loss_and_tracking_resumes(rig, true_states, frames):
     # after the first blank frame the velocity is dropped: the estimate holds still
     np.testing.assert_array_equal(results[7].state, results[6].state)
     np.testing.assert_array_equal(results[8].state, results[7].state)
-    assert not any(r.lost for r in results[11:])
+    assert results[11].lost and results[11].loss_reason.startswith("held: ")
+    assert not any(r.lost for r in results[14:])
     joints, tips, _ = errors(results[12:], true_states[12:])
     assert np.sqrt(np.mean(joints**2)) < 5.0
     assert np.sqrt(np.mean(tips**2)) < 4.0 and tips.max() < 10.0

@@ -107,9 +107,15 @@ def row_figures(sequence: RenderedSequence, outcome: Any) -> dict[str, Any]:
                        sequence.truth_model)
     out["truly_lost_frames"] = int(truth.lost.sum())
     out["flag"] = flag_scores(outcome.log.lost, truth.lost)
+    out["timeline"] = {"flagged": _bits(outcome.log.lost), "truly_lost": _bits(truth.lost)}
     out["finger_flag"] = finger_scores(outcome.finger_lost, truth.tip_names,
                                        truth.finger_lost)
     return out
+
+
+def _bits(flags: np.ndarray) -> str:
+    """Per-frame flags (T,) bool as a string of ``0`` and ``1``."""
+    return "".join("1" if f else "0" for f in np.asarray(flags, dtype=bool))
 
 
 def finger_scores(flags: Sequence[dict[str, bool]], tip_names: Sequence[str],
@@ -209,7 +215,8 @@ def run(json_path: str | None = None, quick: bool = False,
     the rows of every tracker), ``settings`` (``frames``: tracker -> frames per
     sequence), ``machine``, ``threads``, ``wall_seconds``. A row's ``finger_flag``
     scores ``TrackResult.finger_lost`` against the per-finger truth (tip error above
-    50 mm).
+    50 mm); its ``timeline`` has the frames ``flagged`` and ``truly_lost`` as strings of
+    ``0`` and ``1``, one character per frame.
     """
     names = list(tracker_names()) if trackers is None else list(trackers)
     for name in names:

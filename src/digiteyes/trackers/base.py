@@ -34,7 +34,9 @@ class TrackResult:
         measured), in the tracker's :data:`residual_unit`: pixels for the feature and
         particle trackers, grey levels of the filtered image for the template trackers
         (the name keeps the log files' column).
-    lost : the track-loss rules fired in this frame; tracking goes on regardless.
+    lost : the track-loss rules fired in this frame, or it falls within the tracker's hold
+        after such a frame (:mod:`digiteyes.trackers.loss_hold`); tracking goes on
+        regardless.
     loss_reason : why (``""`` when not lost; several reasons are joined by ``"; "``).
     iterations : solver iterations (or particle generations) spent on this frame.
     predicted_state : (n_q,) the prediction the tracker started from.

@@ -87,6 +87,7 @@ from digiteyes.smc.proposal import (
 )
 from digiteyes.smc.resample import effective_sample_size, normalised_weights, systematic_resample
 from digiteyes.trackers.base import TrackResult
+from digiteyes.trackers.loss_hold import LossHold, LossHoldOptions
 from digiteyes.trackers.silhouette_loss import (
     SilhouetteLoss,
     SilhouetteLossOptions,
@@ -98,7 +99,7 @@ OVERLAY_SAMPLE = 24
 
 
 @dataclass(frozen=True)
-class DivideConquerOptions(SilhouetteLossOptions):
+class DivideConquerOptions(SilhouetteLossOptions, LossHoldOptions):
     """Settings of the divide-and-conquer tracker and its baselines.
 
     sampler : ``"manifold"`` (Huang Sec. 5.1), ``"condensation"`` or ``"random-search"``.
@@ -120,6 +121,10 @@ class DivideConquerOptions(SilhouetteLossOptions):
     silhouette_check, silhouette_tolerance_px, max_unexplained, max_finger_outside : the
         silhouette loss rule (:class:`~digiteyes.trackers.silhouette_loss.SilhouetteLoss`;
         defaults as the feature tracker's).
+    hold_lost_frames : after a frame the loss rules call lost, later frames stay lost
+        until this many in a row have passed them
+        (:class:`~digiteyes.trackers.loss_hold.LossHold`; 0, the default, judges each
+        frame alone: a particle filter can find a finger again by itself).
     refine_rounds : rounds of digit search then palm refinement after the EM rounds.
     fit_first_frame : fit the model's patches to the user's hand on the first frame, at
         the state the track starts from: the palm outline's sides
@@ -267,6 +272,7 @@ class DivideConquerTracker:
         self.particles = np.zeros((0, self.space.n_dims))
         self.frame_index = -1
         self.silhouette_loss = SilhouetteLoss.from_options(model, self.rig, options)
+        self.loss_hold = LossHold(options.hold_lost_frames)
         self.palm_search_options = options.palm_search
         self.outline_fit: float | None = None
         self.outline_calibration: OutlineCalibration | None = None
@@ -286,6 +292,7 @@ class DivideConquerTracker:
         self.rng = np.random.default_rng(self.options.seed)
         self.frame_index = -1
         self.silhouette_loss.reset()
+        self.loss_hold.reset()
         self.palm_search_options = self.options.palm_search
         self.outline_fit = None
         self.outline_calibration = None
@@ -438,11 +445,11 @@ class DivideConquerTracker:
                                        effective_sample_size(weights), palm_points,
                                        palm_pixels, palm_rms, rounds, stop,
                                        self.space.states(self.model, q, X[shown]))
-        return TrackResult(
+        return self.loss_hold.apply(TrackResult(
             state=q.copy(), residual_rms_px=float(lik.rms_px[best]), cost=cost,
             lost=bool(reasons), loss_reason="; ".join(reasons), iterations=rounds,
             predicted_state=predicted, frame_index=self.frame_index, timings=timings,
-            finger_lost=finger_lost, details=details)
+            finger_lost=finger_lost, details=details))
 
     # ------------------------------------------------------------------ refinement
     def _fit_first_frame(self, edge_maps: list[np.ndarray], lookups: list[EdgeLookup]

@@ -63,6 +63,7 @@ from digiteyes.solvers import (
 from digiteyes.solvers.options import DAMPINGS, Damping
 from digiteyes.solvers.robust import ROBUST_LOSSES, RobustLoss
 from digiteyes.trackers.base import TrackResult
+from digiteyes.trackers.loss_hold import LOCAL_HOLD_FRAMES, LossHold, LossHoldOptions
 from digiteyes.trackers.parameterisation import StateParameterisation
 from digiteyes.trackers.prediction import PREDICTIONS, PredictionKind, StatePredictor
 from digiteyes.trackers.silhouette_loss import (
@@ -94,7 +95,7 @@ def thesis_whole_hand_links(model: KinematicModel) -> tuple[str, ...]:
 
 
 @dataclass(frozen=True)
-class FeatureTrackerOptions(SilhouetteLossOptions):
+class FeatureTrackerOptions(SilhouetteLossOptions, LossHoldOptions):
     """Settings of :class:`FeatureTracker` (defaults follow thesis Table 4.2).
 
     Attributes
@@ -159,6 +160,9 @@ class FeatureTrackerOptions(SilhouetteLossOptions):
     max_finger_outside : a finger is lost when the fraction of its model pixels beyond the
         tolerance of the hand's silhouette exceeds its first-frame value by more than
         this.
+    hold_lost_frames : after a frame the loss rules call lost, later frames stay lost
+        until this many in a row have passed them
+        (:class:`~digiteyes.trackers.loss_hold.LossHold`; 0 judges each frame alone).
     """
 
     iterations_per_frame: int = 5
@@ -186,6 +190,7 @@ class FeatureTrackerOptions(SilhouetteLossOptions):
     growth_frames: int = 5
     growth_factor: float = 2.0
     growth_min_px: float = 3.0
+    hold_lost_frames: int = LOCAL_HOLD_FRAMES
 
     def __post_init__(self) -> None:
         if isinstance(self.iterations_per_frame, bool) or not isinstance(
@@ -426,6 +431,7 @@ class FeatureTracker:
         self.shading: ShadingModel | None = None
         self.edge_bias: list[EdgeBias] = []
         self.silhouette_loss = SilhouetteLoss.from_options(model, rig, opts)
+        self.loss_hold = LossHold(opts.hold_lost_frames)
         self._invalid_baseline: float | None = None
 
     @staticmethod
@@ -471,6 +477,7 @@ class FeatureTracker:
         self.shading = shading
         self.edge_bias = []
         self.silhouette_loss.reset()
+        self.loss_hold.reset()
         self._invalid_baseline = None
 
     def restart(self, state: np.ndarray) -> None:
@@ -520,7 +527,7 @@ class FeatureTracker:
         self.predictor.update(q, reliable=not result.lost)
         self._frame_index += 1
         timings["total"] = time.perf_counter() - start_total
-        return result
+        return self.loss_hold.apply(result)
 
     def _predict_edge_bias(self, images: list[np.ndarray], predicted: np.ndarray) -> None:
         """Fit the shading model on the first frame, then predict each camera's edge bias

@@ -69,6 +69,7 @@ from digiteyes.templates.layered import (
     refresh_templates,
 )
 from digiteyes.trackers.base import TrackResult
+from digiteyes.trackers.loss_hold import LOCAL_HOLD_FRAMES, LossHold, LossHoldOptions
 from digiteyes.trackers.parameterisation import StateParameterisation
 from digiteyes.trackers.prediction import PREDICTIONS, PredictionKind, StatePredictor
 from digiteyes.trackers.silhouette_loss import (
@@ -92,7 +93,7 @@ BACKGROUNDS = ("none", "filtered", "grey")
 
 
 @dataclass(frozen=True)
-class LayeredTemplateOptions(SilhouetteLossOptions):
+class LayeredTemplateOptions(SilhouetteLossOptions, LossHoldOptions):
     """Settings of :class:`LayeredTemplateTracker`.
 
     Attributes
@@ -125,6 +126,9 @@ class LayeredTemplateOptions(SilhouetteLossOptions):
         inside the outline too, not only at edges).
     background_weight : its error's weight, times ``template_weight``.
     background_pad_px : how far around the hand's windows its pixels reach, px.
+    hold_lost_frames : after a frame the loss rules call lost, later frames stay lost
+        until this many in a row have passed them
+        (:class:`~digiteyes.trackers.loss_hold.LossHold`; 0 judges each frame alone).
     """
 
     templates: TemplateOptions = field(default_factory=TemplateOptions)
@@ -146,6 +150,7 @@ class LayeredTemplateOptions(SilhouetteLossOptions):
     background: str = "none"
     background_weight: float = 1.0
     background_pad_px: float = 20.0
+    hold_lost_frames: int = LOCAL_HOLD_FRAMES
 
     def __post_init__(self) -> None:
         if isinstance(self.iterations_per_frame, bool) or int(self.iterations_per_frame) != \
@@ -260,6 +265,7 @@ class LayeredTemplateTracker:
                 self._fingers.setdefault(finger, []).append(k)
         opts = self.options
         self.silhouette_loss = SilhouetteLoss.from_options(model, rig, opts)
+        self.loss_hold = LossHold(opts.hold_lost_frames)
 
     def reset(self, initial_state: np.ndarray) -> None:
         """Start a new track from ``initial_state`` (n_q,); the templates are acquired
@@ -277,6 +283,7 @@ class LayeredTemplateTracker:
         self._rms_history.clear()
         self._frame_index = 0
         self.silhouette_loss.reset()
+        self.loss_hold.reset()
 
     # ------------------------------------------------------------------ per frame
     def step(self, frames: Sequence[np.ndarray]) -> TrackResult:
@@ -321,7 +328,7 @@ class LayeredTemplateTracker:
         self.predictor.update(q, reliable=not result.details.residual_lost)
         self._frame_index += 1
         timings["total"] = time.perf_counter() - start_total
-        return result
+        return self.loss_hold.apply(result)
 
     def _frame_setup(self, predicted: np.ndarray, timings: dict[str, float]) -> dict:
         """Planes, pixel points and visibility orders at the predicted state."""

@@ -4,16 +4,17 @@ explain the hand's silhouette as well as it did at the true first state?
 One :class:`SilhouetteLoss` per track. On the first frame it fits each camera's
 foreground threshold at the reference state the track starts from
 (:func:`~digiteyes.features.foreground.fit_foreground`; a camera over a textured backdrop
-gets none and is not checked) and keeps the first estimate's silhouette check as the
-baseline. Every frame (:meth:`SilhouetteLoss.check`) the estimate is drawn in each
-checked camera and compared with the foreground
+gets none and is not checked) and keeps the silhouette check of the model drawn at that
+state as the baseline (not the first estimate's: a tracker whose first estimate is already
+wrong would take its error as the norm). Every frame (:meth:`SilhouetteLoss.check`) the
+estimate is drawn in each checked camera and compared with the foreground
 (:func:`~digiteyes.features.foreground.silhouette_check`); the frame is lost when
 
 * the hand pixels beyond ``tolerance_px`` of the model, per model pixel, exceed their
-  first-frame value by more than ``max_unexplained`` in any camera (a finger the pose has
+  value at the start state by more than ``max_unexplained`` in any camera (a finger the pose has
   put elsewhere, or curled into the palm while the real one is out), or
 * a finger's fraction of model pixels beyond ``tolerance_px`` of the foreground exceeds
-  its first-frame value by more than ``max_finger_outside`` (a finger drawn over the
+  its value at the start state by more than ``max_finger_outside`` (a finger drawn over the
   backdrop); that finger is flagged in the per-finger flags.
 
 Measured against the first frame, so that systematic differences of hand and model (a
@@ -38,7 +39,7 @@ from digiteyes.features.foreground import (
     model_labels,
     silhouette_check,
 )
-from digiteyes.kinematics import KinematicModel, forward_kinematics
+from digiteyes.kinematics import KinematicModel, Kinematics, forward_kinematics
 
 TOLERANCE_PX = 5
 """Default distance (px) within which the two silhouettes may differ."""
@@ -124,20 +125,26 @@ class SilhouetteLoss:
               reference: np.ndarray) -> SilhouetteVerdict:
         """The rule for one frame: grey ``images`` (H, W), one per camera in rig order,
         the estimated ``state`` (n_q,), and ``reference`` (n_q,), the state the track
-        started from (used on the first frame only, to fit the foreground)."""
+        started from (used on the first frame after a reset: the foreground is fitted,
+        and the baselines measured, at that state, so that an estimate already wrong in
+        the first frame is not taken as the norm)."""
         if self.foreground is None:
             kin0 = forward_kinematics(self.model, reference)
             self.foreground = [fit_foreground(image, model_labels(self.model, kin0, camera))
                                for image, camera in zip(images, self.rig, strict=True)]
-        kin = forward_kinematics(self.model, state)
-        checks = [silhouette_check(self.model, kin, camera, fg.mask(image), self.tolerance_px)
-                  for image, camera, fg in zip(images, self.rig, self.foreground, strict=True)
-                  if fg is not None]
         if not self._unexplained_baseline:
-            self._unexplained_baseline = [c.unexplained for c in checks]
-            self._outside_baseline = [dict(c.finger_outside) for c in checks]
+            baseline = self._checks(images, forward_kinematics(self.model, reference))
+            self._unexplained_baseline = [c.unexplained for c in baseline]
+            self._outside_baseline = [dict(c.finger_outside) for c in baseline]
+        checks = self._checks(images, forward_kinematics(self.model, state))
         reasons, fingers = self._reasons(checks)
         return SilhouetteVerdict(reasons, fingers, checks)
+
+    def _checks(self, images: Sequence[np.ndarray], kin: Kinematics) -> list[SilhouetteCheck]:
+        """The silhouette comparison in every camera whose foreground could be fitted."""
+        return [silhouette_check(self.model, kin, camera, fg.mask(image), self.tolerance_px)
+                for image, camera, fg in zip(images, self.rig, self.foreground, strict=True)
+                if fg is not None]
 
     def _reasons(self, checks: list[SilhouetteCheck]) -> tuple[list[str], dict[str, bool]]:
         reasons: list[str] = []
