@@ -237,3 +237,33 @@ def test_video_without_any_start_is_one_line_error(webcam, tmp_path, capsys):
     assert main(["track", str(video), "-o", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--init auto" in err[0]
+
+
+class _Mismatch:
+    """A silhouette rule that scores the estimate and a re-detection as told."""
+
+    def __init__(self, fresh: np.ndarray, estimate_score: float, fresh_score: float) -> None:
+        self.fresh, self.scores = fresh, (estimate_score, fresh_score)
+
+    def mismatch(self, images, state):
+        return self.scores[1] if np.array_equal(state, self.fresh) else self.scores[0]
+
+
+@pytest.mark.parametrize("fresh_score, accepted", [(0.1, True), (0.5, False), (0.9, False)])
+def test_recovery_keeps_the_track_when_the_redetection_explains_less(webcam, tmp_path,
+                                                                      fresh_score, accepted):
+    """A re-detection replaces the estimate only when it explains the hand's silhouette
+    better (``recovered_state``); a worse or equal one is declined and the tracker goes on
+    from its estimate."""
+    seq = open_sequence(webcam)
+    fresh = seq.truth.states[3].copy()
+    tracker = LoseAfter(lost_from=2)
+    tracker.silhouette_loss = _Mismatch(fresh, 0.5, fresh_score)
+    run = run_tracker(tracker, seq.model, seq.rig, iter(seq), seq.initial_state,
+                      tmp_path / "r", overlay=False, progress=False, views_every=0,
+                      warm=False, recover=lambda images: fresh)
+    # after the restart at frame 2 the estimate is the re-detected state itself, so the
+    # same re-detection at the next loss (frame 5) explains no more and is declined
+    assert run.reinitialised_frames == ([2] if accepted else [])
+    log = read_state_log(tmp_path / "r" / "states.csv", seq.model)
+    assert np.allclose(log.states[2], fresh) == accepted

@@ -20,7 +20,9 @@ This is the layer between :mod:`digiteyes.io` (frames in, logs out) and
 
 **Recovery.** With ``recover`` (e.g. :class:`digiteyes.detect.initialiser.AutoInitialiser`),
 a frame the tracker flags lost is handed to it; when it returns a state (re-detection and
-model fit), that state replaces the tracker's estimate for the frame, the tracker restarts
+model fit) that explains the hand's silhouette better than the estimate
+(:func:`recovered_state`; always, without a silhouette rule), that state replaces the
+tracker's estimate for the frame, the tracker restarts
 from it (:func:`~digiteyes.trackers.restart`: the feature tracker keeps its scene models,
 so no refit), and the state log's ``reinitialised`` column is 1 for the frame (its ``lost`` flag
 stays the tracker's). The recovery's time counts in the frame's ``time_s``.
@@ -171,6 +173,29 @@ def step_frames(tracker: Tracker, frames: Iterable[Sequence[np.ndarray]],
         yield index, images, result, time.perf_counter() - start
 
 
+def recovered_state(tracker: Tracker, images: Sequence[np.ndarray], result: TrackResult,
+                    recover: Recover | None) -> np.ndarray | None:
+    """The state to continue from after frame ``result``: on a lost frame, the
+    re-detection ``recover(images)`` (n_q,) if it found a hand and, where the tracker has
+    a silhouette rule with a fitted foreground (``tracker.silhouette_loss``), explains
+    the hand's silhouette better than the estimate does
+    (:meth:`~digiteyes.trackers.silhouette_loss.SilhouetteLoss.mismatch`): a fit to
+    detected keypoints is often coarser than a track that is only briefly off. None
+    otherwise (the tracker goes on from its estimate)."""
+    if not result.lost or recover is None:
+        return None
+    fresh = recover(list(images))
+    if fresh is None:
+        return None
+    fresh = np.asarray(fresh, dtype=float)
+    rule = getattr(tracker, "silhouette_loss", None)
+    if rule is not None:
+        now, new = rule.mismatch(images, result.state), rule.mismatch(images, fresh)
+        if now is not None and new is not None and new >= now:
+            return None
+    return fresh
+
+
 def run_tracker(
     tracker: Tracker,
     model: KinematicModel,
@@ -219,15 +244,13 @@ def run_tracker(
     try:
         with StateLogWriter(log_path, model, reinitialised=recover is not None) as log:
             for index, images, result, seconds in step_frames(tracker, bar, initial_state):
-                fresh = None
-                if result.lost and recover is not None:
-                    start = time.perf_counter()
-                    fresh = recover(images)
-                    if fresh is not None:
-                        restart(tracker, fresh)
-                        result = replace(result, state=np.asarray(fresh, dtype=float))
-                        run.reinitialised_frames.append(index)
-                    seconds += time.perf_counter() - start
+                start = time.perf_counter()
+                fresh = recovered_state(tracker, images, result, recover)
+                if fresh is not None:
+                    restart(tracker, fresh)
+                    result = replace(result, state=fresh)
+                    run.reinitialised_frames.append(index)
+                seconds += time.perf_counter() - start
                 log.append(index, result.state, time_s=seconds, lost=result.lost,
                            residual_rms_px=result.residual_rms_px,
                            iterations=result.iterations, reinitialised=fresh is not None)

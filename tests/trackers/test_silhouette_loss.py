@@ -131,3 +131,15 @@ def test_silhouette_loss_rule_on_its_own(desk):
         SilhouetteLoss(model, rig, max_unexplained=0.0)
     with pytest.raises(DigitEyesError, match="tolerance"):
         SilhouetteLoss(model, rig, tolerance_px=-1)
+
+
+def test_mismatch_ranks_states_by_how_they_explain_the_silhouette(desk):
+    """``mismatch`` (the recovery's comparison): None before the foreground is fitted;
+    the true state explains the straight hand better than a curled index finger, and
+    the curled state explains the curled hand better than the straight one."""
+    model, rig, q, curled, image, image_curled = desk
+    rule = SilhouetteLoss(model, rig)
+    assert rule.mismatch([image], q) is None
+    rule.check([image], q, q)
+    assert rule.mismatch([image], q) < rule.mismatch([image], curled) - 0.05
+    assert rule.mismatch([image_curled], curled) < rule.mismatch([image_curled], q) - 0.05

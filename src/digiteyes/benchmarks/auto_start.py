@@ -34,7 +34,7 @@ from digiteyes.detect.mediapipe_detector import mediapipe_available
 from digiteyes.errors import DatasetError
 from digiteyes.kinematics import forward_kinematics
 from digiteyes.kinematics.keypoints import keypoints
-from digiteyes.pipeline import step_frames
+from digiteyes.pipeline import recovered_state, step_frames
 from digiteyes.synth.scenarios import build_scenario
 from digiteyes.track_job import tracker_options
 from digiteyes.trackers import FeatureTracker, restart
@@ -66,12 +66,11 @@ def track_states(tracker: FeatureTracker, frames, start: np.ndarray,
     for index, images, result, step_s in step_frames(tracker, frames, start):
         q = result.state
         started = time.perf_counter()
-        if result.lost and recover is not None:
-            fresh = recover(images)
-            if fresh is not None:
-                restart(tracker, fresh)
-                q = fresh
-                fresh_frames.append(index)
+        fresh = recovered_state(tracker, images, result, recover)
+        if fresh is not None:
+            restart(tracker, fresh)
+            q = fresh
+            fresh_frames.append(index)
         seconds += step_s + time.perf_counter() - started
         states.append(q)
     return np.array(states), fresh_frames, seconds

@@ -39,6 +39,7 @@ from digiteyes.features.foreground import (
     model_labels,
     silhouette_check,
 )
+from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import KinematicModel, Kinematics, forward_kinematics
 
 TOLERANCE_PX = 5
@@ -139,6 +140,19 @@ class SilhouetteLoss:
         checks = self._checks(images, forward_kinematics(self.model, state))
         reasons, fingers = self._reasons(checks)
         return SilhouetteVerdict(reasons, fingers, checks)
+
+    def mismatch(self, images: Sequence[np.ndarray], state: np.ndarray) -> float | None:
+        """How badly ``state`` (n_q,) explains the hand's silhouette in ``images`` (any
+        image type, one per camera): per checked camera, the hand pixels it leaves
+        unexplained per model pixel plus the mean share of its fingers' pixels over the
+        backdrop, summed over the cameras. None before the first :meth:`check` or when no
+        camera is checked (a textured backdrop)."""
+        if not self.foreground or all(fg is None for fg in self.foreground):
+            return None
+        checks = self._checks([prepare_image(image) for image in images],
+                              forward_kinematics(self.model, state))
+        return float(sum(c.unexplained + (np.mean(list(c.finger_outside.values()))
+                                          if c.finger_outside else 0.0) for c in checks))
 
     def _checks(self, images: Sequence[np.ndarray], kin: Kinematics) -> list[SilhouetteCheck]:
         """The silhouette comparison in every camera whose foreground could be fitted."""
