@@ -119,7 +119,7 @@ class SilhouetteLoss:
     def reset(self) -> None:
         """Forget the foreground and the baseline: the next :meth:`check` fits them."""
         self.foreground: list[Foreground | None] | None = None
-        self._unexplained_baseline: list[float] = []
+        self._unexplained_baseline: list[float] | None = None
         self._outside_baseline: list[dict[str, float]] = []
 
     def check(self, images: Sequence[np.ndarray], state: np.ndarray,
@@ -133,7 +133,7 @@ class SilhouetteLoss:
             kin0 = forward_kinematics(self.model, reference)
             self.foreground = [fit_foreground(image, model_labels(self.model, kin0, camera))
                                for image, camera in zip(images, self.rig, strict=True)]
-        if not self._unexplained_baseline:
+        if self._unexplained_baseline is None:
             baseline = self._checks(images, forward_kinematics(self.model, reference))
             self._unexplained_baseline = [c.unexplained for c in baseline]
             self._outside_baseline = [dict(c.finger_outside) for c in baseline]
@@ -167,7 +167,7 @@ class SilhouetteLoss:
                 checks, self._unexplained_baseline, self._outside_baseline, strict=True)):
             if check.unexplained - base > self.max_unexplained:
                 reasons.append(f"camera {camera}: {check.unexplained:.0%} of the model's area "
-                               f"of the hand unexplained (first frame {base:.0%})")
+                               f"of the hand unexplained (at the start state {base:.0%})")
             for finger, outside in check.finger_outside.items():
                 excess = outside - outside_base.get(finger, 0.0)
                 fingers[finger] = fingers.get(finger, False) or excess > self.max_finger_outside
