@@ -1,7 +1,8 @@
 """The smoothing picture of docs/output.md: raw and One Euro-filtered estimates against truth.
 
 Renders and tracks the still and moving ``whole-hand`` sequences of
-``digiteyes bench smoothing`` (shorter: 40 and 100 frames), filters them with the default
+``digiteyes bench smoothing`` (shorter: 40 and 100 frames) drawn as the independent flesh
+hand (docs/appearance.md, where the tracker's noise is largest), filters them with the default
 :class:`~digiteyes.filters.OneEuroOptions`, and plots the index fingertip's height and the
 index MCP flexion over time. Usage:
 ``python benchmarks/smoothing_figure.py docs/images/smoothing.png``.
@@ -23,7 +24,7 @@ from digiteyes.kinematics.keypoints import keypoint_names
 
 
 def main(out: str) -> None:
-    pair = tracked_pair(SEED, 40, 100, progress=True)
+    pair = tracked_pair(SEED, 40, 100, progress=True, appearance="flesh")
     model, fps = pair["model"], pair["fps"]
     tip = keypoint_names(model).index("index.tip")
     fig = Figure(figsize=(11, 4.2))

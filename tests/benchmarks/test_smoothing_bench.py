@@ -41,12 +41,26 @@ def test_targets_need_both_ratio_and_lag():
     assert not bench._versus(raw, filtered(0.1, 1.2))["meets_targets"]
 
 
+def _row(ratio, lag, band=10.0, peak=5.0):
+    return {"jitter_ratio": ratio, "added_lag_frames": lag, "deadband_mm_s": band,
+            "filtered": {"still_peak_speed_mm_s": peak}}
+
+
 def test_the_tuning_rule_takes_the_steadiest_setting_within_the_lag_margin():
-    rows = [{"jitter_ratio": 9.0, "added_lag_frames": bench.TUNING_ADDED_LAG + 0.05},
-            {"jitter_ratio": 6.0, "added_lag_frames": bench.TUNING_ADDED_LAG},
-            {"jitter_ratio": 4.0, "added_lag_frames": 0.2}]
+    rows = [_row(9.0, bench.TUNING_ADDED_LAG + 0.05), _row(6.0, bench.TUNING_ADDED_LAG),
+            _row(4.0, 0.2)]
     assert bench.choose(rows) is rows[1]
     assert bench.choose(rows[:1]) is None
+
+
+def test_ties_go_to_the_setting_furthest_from_both_failures():
+    """Among equally steady rows: lag margins 0.6, 0.3, 0.7 and noise margins 0.5, 0.8,
+    0.0 (dead band 0: no margin at all); the smaller margins are 0.5, 0.3, -inf."""
+    rows = [_row(10.0, 0.4, band=10.0, peak=5.0), _row(10.0 * (1 - bench.TIE / 2), 0.7,
+                                                       band=25.0, peak=5.0),
+            _row(10.0, 0.3, band=0.0, peak=5.0), _row(9.0, 0.0, band=50.0, peak=1.0)]
+    assert bench.choose(rows) is rows[0]
+    assert bench._margin(rows[1]) == pytest.approx(0.3)
 
 
 def test_the_shipped_defaults_are_in_the_grid():

@@ -28,7 +28,7 @@ One Euro filter first."""
 @click.option("--min-cutoff", type=click.FloatRange(min=0, min_open=True), default=None,
               help="One Euro min_cutoff_hz (implies --smooth).")
 @click.option("--beta", type=click.FloatRange(min=0), default=None,
-              help="One Euro beta_per_rad (implies --smooth).")
+              help="One Euro beta_per_mm_s, Hz per mm/s (implies --smooth).")
 def export(track_dir: Path, output: Path, formats: tuple[str, ...], model_name: str | None,
            fps: float | None, smooth: bool, min_cutoff: float | None,
            beta: float | None) -> None:

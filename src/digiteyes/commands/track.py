@@ -83,8 +83,7 @@ class TrackerOption(click.Option):
 def smoothing_options(smooth: bool, min_cutoff: float | None,
                       beta: float | None) -> OneEuroOptions | None:
     """One Euro settings from the command line (shared with ``digiteyes export``): None
-    unless ``--smooth`` or a setting is given; ``beta`` sets ``beta_per_rad`` and, in the
-    defaults' proportion, ``beta_per_mm``."""
+    unless ``--smooth`` or a setting is given; ``beta`` sets ``beta_per_mm_s``."""
     if not (smooth or min_cutoff is not None or beta is not None):
         return None
     defaults = OneEuroOptions()
@@ -92,8 +91,7 @@ def smoothing_options(smooth: bool, min_cutoff: float | None,
     if min_cutoff is not None:
         changes["min_cutoff_hz"] = min_cutoff
     if beta is not None:
-        changes["beta_per_rad"] = beta
-        changes["beta_per_mm"] = beta * defaults.beta_per_mm / defaults.beta_per_rad
+        changes["beta_per_mm_s"] = beta
     return replace(defaults, **changes)
 
 
@@ -189,8 +187,8 @@ def print_run(run: TrackingRun, err: bool = False) -> None:
               help="One Euro min_cutoff_hz (implies --smooth; default "
                    f"{OneEuroOptions().min_cutoff_hz:g}).")
 @click.option("--beta", type=click.FloatRange(min=0), default=None,
-              help="One Euro beta_per_rad (implies --smooth; default "
-                   f"{OneEuroOptions().beta_per_rad:g}).")
+              help="One Euro beta_per_mm_s, Hz per mm/s of keypoint speed (implies "
+                   f"--smooth; default {OneEuroOptions().beta_per_mm_s:g}).")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 @click.option("--strict", is_flag=True,
               help="Refuse videos of different lengths instead of tracking the shortest.")

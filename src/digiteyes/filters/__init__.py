@@ -1,5 +1,10 @@
 """Filters on state sequences (thesis-free additions): the One Euro filter."""
 
-from digiteyes.filters.one_euro import OneEuroOptions, one_euro_filter
+from digiteyes.filters.one_euro import (
+    OneEuroOptions,
+    OneEuroTrace,
+    one_euro_filter,
+    one_euro_trace,
+)
 
-__all__ = ["OneEuroOptions", "one_euro_filter"]
+__all__ = ["OneEuroOptions", "OneEuroTrace", "one_euro_filter", "one_euro_trace"]
