@@ -1,6 +1,6 @@
 """Benchmark ``auto-start``: the desk and webcam setups started automatically vs from truth.
 
-For each setup (``desk-2cam``, ``webcam-1cam``; seed :data:`SEED`) and each variant of
+For each setup (``desk-2cam``, ``webcam-1cam``; seeds :data:`SEEDS`) and each variant of
 :data:`VARIANTS` (the classic detector on grey images of our own drawing; MediaPipe, when
 installed, on colour images of the independent flesh hand, which it recognises as a hand)
 the frames are rendered once (black cloth, the tracker benchmark's noise) and tracked
@@ -18,6 +18,10 @@ accuracy as from the true start after at most 10 frames", is met when the automa
 mean there is within :data:`TOLERANCE_MM` of the true start's), and, stricter, the first
 frame from which the automatic run stays within :data:`TOLERANCE_MM` of the other in every
 frame (each run re-detects on its own, so single frames can differ after a loss).
+
+Over 40 frames one run is one draw: when each run re-detects decides most of the
+difference. The verdict per setup and variant is therefore taken on the means over the
+seeds (:func:`summarise`); a variant that cannot start on some seed fails.
 """
 
 from __future__ import annotations
@@ -40,7 +44,8 @@ from digiteyes.track_job import tracker_options
 from digiteyes.trackers import FeatureTracker, restart
 
 SETUPS = ("desk-2cam", "webcam-1cam")
-SEED = 0
+SEEDS = (0, 1, 2)
+"""Scenario and render seeds: each gives other motion, noise and start."""
 SETTLE_FRAMES = 10
 """The issue's budget: frames after which the automatic start must match the true one."""
 VARIANTS = (("classic", "model"), ("mediapipe", "flesh"))
@@ -77,15 +82,15 @@ def track_states(tracker: FeatureTracker, frames, start: np.ndarray,
 
 
 def setup_entry(name: str, n_frames: int, detector: str = "classic",
-                appearance: str = "model") -> dict[str, Any]:
-    """Both runs on one setup with one variant (see the module docstring)."""
-    scenario = build_scenario(name, seed=SEED, n_frames=n_frames)
-    sequence = render_sequence(scenario, seed=SEED, appearance=appearance,
+                appearance: str = "model", seed: int = SEEDS[0]) -> dict[str, Any]:
+    """Both runs on one setup with one variant and seed (see the module docstring)."""
+    scenario = build_scenario(name, seed=seed, n_frames=n_frames)
+    sequence = render_sequence(scenario, seed=seed, appearance=appearance,
                                color=detector == "mediapipe")
     model, rig = scenario.model, sequence.rig
     options = tracker_options(5, 20.0, "default", model, None, "none")
     entry: dict[str, Any] = {"setup": name, "detector": detector, "appearance": appearance,
-                             "frames": n_frames, "cameras": len(rig)}
+                             "seed": seed, "frames": n_frames, "cameras": len(rig)}
     initialiser = AutoInitialiser(model, rig, detector)
     started = time.perf_counter()
     try:
@@ -126,40 +131,76 @@ def variants() -> list[tuple[str, str]]:
     return [v for v in VARIANTS if v[0] != "mediapipe" or mediapipe_available()]
 
 
+def summarise(entries: list[dict[str, Any]]) -> dict[str, Any]:
+    """The verdict of one setup and variant over its seeds: the means of the per-seed
+    means from frame :data:`SETTLE_FRAMES` on, and whether the automatic one is within
+    :data:`TOLERANCE_MM` of the true start's (False when a seed did not start)."""
+    first = entries[0]
+    started = [e for e in entries if e["started"]]
+    summary: dict[str, Any] = {"setup": first["setup"], "detector": first["detector"],
+                               "appearance": first["appearance"],
+                               "seeds": [e["seed"] for e in entries],
+                               "started": len(started)}
+    if not started:
+        return summary | {"meets_target": False}
+    true = float(np.mean([e["mean_error_from_frame_10_true_start_mm"] for e in started]))
+    auto = float(np.mean([e["mean_error_from_frame_10_auto_start_mm"] for e in started]))
+    return summary | {
+        "mean_error_from_frame_10_true_start_mm": true,
+        "mean_error_from_frame_10_auto_start_mm": auto,
+        "reinitialisations": int(sum(len(e["reinitialised_frames"]) for e in started)),
+        "meets_target": bool(len(started) == len(entries) and auto <= true + TOLERANCE_MM)}
+
+
 def run(json_path: str | None = None, quick: bool = False) -> dict:
-    """Both setups with every variant; print the table; write JSON to ``json_path``."""
+    """Both setups with every variant and seed; print the table; write JSON to
+    ``json_path``."""
     started = time.perf_counter()
     n_frames = 16 if quick else 40
+    seeds = SEEDS[:1] if quick else SEEDS
+    entries = [[setup_entry(name, n_frames, detector, appearance, seed) for seed in seeds]
+               for name in SETUPS for detector, appearance in variants()]
     result = {"benchmark": "auto-start", "quick": quick, "machine": machine_info(),
-              "settings": {"seed": SEED, "frames": n_frames, "variants": variants(),
+              "settings": {"seeds": list(seeds), "frames": n_frames, "variants": variants(),
                            "tolerance_mm": TOLERANCE_MM, "settle_frames": SETTLE_FRAMES,
                            "recovery": "both runs"},
-              "setups": [setup_entry(name, n_frames, detector, appearance)
-                         for name in SETUPS for detector, appearance in variants()]}
+              "setups": [e for group in entries for e in group],
+              "summary": [summarise(group) for group in entries]}
     result["wall_seconds"] = time.perf_counter() - started
     return emit(result, format_table(result), json_path)
 
 
 def format_table(result: dict[str, Any]) -> str:
-    """One row per setup and variant."""
+    """One row per setup, variant and seed, then one per setup and variant over seeds."""
     lines = [f"auto-start benchmark{' (quick)' if result['quick'] else ''}",
              *machine_lines(result["machine"]),
              f"{result['settings']['frames']} frames per setup, detector + model fit, recovery "
              f"in both runs; target: mean error from frame {SETTLE_FRAMES} on within "
-             f"{TOLERANCE_MM:g} mm of the true start's", "",
-             f"{'setup':<12} {'detector / images':<22} {'err f0':>7} {'true>=10':>9}"
-             f" {'auto>=10':>9} {'match at':>9} {'re-init':>8}  target"]
+             f"{TOLERANCE_MM:g} mm of the true start's (means over seeds)", "",
+             f"{'setup':<12} {'detector / images':<22} {'seed':>4} {'err f0':>7} {'true>=10':>9}"
+             f" {'auto>=10':>9} {'match at':>9} {'re-init':>8}"]
     for e in result["setups"]:
         variant = f"{e['detector']} / {e['appearance']}"
+        head = f"{e['setup']:<12} {variant:<22} {e['seed']:>4}"
         if not e["started"]:
-            lines.append(f"{e['setup']:<12} {variant:<22} no start: no hand found  no")
+            lines.append(f"{head} no start: no hand found")
             continue
         match = e["frames_to_match_true_start"]
-        lines.append(f"{e['setup']:<12} {variant:<22} {e['error_first_frame_auto_mm']:>7.1f}"
+        lines.append(f"{head} {e['error_first_frame_auto_mm']:>7.1f}"
                      f" {e['mean_error_from_frame_10_true_start_mm']:>9.2f}"
                      f" {e['mean_error_from_frame_10_auto_start_mm']:>9.2f}"
                      f" {'never' if match is None else match:>9}"
-                     f" {len(e['reinitialised_frames']):>8}"
-                     f"  {'yes' if e['meets_target'] else 'no'}")
+                     f" {len(e['reinitialised_frames']):>8}")
+    lines += ["", f"{'setup':<12} {'detector / images':<22} {'started':>8} {'true>=10':>9}"
+              f" {'auto>=10':>9} {'re-init':>8}  target"]
+    for s in result["summary"]:
+        variant = f"{s['detector']} / {s['appearance']}"
+        head = f"{s['setup']:<12} {variant:<22} {s['started']:>4}/{len(s['seeds']):<3}"
+        if not s["started"]:
+            lines.append(f"{head} {'':>9} {'':>9} {'':>8}  no")
+            continue
+        lines.append(f"{head} {s['mean_error_from_frame_10_true_start_mm']:>9.2f}"
+                     f" {s['mean_error_from_frame_10_auto_start_mm']:>9.2f}"
+                     f" {s['reinitialisations']:>8}  {'yes' if s['meets_target'] else 'no'}")
     lines.append("(errors: mean model keypoint distance to the truth, mm)")
     return "\n".join(lines)
