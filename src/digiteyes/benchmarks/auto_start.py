@@ -180,27 +180,31 @@ def format_table(result: dict[str, Any]) -> str:
              f"{'setup':<12} {'detector / images':<22} {'seed':>4} {'err f0':>7} {'true>=10':>9}"
              f" {'auto>=10':>9} {'match at':>9} {'re-init':>8}"]
     for e in result["setups"]:
-        variant = f"{e['detector']} / {e['appearance']}"
-        head = f"{e['setup']:<12} {variant:<22} {e['seed']:>4}"
+        head = _head(e, f"{e['seed']:>4}")
         if not e["started"]:
             lines.append(f"{head} no start: no hand found")
             continue
         match = e["frames_to_match_true_start"]
-        lines.append(f"{head} {e['error_first_frame_auto_mm']:>7.1f}"
-                     f" {e['mean_error_from_frame_10_true_start_mm']:>9.2f}"
-                     f" {e['mean_error_from_frame_10_auto_start_mm']:>9.2f}"
+        lines.append(f"{head} {e['error_first_frame_auto_mm']:>7.1f}{_means(e)}"
                      f" {'never' if match is None else match:>9}"
                      f" {len(e['reinitialised_frames']):>8}")
     lines += ["", f"{'setup':<12} {'detector / images':<22} {'started':>8} {'true>=10':>9}"
               f" {'auto>=10':>9} {'re-init':>8}  target"]
     for s in result["summary"]:
-        variant = f"{s['detector']} / {s['appearance']}"
-        head = f"{s['setup']:<12} {variant:<22} {s['started']:>4}/{len(s['seeds']):<3}"
-        if not s["started"]:
-            lines.append(f"{head} {'':>9} {'':>9} {'':>8}  no")
-            continue
-        lines.append(f"{head} {s['mean_error_from_frame_10_true_start_mm']:>9.2f}"
-                     f" {s['mean_error_from_frame_10_auto_start_mm']:>9.2f}"
-                     f" {s['reinitialisations']:>8}  {'yes' if s['meets_target'] else 'no'}")
+        head = _head(s, f"{s['started']:>4}/{len(s['seeds']):<3}")
+        verdict = "yes" if s["meets_target"] else "no"
+        lines.append(f"{head} {'':>9} {'':>9} {'':>8}  {verdict}" if not s["started"] else
+                     f"{head}{_means(s)} {s['reinitialisations']:>8}  {verdict}")
     lines.append("(errors: mean model keypoint distance to the truth, mm)")
     return "\n".join(lines)
+
+
+def _head(entry: dict[str, Any], third: str) -> str:
+    """A row's first columns: setup, detector / images, then ``third``."""
+    return f"{entry['setup']:<12} {entry['detector'] + ' / ' + entry['appearance']:<22} {third}"
+
+
+def _means(entry: dict[str, Any]) -> str:
+    """A row's two means from frame :data:`SETTLE_FRAMES` on: true start, automatic."""
+    return (f" {entry['mean_error_from_frame_10_true_start_mm']:>9.2f}"
+            f" {entry['mean_error_from_frame_10_auto_start_mm']:>9.2f}")
