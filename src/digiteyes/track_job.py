@@ -257,7 +257,7 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
         for sink in sinks:
             sink.close()
     run.files["keypoints"] = out / KEYPOINTS_FILE
-    _record_start(run, start_note, initialiser)
+    _record_start(run, start_note, initialiser, job.smooth, source.rate)
     if source.lengths is not None and not run.interrupted and job.max_frames is None:
         record_missing(run.files["summary"], source.lengths[0], run.n_frames,
                        source.lengths[1])
@@ -294,12 +294,17 @@ def _prepend(first: list[np.ndarray], frames: Iterator) -> Iterator[list[np.ndar
     yield from frames
 
 
-def _record_start(run: TrackingRun, note: dict[str, object], initialiser) -> None:
-    """Add how the run started and the detector's work to ``summary.json``."""
+def _record_start(run: TrackingRun, note: dict[str, object], initialiser,
+                  smooth: OneEuroOptions | None, fps: float) -> None:
+    """Add how the run started, the detector's work and, with ``smooth``, the settings of
+    the smoothed outputs to ``summary.json``."""
     path = run.files["summary"]
     summary = read_json_object(path, DatasetError, "summary file")
     if initialiser is not None:
         note.update(detections_tried=initialiser.calls, detections_found=initialiser.found,
                     detection_seconds=initialiser.seconds)
     summary["start"] = note
+    if smooth is not None:
+        summary["smoothing"] = {"filter": "One Euro, one cutoff (docs/output.md)",
+                                "fps": fps, **vars(smooth)}
     atomic_write_json(path, summary)

@@ -51,6 +51,28 @@ def test_track_dataset_writes_log_overlay_views_and_plots(whole_hand, tmp_path, 
     assert "tracked 6 frame(s)" in capsys.readouterr().out
 
 
+def test_track_smooth_writes_the_filtered_log_and_records_its_settings(whole_hand,
+                                                                        tmp_path):
+    """``--smooth --beta 0.3``: ``states-smoothed.csv`` is the library's filter of
+    ``states.csv`` at the dataset's frame rate, and ``summary.json`` says which settings."""
+    from digiteyes.filters import OneEuroOptions, one_euro_filter
+
+    out = tmp_path / "out"
+    assert main(["track", str(whole_hand), "-o", str(out), "--quiet", "--no-overlay",
+                 "--smooth", "--beta", "0.3"]) == 0
+    model = open_sequence(whole_hand).model
+    summary = json.loads((out / "summary.json").read_text())
+    settings = summary["smoothing"]
+    assert settings["beta_per_mm_s"] == 0.3
+    assert settings["min_cutoff_hz"] == OneEuroOptions().min_cutoff_hz
+    raw = read_state_log(out / "states.csv", model)
+    smoothed = read_state_log(out / "states-smoothed.csv", model)
+    expected = one_euro_filter(model, raw.states, settings["fps"],
+                               OneEuroOptions(beta_per_mm_s=0.3))
+    np.testing.assert_allclose(smoothed.states, expected, atol=1e-6)
+    assert np.abs(smoothed.states[1:] - raw.states[1:]).max() > 1e-4
+
+
 def test_track_says_compiling_only_when_its_tracker_has_cold_kernels(whole_hand, tmp_path,
                                                                    capsys, monkeypatch):
     """The default tracker asks about the kernels it uses (the demo's), not every kernel of
