@@ -16,7 +16,7 @@ Two departures from the published filter, both measured by ``digiteyes bench smo
   (mm/s, world frame) of each keypoint (:func:`~digiteyes.kinematics.keypoints.keypoints`:
   joint centres, tips, palm centre) from the previous output ``x_{t-1}`` to the
   measurement ``z_t``; ``s_t`` is the RMS over keypoints of their smoothed velocities. The
-  published filter runs one filter per scalar. On a hand that is wrong: a tracker's noise
+  published filter smooths each scalar on its own, which harms a hand: a tracker's noise
   is correlated across the state (a palm that tilts is answered by fingers that bend back
   onto the same image edges), and filtering components at different cutoffs breaks that
   balance, so the filtered fingertips can shake *more* than the raw ones (the previous,
