@@ -16,6 +16,7 @@ joint angles, the smoothed states and the report page.
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from itertools import islice
@@ -32,7 +33,7 @@ from digiteyes.io import open_sequence, open_video_frames
 from digiteyes.io.frame_sinks import KEYPOINTS_FILE, JsonLinesStream, KeypointLog
 from digiteyes.io.safe_paths import atomic_write_json
 from digiteyes.io.track_extras import write_track_extras
-from digiteyes.io.video import open_capture_frames
+from digiteyes.io.video import frame_rate, open_capture_frames
 from digiteyes.io.video_lengths import check_lengths, record_missing
 from digiteyes.jsonfile import read_json_object
 from digiteyes.kinematics import KinematicModel, State, load_model
@@ -49,6 +50,8 @@ AUTO = "auto"
 """``init_path`` value that starts from a detection and model fit (``--init auto``)."""
 DEFAULT_MODEL = "hand"
 """Model of videos and cameras when none is named."""
+DEFAULT_VIDEO_FPS = 10.0
+"""Frame rate assumed for a video whose container declares none (frames/s)."""
 
 
 def tracker_options(iterations: int, window: float, links: str, model: KinematicModel,
@@ -87,7 +90,8 @@ class TrackJob:
     iterations, window, links, robust, prediction, shading : the feature tracker's flags
         (:func:`tracker_options`).
     max_frames : track at most this many frames (None: all).
-    fps : overlay video and smoothing frame rate (None: the dataset's, or 10).
+    fps : overlay video and smoothing frame rate (None: the dataset's or the first video's,
+        else :data:`DEFAULT_VIDEO_FPS`).
     overlay : write the overlay video; progress : show a progress bar.
     tracker_name : a registered tracker; options : ``(key, value)`` pairs of its options
         (on top of the flags for the feature tracker).
@@ -169,9 +173,24 @@ def _open_source(job: TrackJob) -> _Source:
     if any(Path(p).is_dir() for p in inputs):
         raise DatasetError("give one dataset folder, or one video file per camera")
     lengths = check_lengths(list(inputs), job.strict)
-    source = _with_files(job, open_video_frames(list(inputs)), None, 10.0, auto, live=False)
+    source = _with_files(job, open_video_frames(list(inputs)), None,
+                         video_rate(list(inputs)), auto, live=False)
     source.lengths = lengths
     return source
+
+
+def video_rate(paths: list[str]) -> float:
+    """The frame rate of the first video (:func:`~digiteyes.io.video.frame_rate`), or
+    :data:`DEFAULT_VIDEO_FPS` when its container declares none; a warning on stderr when
+    the videos of a rig declare different rates (the first camera's is used)."""
+    rates = [frame_rate(p) for p in paths]
+    known = [r for r in rates if r is not None]
+    if len(known) > 1 and max(known) - min(known) > 1e-3 * max(known):
+        listing = ", ".join(f"{p}: {r:g}" for p, r in zip(paths, rates, strict=True)
+                            if r is not None)
+        print(f"digiteyes track: warning: the videos declare different frame rates "
+              f"({listing} frames/s); using the first", file=sys.stderr)
+    return rates[0] if rates[0] is not None else DEFAULT_VIDEO_FPS
 
 
 def _with_files(job: TrackJob, frames: Iterator[list[np.ndarray]], total: int | None,

@@ -120,6 +120,27 @@ def test_track_videos_matches_tracking_the_dataset(whole_hand, tmp_path):
     assert 1e-6 < np.abs(unshaded - from_dataset).max() < 5.0
 
 
+def test_track_videos_takes_the_frame_rate_the_files_declare(whole_hand, tmp_path, capsys):
+    """Videos at 25 and 24 frames/s: the run uses the first camera's 25 (summary, state
+    log times) and warns that the rates differ; ``--fps`` overrides it."""
+    seq = open_sequence(whole_hand)
+    videos = []
+    for c, (name, fps) in enumerate(zip(seq.camera_names, (25, 24), strict=True)):
+        path = tmp_path / f"{name}.mkv"
+        with VideoWriter(path, fps, codec="ffv1") as writer:
+            for images in list(seq)[:3]:
+                writer.write(images[c])
+        videos.append(str(path))
+    args = ["track", *videos, "--model", str(whole_hand / "model.dh"), "--rig",
+            str(whole_hand / "rig.json"), "--init", str(whole_hand / "initial_state.json"),
+            "--quiet", "--no-overlay"]
+    assert main([*args, "-o", str(tmp_path / "a")]) == 0
+    assert json.loads((tmp_path / "a" / "summary.json").read_text())["fps"] == 25.0
+    assert "different frame rates" in capsys.readouterr().err
+    assert main([*args, "-o", str(tmp_path / "b"), "--fps", "12"]) == 0
+    assert json.loads((tmp_path / "b" / "summary.json").read_text())["fps"] == 12.0
+
+
 def test_track_refuses_bad_input_in_one_line(whole_hand, tmp_path, capsys):
     other = tmp_path / "two-finger.json"
     State(load_model("two-finger")).save_json(other)

@@ -129,3 +129,19 @@ def test_grey_from_luma_plane_matches_ffmpeg_conversion(tmp_path, encoder, pix_f
         assert g.shape == w.shape and g.dtype == np.uint8
         assert np.abs(g.astype(int) - w).max() <= 1
         assert w.max() - w.min() > 200  # the full grey range survived
+
+
+@pytest.mark.parametrize("fps, codec, suffix", [(25, "ffv1", ".mkv"), (29.97, "h264", ".mp4"),
+                                                (12, "ffv1", ".mkv")])
+def test_frame_rate_is_what_the_writer_declared(tmp_path, fps, codec, suffix):
+    from digiteyes.io.video import frame_rate
+
+    path = tmp_path / f"clip{suffix}"
+    with VideoWriter(path, fps, codec=codec) as writer:
+        for i in range(4):
+            writer.write(np.full((48, 64), 40 * i, np.uint8))
+    assert frame_rate(path) == pytest.approx(fps, rel=1e-3)
+    broken = tmp_path / "broken.mp4"
+    broken.write_bytes(b"not a video")
+    with pytest.raises(DatasetError, match=r"broken\.mp4"):
+        frame_rate(broken)

@@ -178,7 +178,8 @@ def print_run(run: TrackingRun, err: bool = False) -> None:
 @click.option("--frames", "max_frames", type=click.IntRange(min=1), default=None,
               help="Track at most this many frames.")
 @click.option("--fps", type=click.FloatRange(min=0.1), default=None,
-              help="Frame rate of the overlay video (default: the dataset's, or 10).")
+              help="Frame rate of the input: overlay video, smoothing, summary (default: the "
+                   "dataset's or the video's, else 10).")
 @click.option("--no-overlay", is_flag=True, help="Skip the overlay video.")
 @click.option("--smooth", is_flag=True,
               help="Also write states-smoothed.csv and joint_angles-smoothed.csv, One Euro "

@@ -246,6 +246,21 @@ class VideoReader:
         self.close()
 
 
+def frame_rate(path: str | Path) -> float | None:
+    """The frame rate (frames/s) the container of ``path`` declares for its first video
+    stream (its average rate, else FFmpeg's guess), or None when it declares none. Raises
+    :class:`DatasetError` naming the file if it cannot be opened or has no video stream."""
+    try:
+        with av.open(str(path)) as container:
+            if not container.streams.video:
+                raise DatasetError(f"{path}: holds no video stream")
+            stream = container.streams.video[0]
+            rate = stream.average_rate or stream.guessed_rate
+    except (OSError, av.FFmpegError) as exc:
+        raise DatasetError(f"{path}: cannot open video ({exc})") from None
+    return float(rate) if rate and float(rate) > 0 else None
+
+
 def open_video_frames(paths: Sequence[str | Path], *, gray: bool = False
                       ) -> Iterator[list[np.ndarray]]:
     """Synchronised frames of several videos, one per camera (for ``digiteyes track``).
