@@ -35,7 +35,7 @@ from digiteyes.apps.mouse3d import buttons_from_state, pole_from_state
 from digiteyes.camera import Rig, load_rig
 from digiteyes.errors import CameraError, DatasetError
 from digiteyes.io import VideoReader, open_sequence, open_video_frames, read_state_log
-from digiteyes.io.video import open_capture_frames
+from digiteyes.io.video import frame_rate, open_capture_frames
 from digiteyes.kinematics import KinematicModel, State, load_model
 from digiteyes.synth import RenderOptions, render_views
 from digiteyes.synth.scenarios import build_scenario
@@ -245,7 +245,8 @@ def open_mouse_stream(source: str | None = None, *, replay: str | Path | None = 
     replay : a ``digiteyes track`` output folder to replay instead of tracking.
     frames : stop after this many frames (None: the whole source).
     fps : frames per second to pace files, the scenario and replays at (None: the
-        source's rate, 10 Hz for videos); live cameras run at their own rate.
+        source's rate: a video's declared rate, else 10 Hz); live cameras run at their
+        own rate.
     iterations : Gauss-Newton iterations per frame (the mouse needs several, docs/mouse3d.md).
     """
     options = FeatureTrackerOptions(iterations_per_frame=iterations)
@@ -292,7 +293,7 @@ def open_mouse_stream(source: str | None = None, *, replay: str | Path | None = 
             raise DatasetError(f"{source}: no such video file, dataset folder or camera index")
         if len(rig) != 1:
             raise CameraError(f"{rig_path}: one video needs a one-camera rig, got {len(rig)}")
-        rate = fps or 10.0
+        rate = fps or frame_rate(path) or 10.0
         raw = paced(open_video_frames([path], gray=True), rate)
         description = f"video {path}"
     raw = islice(raw, frames) if frames is not None else raw
