@@ -67,6 +67,32 @@ def test_stream_to_stdout_gives_each_frames_state_and_keypoints(webcam, tmp_path
         assert np.allclose(got, message["keypoints"][camera.name][first]["xyz_mm"], atol=0.02)
 
 
+def test_stream_with_smoothing_carries_the_online_filter(webcam, tmp_path, capsys):
+    """``--stream - --smooth``: each line's ``state_smoothed`` is the One Euro filter run
+    online, equal to the batch filter's ``states-smoothed.csv`` row; without ``--smooth``
+    the lines have no smoothed fields; the first frame's smoothed state is the raw one."""
+    from digiteyes.kinematics import State
+
+    out = tmp_path / "out"
+    assert main(["track", str(webcam), "-o", str(out), "--stream", "-", "--frames", "6",
+                 "--no-overlay", "--quiet", "--smooth"]) == 0
+    messages = [json.loads(line) for line in capsys.readouterr().out.strip().splitlines()]
+    model = open_sequence(webcam).model
+    smoothed = read_state_log(out / "states-smoothed.csv", model).states
+    raw = read_state_log(out / "states.csv", model).states
+    streamed = np.array([list(m["state_smoothed"].values()) for m in messages])
+    np.testing.assert_allclose(streamed, smoothed, atol=1e-6)
+    np.testing.assert_allclose(streamed[0], raw[0], atol=1e-6)
+    assert np.abs(streamed[1:] - raw[1:]).max() > 1e-4
+    camera = open_sequence(webcam).rig[0].name
+    kin = keypoints(model, forward_kinematics(model, State(model, smoothed[-1]).q))
+    assert set(messages[-1]["keypoints_smoothed"][camera]) == set(kin[0])
+    assert main(["track", str(webcam), "-o", str(tmp_path / "plain"), "--stream", "-",
+                 "--frames", "2", "--no-overlay", "--quiet"]) == 0
+    plain = json.loads(capsys.readouterr().out.strip().splitlines()[0])
+    assert "state_smoothed" not in plain and "keypoints_smoothed" not in plain
+
+
 def test_stream_to_a_local_socket(webcam, tmp_path, capsys):
     server = socket.create_server(("127.0.0.1", 0))
     port = server.getsockname()[1]

@@ -267,7 +267,7 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
     tracker = create_tracker(job.tracker_name, model, rig, **_tracker_options(job, model))
     out = Path(job.output)
     out.mkdir(parents=True, exist_ok=True)
-    sinks = _open_sinks(job, model, rig, out, say)
+    sinks = _open_sinks(job, model, rig, out, source.rate, say)
     try:
         run = run_tracker(tracker, model, rig, frames, initial, out, fps=source.rate,
                           total=total, overlay=job.overlay, progress=job.progress,
@@ -287,13 +287,15 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
     return run
 
 
-def _open_sinks(job: TrackJob, model: KinematicModel, rig: Rig, out: Path,
+def _open_sinks(job: TrackJob, model: KinematicModel, rig: Rig, out: Path, fps: float,
                 say: Callable[[str], None]) -> list[FrameSink]:
-    """``keypoints.csv`` always; the stream and the window when asked for."""
+    """``keypoints.csv`` always; the stream (smoothed too with ``job.smooth``, at ``fps``)
+    and the window when asked for."""
     sinks: list[FrameSink] = [KeypointLog(out / KEYPOINTS_FILE, model, rig)]
     try:
         if job.stream is not None:
-            sinks.append(JsonLinesStream(job.stream, model, rig))
+            sinks.append(JsonLinesStream(job.stream, model, rig, smooth=job.smooth,
+                                         fps=fps))
         if job.show:
             from digiteyes.viz.live_window import open_live_window
 

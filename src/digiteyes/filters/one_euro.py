@@ -114,45 +114,83 @@ def _keypoints(model: KinematicModel, states: np.ndarray) -> np.ndarray:
     return keypoints(model, forward_kinematics(model, states))[1]
 
 
+class OneEuroFilter:
+    """The filter run online, one state at a time (live tracking, streams).
+
+    ``update(z)`` takes the next measured state (n_q,) and returns the filtered one; with
+    ``restart=True`` (e.g. the frame after a lost one) the output is the measurement and
+    the speed estimate starts again. After each update, ``speed_mm_s`` and ``cutoff_hz``
+    hold that frame's ``s_t`` and ``f_c`` (0 and infinity on a restart).
+    """
+
+    def __init__(self, model: KinematicModel, fps: float,
+                 options: OneEuroOptions | None = None) -> None:
+        if not fps > 0:
+            raise StateError(f"one_euro_filter needs fps > 0, got {fps}")
+        self.model = model
+        self.options = options or OneEuroOptions()
+        self.period = 1.0 / fps
+        self._alpha_d = _alpha(self.options.d_cutoff_hz, self.period)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the past: the next update restarts."""
+        self.state: np.ndarray | None = None
+        self._velocity: np.ndarray | None = None
+        self._previous: np.ndarray | None = None
+        self.speed_mm_s, self.cutoff_hz = 0.0, np.inf
+
+    def update(self, z: np.ndarray, restart: bool = False,
+               measured: np.ndarray | None = None) -> np.ndarray:
+        """The filtered state for measurement ``z`` (n_q,); ``measured`` optionally gives
+        its keypoints (K, 3) if already computed."""
+        z = validate_state(self.model, np.asarray(z, dtype=float), normalize=True)
+        points = _keypoints(self.model, z[None])[0] if measured is None else measured
+        if restart or self.state is None:
+            self.state, self._previous = z.copy(), points
+            self._velocity = np.zeros_like(points)
+            self.speed_mm_s, self.cutoff_hz = 0.0, np.inf
+            return self.state.copy()
+        options = self.options
+        self._velocity = (self._alpha_d * (points - self._previous) / self.period
+                          + (1.0 - self._alpha_d) * self._velocity)
+        self.speed_mm_s = float(np.sqrt(np.mean(np.sum(self._velocity ** 2, axis=-1))))
+        self.cutoff_hz = (options.min_cutoff_hz + options.beta_per_mm_s
+                          * max(self.speed_mm_s - options.deadband_mm_s, 0.0))
+        alpha = _alpha(self.cutoff_hz, self.period)
+        self.state = integrate(self.model, self.state,
+                               alpha * difference(self.model, self.state, z))
+        self._previous = _keypoints(self.model, self.state[None])[0]
+        return self.state.copy()
+
+
 def one_euro_trace(model: KinematicModel, states: np.ndarray, fps: float,
                    options: OneEuroOptions | None = None,
                    reset: np.ndarray | None = None) -> OneEuroTrace:
-    """Filter a sequence of states (T, n_q) sampled at ``fps`` frames/s; return the
-    filtered states with the speed and cutoff of each frame.
+    """Filter a sequence of states (T, n_q) sampled at ``fps`` frames/s with
+    :class:`OneEuroFilter`; return the filtered states with the speed and cutoff of each
+    frame.
 
     The filter is causal (each output uses only the frames up to it), so it can run
     live. ``reset`` (T,) bool marks frames where the filter restarts from the raw state
     (e.g. frames after a track loss). Raises :class:`StateError` for a wrong shape or a
     non-positive ``fps``.
     """
-    options = options or OneEuroOptions()
-    if not fps > 0:
-        raise StateError(f"one_euro_filter needs fps > 0, got {fps}")
+    online = OneEuroFilter(model, fps, options)
     Q = np.asarray(states, dtype=float)
     if Q.ndim != 2 or Q.shape[1] != model.n_q:
         raise StateError(f"one_euro_filter needs states of shape (T, {model.n_q}), "
                          f"got {Q.shape}")
-    Q = validate_state(model, Q, normalize=True) if len(Q) else Q.copy()
-    period = 1.0 / fps
-    alpha_d = _alpha(options.d_cutoff_hz, period)
+    if len(Q):
+        Q = validate_state(model, Q, normalize=True)
     measured = _keypoints(model, Q) if len(Q) else np.zeros((0, 0, 3))
     out = np.empty_like(Q)
     speed = np.zeros(len(Q))
     cutoff = np.full(len(Q), np.inf)
     for t, z in enumerate(Q):
-        if t == 0 or (reset is not None and reset[t]):
-            out[t] = z
-            velocity = np.zeros_like(measured[t])
-            previous = measured[t]
-            continue
-        velocity = (alpha_d * (measured[t] - previous) / period
-                    + (1.0 - alpha_d) * velocity)
-        speed[t] = np.sqrt(np.mean(np.sum(velocity ** 2, axis=-1)))
-        cutoff[t] = (options.min_cutoff_hz
-                     + options.beta_per_mm_s * max(speed[t] - options.deadband_mm_s, 0.0))
-        alpha = _alpha(cutoff[t], period)
-        out[t] = integrate(model, out[t - 1], alpha * difference(model, out[t - 1], z))
-        previous = _keypoints(model, out[t][None])[0]
+        out[t] = online.update(z, restart=bool(reset is not None and reset[t]),
+                               measured=measured[t])
+        speed[t], cutoff[t] = online.speed_mm_s, online.cutoff_hz
     return OneEuroTrace(out, speed, cutoff)
 
 

@@ -26,6 +26,7 @@ import numpy as np
 
 from digiteyes.camera import Rig
 from digiteyes.errors import DatasetError
+from digiteyes.filters import OneEuroFilter, OneEuroOptions
 from digiteyes.kinematics import KinematicModel, forward_kinematics
 from digiteyes.kinematics.keypoints import keypoint_names, keypoints
 
@@ -93,7 +94,6 @@ def frame_message(model: KinematicModel, rig: Rig, index: int, result: TrackResu
     """One frame as a JSON-ready object: ``frame``, ``time`` (Unix s), ``lost``,
     ``reinitialised``, ``residual_rms_px``, ``state`` (by name; mm, rad) and
     ``keypoints[camera][keypoint] = {"uv_px": [u, v], "xyz_mm": [x, y, z]}``."""
-    names, uv, xyz = camera_keypoints(model, rig, result.state)
     rms = float(result.residual_rms_px)
     return {
         "frame": int(index),
@@ -101,12 +101,24 @@ def frame_message(model: KinematicModel, rig: Rig, index: int, result: TrackResu
         "lost": bool(result.lost),
         "reinitialised": bool(reinitialised),
         "residual_rms_px": rms if np.isfinite(rms) else None,
-        "state": {n: float(v) for n, v in zip(model.state_names, result.state, strict=True)},
-        "keypoints": {cam.name: {n: {"uv_px": [round(float(u), 2) for u in uv[c, k]],
-                                     "xyz_mm": [round(float(v), 2) for v in xyz[c, k]]}
-                                 for k, n in enumerate(names)}
-                      for c, cam in enumerate(rig)},
+        "state": state_by_name(model, result.state),
+        "keypoints": keypoints_by_camera(model, rig, result.state),
     }
+
+
+def state_by_name(model: KinematicModel, state: np.ndarray) -> dict[str, float]:
+    """A state (n_q,) as ``{state name: value}`` (mm, rad)."""
+    return {n: float(v) for n, v in zip(model.state_names, state, strict=True)}
+
+
+def keypoints_by_camera(model: KinematicModel, rig: Rig, state: np.ndarray) -> dict:
+    """``{camera: {keypoint: {"uv_px": [u, v], "xyz_mm": [x, y, z]}}}`` of a state (n_q,):
+    the projection (px) and the point in the camera's frame (mm), rounded to 0.01."""
+    names, uv, xyz = camera_keypoints(model, rig, state)
+    return {cam.name: {n: {"uv_px": [round(float(u), 2) for u in uv[c, k]],
+                           "xyz_mm": [round(float(v), 2) for v in xyz[c, k]]}
+                       for k, n in enumerate(names)}
+            for c, cam in enumerate(rig)}
 
 
 def parse_stream_target(target: str) -> tuple[str, int] | None:
@@ -123,13 +135,22 @@ def parse_stream_target(target: str) -> tuple[str, int] | None:
 class JsonLinesStream:
     """Send :func:`frame_message` per frame as one line of JSON to ``target`` (``-`` or
     ``tcp://HOST:PORT``). A reader that goes away ends the stream quietly (the run goes
-    on); a socket that cannot be reached raises :class:`DatasetError` at once."""
+    on); a socket that cannot be reached raises :class:`DatasetError` at once.
+
+    With ``smooth`` (One Euro settings) each line also carries ``state_smoothed`` and
+    ``keypoints_smoothed``: the state filtered online at ``fps`` frames/s
+    (:class:`~digiteyes.filters.OneEuroFilter`, restarting on the frame after a lost
+    one, as ``states-smoothed.csv``), for live use.
+    """
 
     def __init__(self, target: str, model: KinematicModel, rig: Rig,
-                 out: TextIO | None = None) -> None:
+                 out: TextIO | None = None, smooth: OneEuroOptions | None = None,
+                 fps: float = 10.0) -> None:
         self.model = model
         self.rig = rig
         self._socket = None
+        self._filter = None if smooth is None else OneEuroFilter(model, fps, smooth)
+        self._previous_lost = False
         address = parse_stream_target(target)
         if address is None:
             self._out = out or sys.stdout
@@ -145,9 +166,15 @@ class JsonLinesStream:
               reinitialised: bool) -> None:
         if self._out is None:
             return
-        line = json.dumps(frame_message(self.model, self.rig, index, result, reinitialised))
+        message = frame_message(self.model, self.rig, index, result, reinitialised)
+        if self._filter is not None:
+            smoothed = self._filter.update(result.state, restart=self._previous_lost)
+            message["state_smoothed"] = state_by_name(self.model, smoothed)
+            message["keypoints_smoothed"] = keypoints_by_camera(self.model, self.rig,
+                                                                smoothed)
+        self._previous_lost = bool(result.lost)
         try:
-            self._out.write(line + "\n")
+            self._out.write(json.dumps(message) + "\n")
             self._out.flush()
             self.n_sent += 1
         except (OSError, ValueError):
