@@ -16,7 +16,7 @@ import pytest
 from digiteyes import forward_kinematics
 from digiteyes.cli import main
 from digiteyes.io import VideoReader, VideoWriter, open_sequence, read_state_log
-from digiteyes.io.video import CaptureReader
+from digiteyes.io.video import CaptureReader, open_capture_frames
 from digiteyes.kinematics.anatomy import FINGERS
 from digiteyes.kinematics.keypoints import keypoints
 from digiteyes.pipeline import run_tracker
@@ -217,14 +217,19 @@ def test_capture_reader_reads_a_video_file_like_the_video_reader(tmp_path):
     rng = np.random.default_rng(0)
     path = tmp_path / "clip.mkv"
     frames = [rng.integers(0, 255, (48, 64, 3), dtype=np.uint8) for _ in range(3)]
-    with VideoWriter(path, 10.0) as writer:
+    with VideoWriter(path, 15.0) as writer:
         for frame in frames:
             writer.write(frame)
     expected = list(VideoReader(path))
-    got = list(CaptureReader(path))
+    reader = CaptureReader(path)
+    assert reader.fps == pytest.approx(15.0)
+    got = list(reader)
     assert len(got) == 3
     for a, b in zip(got, expected, strict=True):
         assert a.shape == b.shape and np.mean(np.abs(a.astype(int) - b)) < 3.0
+    lists = open_capture_frames(path)
+    assert lists.fps == pytest.approx(15.0)
+    assert [len(images) for images in lists] == [1, 1, 1]
 
 
 def test_show_without_display_says_so_and_tracks(webcam, tmp_path, capsys, monkeypatch):

@@ -52,6 +52,8 @@ DEFAULT_MODEL = "hand"
 """Model of videos and cameras when none is named."""
 DEFAULT_VIDEO_FPS = 10.0
 """Frame rate assumed for a video whose container declares none (frames/s)."""
+DEFAULT_CAMERA_FPS = 30.0
+"""Frame rate assumed for a live camera that reports none (frames/s)."""
 
 
 def tracker_options(iterations: int, window: float, links: str, model: KinematicModel,
@@ -155,7 +157,8 @@ def _open_source(job: TrackJob) -> _Source:
         if inputs:
             raise DatasetError("give either --camera or input files, not both")
         frames = open_capture_frames(job.camera)
-        return _with_files(job, frames, None, 30.0, auto, live=True)
+        return _with_files(job, frames, None, frames.fps or DEFAULT_CAMERA_FPS, auto,
+                           live=True)
     if not inputs:
         raise DatasetError("nothing to track: give a dataset folder, videos or --camera")
     if len(inputs) == 1 and Path(inputs[0]).is_dir():

@@ -306,7 +306,8 @@ class CaptureReader:
     ``source`` is a camera index (``0`` the first camera) or a video file path (the same
     code path, which is how it is tested without a camera). ``read()`` returns the next
     image, ``uint8`` (H, W) if ``gray`` else (H, W, 3) RGB, or None when the camera stops.
-    Raises :class:`DatasetError` when the camera or file cannot be opened.
+    ``fps`` is the rate the camera or file reports (None when it reports none). Raises
+    :class:`DatasetError` when the camera or file cannot be opened.
     """
 
     def __init__(self, source: int | str | Path, *, gray: bool = False) -> None:
@@ -318,6 +319,8 @@ class CaptureReader:
             self._capture.release()
             what = f"camera {source}" if isinstance(source, int) else str(source)
             raise DatasetError(f"{what}: cannot be opened for capture")
+        rate = float(self._capture.get(cv2.CAP_PROP_FPS))
+        self.fps: float | None = rate if np.isfinite(rate) and rate > 0 else None
 
     def read(self) -> np.ndarray | None:
         """The next frame, or None when the camera or file has no more."""
@@ -342,17 +345,30 @@ class CaptureReader:
             self._capture = None
 
 
-def open_capture_frames(source: int | str | Path, *, gray: bool = False
-                        ) -> Iterator[list[np.ndarray]]:
+def open_capture_frames(source: int | str | Path, *, gray: bool = False) -> CaptureFrames:
     """One-camera frames of :class:`CaptureReader` as lists of one image, the shape of
-    :func:`open_video_frames` (so ``digiteyes track --camera N`` runs the same loop)."""
-    reader = CaptureReader(source, gray=gray)
+    :func:`open_video_frames` (so ``digiteyes track --camera N`` runs the same loop); the
+    iterator's ``fps`` is the reader's."""
+    return CaptureFrames(CaptureReader(source, gray=gray))
 
-    def frames() -> Iterator[list[np.ndarray]]:
-        try:
-            for image in reader:
-                yield [image]
-        finally:
-            reader.close()
 
-    return frames()
+class CaptureFrames:
+    """Iterator of ``[image]`` lists from a :class:`CaptureReader`, which it closes at the
+    end or when closed; ``fps`` is the rate the camera reports (None when unknown)."""
+
+    def __init__(self, reader: CaptureReader) -> None:
+        self._reader = reader
+        self.fps = reader.fps
+
+    def __iter__(self) -> CaptureFrames:
+        return self
+
+    def __next__(self) -> list[np.ndarray]:
+        image = self._reader.read()
+        if image is None:
+            raise StopIteration
+        return [image]
+
+    def close(self) -> None:
+        """Release the camera (idempotent)."""
+        self._reader.close()
