@@ -98,13 +98,15 @@ def jitter(model: KinematicModel, states: np.ndarray) -> dict[str, float]:
             "joint_angle_deg": float(np.sqrt(np.mean(np.diff(angles, axis=0) ** 2)))}
 
 
-def lag_frames(estimate_kp: np.ndarray, truth_kp: np.ndarray) -> tuple[float, float]:
-    """The shift ``s`` in frames minimising the RMS of ``estimate[t] - truth(t - s)``, and
-    that RMS (mm); frames whose shifted truth falls outside the sequence are left out."""
+def lag_frames(estimate_kp: np.ndarray, truth_kp: np.ndarray,
+               max_lag: float = MAX_LAG) -> tuple[float, float]:
+    """The shift ``s`` in frames (0 to ``max_lag``) minimising the RMS of
+    ``estimate[t] - truth(t - s)``, and that RMS (mm); frames whose shifted truth falls
+    outside the sequence are left out."""
     n = len(truth_kp)
-    t = np.arange(WARM_UP + int(np.ceil(MAX_LAG)), n)
+    t = np.arange(WARM_UP + int(np.ceil(max_lag)), n)
     best = (0.0, np.inf)
-    for s in np.arange(0.0, MAX_LAG + 1e-9, LAG_STEP):
+    for s in np.arange(0.0, max_lag + 1e-9, LAG_STEP):
         u = t - s
         lo = np.floor(u).astype(int)
         w = (u - lo)[:, None, None]
@@ -184,7 +186,8 @@ def slow_motion(model: KinematicModel, states: np.ndarray, fps: float,
                                       axis=1))
         error = np.linalg.norm(filtered_kp - truth_kp, axis=-1).mean(axis=1)
         rows.append({"factor": factor, "speed_mm_s_median": float(np.median(speed)),
-                     "lag_frames": lag_frames(filtered_kp, truth_kp)[0],
+                     "lag_frames": lag_frames(filtered_kp, truth_kp,
+                                              max_lag=MAX_LAG * factor)[0],
                      "error_mm_mean": float(error.mean()), "error_mm_max": float(error.max())})
     return rows
 
