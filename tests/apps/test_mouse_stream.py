@@ -30,3 +30,44 @@ def test_tracked_stream_matches_the_tracker_and_keeps_warm_up_out_of_the_latency
     assert all(f.t_frame <= f.t_state for f in stream)
     assert len(list(track_frames(scenario.model, scenario.rig, timestamped([]),
                                  scenario.initial_state, options))) == 0
+
+
+def test_smoothed_stream_is_the_one_euro_filter_of_the_tracked_states():
+    """``smoothed``: states equal the batch One Euro filter of the raw stream (restarting
+    after the lost frame), poles and buttons follow the filtered state, frames and
+    overlays are kept."""
+    from digiteyes.apps.mouse3d import pole_from_state
+    from digiteyes.apps.mouse_stream import MouseFrame, smoothed
+    from digiteyes.filters import OneEuroOptions, one_euro_filter
+
+    scenario, _ = render_scenario_frames("mouse", n_frames=30)
+    model, states = scenario.model, scenario.states[:30]
+    rng = np.random.default_rng(1)
+    noisy = states.copy()
+    noisy[:, 7:] += rng.normal(0.0, 0.02, noisy[:, 7:].shape)
+    lost = np.zeros(30, dtype=bool)
+    lost[12] = True
+    raw = [MouseFrame(i, q, pole_from_state(model, q), {}, bool(lost[i]), 0.0, 0.0, b"jpg")
+           for i, q in enumerate(noisy)]
+    out = list(smoothed(raw, model, 30.0, OneEuroOptions()))
+    reset = np.concatenate([[False], lost[:-1]])
+    expected = one_euro_filter(model, noisy, 30.0, OneEuroOptions(), reset=reset)
+    np.testing.assert_allclose([f.state for f in out], expected, atol=1e-12)
+    np.testing.assert_allclose(out[20].pole, pole_from_state(model, expected[20]))
+    assert [f.index for f in out] == list(range(30))
+    assert all(f.overlay_jpeg == b"jpg" for f in out) and out[12].lost
+    assert np.abs(np.array([f.state for f in out]) - noisy).max() > 1e-3
+
+
+def test_open_mouse_stream_with_smooth_filters_the_tracked_scenario():
+    """``digiteyes mouse --smooth`` on the rendered scenario: the served states are the
+    filter of those served without it."""
+    from digiteyes.apps.mouse_stream import open_mouse_stream
+    from digiteyes.filters import OneEuroOptions, one_euro_filter
+
+    plain = open_mouse_stream(None, frames=6, fps=200.0, overlay=False)
+    raw = np.array([f.state for f in plain.frames])
+    steady = open_mouse_stream(None, frames=6, fps=200.0, overlay=False,
+                               smooth=OneEuroOptions())
+    got = np.array([f.state for f in steady.frames])
+    np.testing.assert_allclose(got, one_euro_filter(plain.model, raw, 200.0), atol=1e-9)

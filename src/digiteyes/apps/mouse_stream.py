@@ -34,6 +34,7 @@ import numpy as np
 from digiteyes.apps.mouse3d import buttons_from_state, pole_from_state
 from digiteyes.camera import Rig, load_rig
 from digiteyes.errors import CameraError, DatasetError
+from digiteyes.filters import OneEuroFilter, OneEuroOptions
 from digiteyes.io import VideoReader, open_sequence, open_video_frames, read_state_log
 from digiteyes.io.video import frame_rate, open_capture_frames
 from digiteyes.kinematics import KinematicModel, State, load_model
@@ -112,6 +113,22 @@ def mouse_frame(model: KinematicModel, index: int, state: np.ndarray, lost: bool
     jpeg = None if overlay is None else encode_jpeg(overlay)
     return MouseFrame(index, np.asarray(state, dtype=float), pole, buttons, bool(lost),
                       t_frame, time.time(), jpeg)
+
+
+def smoothed(frames: Iterable[MouseFrame], model: KinematicModel, fps: float,
+             options: OneEuroOptions | None = None) -> Iterator[MouseFrame]:
+    """``frames`` with each state One Euro filtered online
+    (:class:`~digiteyes.filters.OneEuroFilter`, restarting after a lost frame) and the pole
+    and buttons taken from the filtered state; ``t_state`` is stamped after the filter.
+    The overlay keeps showing the tracked (raw) hand."""
+    online = OneEuroFilter(model, fps, options)
+    previous_lost = False
+    for frame in frames:
+        state = online.update(frame.state, restart=previous_lost)
+        previous_lost = frame.lost
+        yield replace(frame, state=state, pole=pole_from_state(model, state),
+                      buttons={k: bool(v) for k, v in buttons_from_state(model, state).items()},
+                      t_state=time.time())
 
 
 def timestamped(frames: Iterable[Sequence[np.ndarray]]) -> Iterator[tuple[float, list]]:
@@ -234,8 +251,25 @@ def open_mouse_stream(source: str | None = None, *, replay: str | Path | None = 
                       model_name: str | None = None, rig_path: str | None = None,
                       init_path: str | None = None, frames: int | None = None,
                       fps: float | None = None, iterations: int = 5, seed: int = 0,
-                      overlay: bool = True) -> MouseStream:
-    """Resolve a ``digiteyes mouse`` source into a :class:`MouseStream`.
+                      overlay: bool = True,
+                      smooth: OneEuroOptions | None = None) -> MouseStream:
+    """Resolve a ``digiteyes mouse`` source into a :class:`MouseStream`; with ``smooth``
+    the states (and so the pole and buttons) are One Euro filtered online
+    (:func:`smoothed`). The other parameters are those of :func:`_open_source`."""
+    stream = _open_source(source, replay=replay, model_name=model_name, rig_path=rig_path,
+                          init_path=init_path, frames=frames, fps=fps,
+                          iterations=iterations, seed=seed, overlay=overlay)
+    if smooth is None:
+        return stream
+    return replace(stream, frames=smoothed(stream.frames, stream.model, stream.fps, smooth))
+
+
+def _open_source(source: str | None = None, *, replay: str | Path | None = None,
+                 model_name: str | None = None, rig_path: str | None = None,
+                 init_path: str | None = None, frames: int | None = None,
+                 fps: float | None = None, iterations: int = 5, seed: int = 0,
+                 overlay: bool = True) -> MouseStream:
+    """Resolve a ``digiteyes mouse`` source into a :class:`MouseStream` (no smoothing).
 
     Parameters
     ----------

@@ -6,6 +6,7 @@ import click
 
 from digiteyes.apps.mouse_server import DEFAULT_REACH_MM, DEFAULT_SPHERE, MouseServer, SceneConfig
 from digiteyes.apps.mouse_stream import MouseFrame, open_mouse_stream
+from digiteyes.filters import OneEuroOptions
 from digiteyes.io import StateLogWriter
 
 HELP = """Serve the 3D mouse (thesis Fig. 4.9) on http://127.0.0.1:PORT/.
@@ -45,15 +46,19 @@ server stops when it ends, or on Ctrl-C.
 @click.option("--log", "log_path", type=click.Path(dir_okay=False),
               help="Also write the streamed states to this state log (CSV).")
 @click.option("--no-overlay", is_flag=True, help="Send no overlay images.")
+@click.option("--smooth", is_flag=True,
+              help="One Euro filter the states online (defaults, docs/output.md): a steadier "
+                   "pole, a little later.")
 def mouse(source: str | None, replay: str | None, port: int, frames: int | None,
           fps: float | None, model_name: str | None, rig_path: str | None,
           init_path: str | None, iterations: int, seed: int,
           sphere: tuple[float, float, float], reach: float, log_path: str | None,
-          no_overlay: bool) -> None:
+          no_overlay: bool, smooth: bool) -> None:
     stream = open_mouse_stream(source, replay=replay, model_name=model_name,
                                rig_path=rig_path, init_path=init_path, frames=frames,
                                fps=fps, iterations=iterations, seed=seed,
-                               overlay=not no_overlay)
+                               overlay=not no_overlay,
+                               smooth=OneEuroOptions() if smooth else None)
     config = SceneConfig(tuple(sphere), reach, stream.description, stream.fps)
     log = StateLogWriter(log_path, stream.model) if log_path else None
 
