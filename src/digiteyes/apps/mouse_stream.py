@@ -239,12 +239,18 @@ def paced(frames: Iterable[list[np.ndarray]], fps: float) -> Iterator[list[np.nd
         yield images
 
 
-def camera_frames(index: int, rig: Rig) -> Iterator[list[np.ndarray]]:
+def camera_frames(index: int, rig: Rig) -> tuple[Iterator[list[np.ndarray]], float | None]:
     """Grey frames of live camera ``index`` (:func:`digiteyes.io.video.open_capture_frames`,
-    the reader of ``digiteyes track --camera``), checked against the one-camera ``rig``."""
-    for images in open_capture_frames(index, gray=True):
-        rig.check_images(images)
-        yield images
+    the reader of ``digiteyes track --camera``), checked against the one-camera ``rig``,
+    and the frame rate the camera reports (None when it reports none)."""
+    captured = open_capture_frames(index, gray=True)
+
+    def checked() -> Iterator[list[np.ndarray]]:
+        for images in captured:
+            rig.check_images(images)
+            yield images
+
+    return checked(), captured.fps
 
 
 def open_mouse_stream(source: str | None = None, *, replay: str | Path | None = None,
@@ -319,8 +325,8 @@ def _open_source(source: str | None = None, *, replay: str | Path | None = None,
         if len(rig) != 1:
             raise CameraError(f"{rig_path}: a live camera needs a one-camera rig, got "
                               f"{len(rig)}")
-        raw = camera_frames(int(source), rig)
-        rate = fps or 30.0
+        raw, reported = camera_frames(int(source), rig)
+        rate = fps or reported or 30.0
         description = f"camera {source}"
     else:
         if not path.is_file():
