@@ -18,7 +18,10 @@ b. **Transient coupling after a button press** (thesis Sec. 4.3.5: the pole heig
    scenario (index held up; the thumb abducts 25 degrees over frames 158-172 and returns
    by 192), tracked; the largest change of the estimated pole height from its value at
    frame 157 while the truth stays constant (mm), and the frames until the estimate is
-   back within :data:`SETTLE_MM` of the truth for good.
+   back within :data:`SETTLE_MM` of the truth for good. Also the pole's jitter from frame
+   157 on (RMS frame-to-frame change of its height; the true height holds still) and the
+   same figures with the states One Euro filtered at their defaults (``digiteyes mouse
+   --smooth``).
 c. **Resolution**: millimetres of pole height per pixel of fingertip motion in the image,
    ``d height / |d w_tip|`` for a small MCP lift at several points of the scenario's
    raise (finite differences through the forward kinematics and the camera; world
@@ -48,6 +51,7 @@ import numpy as np
 from digiteyes.apps.mouse3d import buttons_from_state, pole_from_state
 from digiteyes.apps.mouse_stream import render_frames, resample_scenario
 from digiteyes.benchmarks._machine import emit, kernel_threads, machine_info, machine_lines
+from digiteyes.filters import one_euro_filter
 from digiteyes.io import StateLogWriter
 from digiteyes.kinematics import forward_kinematics
 from digiteyes.synth.scenarios import MOUSE_RAISE, build_scenario
@@ -127,17 +131,29 @@ def coupling_section() -> dict[str, Any]:
     change = est[window] - est[before]
     off = np.abs(est - truth) > SETTLE_MM
     last_off = int(np.nonzero(off)[0].max()) + first if off.any() else None
+    steady = pole_from_state(model, one_euro_filter(model, run["states"], scenario.fps))[:, 2]
     return {"press_frame": press, "release_frame": first + len(pressed)
             - int(np.argmax(pressed[::-1])),
             "max_height_change_mm": float(np.abs(change).max()),
             "max_height_change_signed_mm": float(change[np.argmax(np.abs(change))]),
             "truth_height_change_mm": float(np.ptp(truth[window])),
             "max_height_error_mm": float(np.abs(est - truth)[window].max()),
+            "pole_jitter_mm": _rms_step(est[window]),
+            "smoothed": {"pole_jitter_mm": _rms_step(steady[window]),
+                         "max_height_change_mm": float(np.abs(
+                             steady[window] - steady[before]).max()),
+                         "max_height_error_mm": float(np.abs(steady - truth)[window].max())},
             "settled_frame": None if last_off is None else last_off + 1,
             "frames_to_settle_after_press": None if last_off is None
             else max(last_off + 1 - press, 0),
             "pole_height_mm": est.tolist(), "true_pole_height_mm": truth.tolist(),
             "frames": list(range(first, first + len(est)))}
+
+
+def _rms_step(heights: np.ndarray) -> float:
+    """RMS frame-to-frame change of a pole-height series (mm): its jitter where the truth
+    holds still."""
+    return float(np.sqrt(np.mean(np.diff(heights) ** 2)))
 
 
 def resolution_section(steps=(0.0, 0.25, 0.5, 0.75, 1.0), d_lift: float = 1e-3
@@ -242,7 +258,11 @@ def format_table(result: dict) -> str:
                   f"never off the truth by more than {SETTLE_MM} mm"
                   if c["frames_to_settle_after_press"] is None else
                   f"within {SETTLE_MM} mm of the truth "
-                  f"{c['frames_to_settle_after_press']} frame(s) after the press")]
+                  f"{c['frames_to_settle_after_press']} frame(s) after the press"),
+              f"   pole jitter {c['pole_jitter_mm']:.3f} mm/frame; with --smooth "
+              f"{c['smoothed']['pole_jitter_mm']:.3f} mm/frame, largest change "
+              f"{c['smoothed']['max_height_change_mm']:.2f} mm, largest error "
+              f"{c['smoothed']['max_height_error_mm']:.2f} mm"]
     lines += ["", "c. resolution: mm of pole height per pixel of fingertip image motion"]
     for r in result["resolution"]["rows"]:
         lines.append(f"   raise {r['raise_fraction']:.2f} (height {r['pole_height_mm']:5.1f} mm):"
