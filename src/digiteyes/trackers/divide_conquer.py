@@ -86,6 +86,7 @@ from digiteyes.smc.proposal import (
     random_walk_log_prior,
 )
 from digiteyes.smc.resample import effective_sample_size, normalised_weights, systematic_resample
+from digiteyes.smc.spread import SpreadHeldSpace
 from digiteyes.trackers.base import TrackResult
 from digiteyes.trackers.loss_hold import LossHold, LossHoldOptions
 from digiteyes.trackers.silhouette_loss import (
@@ -126,6 +127,9 @@ class DivideConquerOptions(SilhouetteLossOptions, LossHoldOptions):
         (:class:`~digiteyes.trackers.loss_hold.LossHold`; 0, the default, judges each
         frame alone: a particle filter can find a finger again by itself).
     refine_rounds : rounds of digit search then palm refinement after the EM rounds.
+    hold_start_spread : carry the start state's finger spread that the configuration
+        space cannot express, scaled by each finger's openness
+        (:class:`~digiteyes.smc.spread.SpreadHeldSpace`).
     fit_first_frame : fit the model's patches to the user's hand on the first frame, at
         the state the track starts from: the palm outline's sides
         (:func:`~digiteyes.smc.palm.calibrate_palm_outline`; the outline serves the ICP,
@@ -153,6 +157,7 @@ class DivideConquerOptions(SilhouetteLossOptions, LossHoldOptions):
     walk_fraction: float = 0.1
     refine_rounds: int = 1
     fit_first_frame: bool = True
+    hold_start_spread: bool = False
     anneal_layers: int = 0
     min_edge_fraction: float = 0.3
     proposal: ProposalOptions = field(default_factory=ProposalOptions)
@@ -261,7 +266,7 @@ class DivideConquerTracker:
             raise DigitEyesError(f"model {model.name!r} has no palm pose (pose:q row)")
         self.model, self.rig, self.options = model, _as_rig(rig), options
         self.cameras = self.rig.cameras
-        self.space = space or default_configuration_space(model)
+        self.space = self.base_space = space or default_configuration_space(model)
         self.joint_index = self.space.joint_indices(model)
         self.geometry = FingerGeometry.of(model)
         self.pairs = manifold_pairs(len(self.space.basis))
@@ -287,6 +292,8 @@ class DivideConquerTracker:
             raise DigitEyesError(f"initial state must have shape ({self.model.n_q},), got "
                                  f"{q.shape}")
         self.state = q.copy()
+        if self.options.hold_start_spread:
+            self.space = SpreadHeldSpace.of(self.base_space, q[self.joint_index])
         X0 = self.space.to_coordinates(q[self.joint_index])
         self.particles = np.repeat(X0[None], self.options.n_particles, axis=0)
         self.rng = np.random.default_rng(self.options.seed)
