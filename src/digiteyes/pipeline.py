@@ -180,7 +180,8 @@ def recovered_state(tracker: Tracker, images: Sequence[np.ndarray], result: Trac
     a silhouette rule with a fitted foreground (``tracker.silhouette_loss``), explains
     the hand's silhouette better than the estimate does
     (:meth:`~digiteyes.trackers.silhouette_loss.SilhouetteLoss.mismatch`): a fit to
-    detected keypoints is often coarser than a track that is only briefly off. None
+    detected keypoints is often coarser than a track that is only briefly off. The
+    tracker is then restarted from it (:func:`~digiteyes.trackers.restart`). None
     otherwise (the tracker goes on from its estimate)."""
     if not result.lost or recover is None:
         return None
@@ -193,6 +194,7 @@ def recovered_state(tracker: Tracker, images: Sequence[np.ndarray], result: Trac
         now, new = rule.mismatch(images, result.state), rule.mismatch(images, fresh)
         if now is not None and new is not None and new >= now:
             return None
+    restart(tracker, fresh)
     return fresh
 
 
@@ -247,7 +249,6 @@ def run_tracker(
                 start = time.perf_counter()
                 fresh = recovered_state(tracker, images, result, recover)
                 if fresh is not None:
-                    restart(tracker, fresh)
                     result = replace(result, state=fresh)
                     run.reinitialised_frames.append(index)
                 seconds += time.perf_counter() - start

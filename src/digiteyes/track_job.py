@@ -33,7 +33,12 @@ from digiteyes.io import open_sequence, open_video_frames
 from digiteyes.io.frame_sinks import KEYPOINTS_FILE, JsonLinesStream, KeypointLog
 from digiteyes.io.safe_paths import atomic_write_json
 from digiteyes.io.track_extras import write_track_extras
-from digiteyes.io.video import frame_rate, open_capture_frames
+from digiteyes.io.video import (
+    DEFAULT_CAMERA_FPS,
+    DEFAULT_FPS,
+    frame_rate,
+    open_capture_frames,
+)
 from digiteyes.io.video_lengths import check_lengths, record_missing
 from digiteyes.jsonfile import read_json_object
 from digiteyes.kinematics import KinematicModel, State, load_model
@@ -50,10 +55,6 @@ AUTO = "auto"
 """``init_path`` value that starts from a detection and model fit (``--init auto``)."""
 DEFAULT_MODEL = "hand"
 """Model of videos and cameras when none is named."""
-DEFAULT_VIDEO_FPS = 10.0
-"""Frame rate assumed for a video whose container declares none (frames/s)."""
-DEFAULT_CAMERA_FPS = 30.0
-"""Frame rate assumed for a live camera that reports none (frames/s)."""
 
 
 def tracker_options(iterations: int, window: float, links: str, model: KinematicModel,
@@ -93,7 +94,7 @@ class TrackJob:
         (:func:`tracker_options`).
     max_frames : track at most this many frames (None: all).
     fps : overlay video and smoothing frame rate (None: the dataset's or the first video's,
-        else :data:`DEFAULT_VIDEO_FPS`).
+        else :data:`DEFAULT_FPS`).
     overlay : write the overlay video; progress : show a progress bar.
     tracker_name : a registered tracker; options : ``(key, value)`` pairs of its options
         (on top of the flags for the feature tracker).
@@ -184,7 +185,7 @@ def _open_source(job: TrackJob) -> _Source:
 
 def video_rate(paths: list[str]) -> float:
     """The frame rate of the first video (:func:`~digiteyes.io.video.frame_rate`), or
-    :data:`DEFAULT_VIDEO_FPS` when its container declares none; a warning on stderr when
+    :data:`DEFAULT_FPS` when its container declares none; a warning on stderr when
     the videos of a rig declare different rates (the first camera's is used)."""
     rates = [frame_rate(p) for p in paths]
     known = [r for r in rates if r is not None]
@@ -193,7 +194,7 @@ def video_rate(paths: list[str]) -> float:
                             if r is not None)
         print(f"digiteyes track: warning: the videos declare different frame rates "
               f"({listing} frames/s); using the first", file=sys.stderr)
-    return rates[0] if rates[0] is not None else DEFAULT_VIDEO_FPS
+    return rates[0] if rates[0] is not None else DEFAULT_FPS
 
 
 def _with_files(job: TrackJob, frames: Iterator[list[np.ndarray]], total: int | None,

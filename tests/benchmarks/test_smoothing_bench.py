@@ -69,18 +69,6 @@ def test_the_shipped_defaults_are_in_the_grid():
     assert OneEuroOptions() in bench.grid_options()
 
 
-def test_slowed_motion_keeps_the_path_and_stretches_the_time():
-    """Played 4x slower, every 4th state is an original one and the others lie between
-    their neighbours (a joint angle moving linearly stays linear)."""
-    model = load_model("hand")
-    states = np.repeat(model.neutral()[None], 5, axis=0)
-    states[:, 9] = np.linspace(0.0, 0.4, 5)
-    slow = bench.slowed(model, states, 4)
-    assert len(slow) == 17
-    np.testing.assert_allclose(slow[::4], states, atol=1e-12)
-    np.testing.assert_allclose(slow[:, 9], np.linspace(0.0, 0.4, 17), atol=1e-12)
-
-
 def test_slow_motion_of_a_still_hand_has_no_error():
     model = load_model("hand")
     still = np.repeat(model.neutral()[None], 30, axis=0)

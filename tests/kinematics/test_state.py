@@ -266,3 +266,28 @@ def test_csv_errors(tmp_path):
     path.write_text("")
     with pytest.raises(StateError, match="empty CSV"):
         read_states_csv(HAND, path)
+
+
+def test_resampled_motion_keeps_the_path_and_stretches_the_time():
+    """Played 4x slower, every 4th state is an original one and the others lie between
+    their neighbours (a joint angle moving linearly stays linear); played 2x faster, every
+    other state; the base rotation is interpolated along the great circle (unit
+    quaternions, halfway at half the angle)."""
+    from digiteyes.kinematics import difference, integrate, load_model, resample_states
+
+    model = load_model("hand")
+    states = np.repeat(model.neutral()[None], 5, axis=0)
+    states[:, 9] = np.linspace(0.0, 0.4, 5)
+    slow = resample_states(model, states, 0.25)
+    assert len(slow) == 17
+    np.testing.assert_allclose(slow[::4], states, atol=1e-12)
+    np.testing.assert_allclose(slow[:, 9], np.linspace(0.0, 0.4, 17), atol=1e-12)
+    np.testing.assert_allclose(resample_states(model, states, 2.0), states[::2], atol=1e-12)
+    turn = np.zeros(model.n_v)
+    turn[model.q_to_v[model.base_state]] = 0.6
+    turned = np.stack([states[0], integrate(model, states[0], turn)])
+    halfway = resample_states(model, turned, 0.5)[1]
+    np.testing.assert_allclose(np.linalg.norm(halfway[:4]), 1.0, atol=1e-12)
+    np.testing.assert_allclose(difference(model, turned[0], halfway), turn / 2, atol=1e-9)
+    with pytest.raises(StateError, match="speed"):
+        resample_states(model, states, 0.0)

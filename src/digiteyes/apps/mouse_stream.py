@@ -36,8 +36,13 @@ from digiteyes.camera import Rig, load_rig
 from digiteyes.errors import CameraError, DatasetError
 from digiteyes.filters import OneEuroFilter, OneEuroOptions
 from digiteyes.io import VideoReader, open_sequence, open_video_frames, read_state_log
-from digiteyes.io.video import frame_rate, open_capture_frames
-from digiteyes.kinematics import KinematicModel, State, load_model
+from digiteyes.io.video import (
+    DEFAULT_CAMERA_FPS,
+    DEFAULT_FPS,
+    frame_rate,
+    open_capture_frames,
+)
+from digiteyes.kinematics import KinematicModel, State, load_model, resample_states
 from digiteyes.synth import RenderOptions, render_views
 from digiteyes.synth.scenarios import build_scenario
 from digiteyes.trackers import FeatureTracker, FeatureTrackerOptions, warm_up
@@ -122,10 +127,8 @@ def smoothed(frames: Iterable[MouseFrame], model: KinematicModel, fps: float,
     and buttons taken from the filtered state; ``t_state`` is stamped after the filter.
     The overlay keeps showing the tracked (raw) hand."""
     online = OneEuroFilter(model, fps, options)
-    previous_lost = False
     for frame in frames:
-        state = online.update(frame.state, restart=previous_lost)
-        previous_lost = frame.lost
+        state = online.follow(frame.state, frame.lost)
         yield replace(frame, state=state, pole=pole_from_state(model, state),
                       buttons={k: bool(v) for k, v in buttons_from_state(model, state).items()},
                       t_state=time.time())
@@ -190,20 +193,12 @@ def render_frames(scenario, seed: int = 0) -> Iterator[list[np.ndarray]]:
 
 
 def resample_scenario(scenario, speed: float):
-    """``scenario`` played ``speed`` times faster: states interpolated linearly at times
-    ``0, speed, 2 speed, ...`` (frames). Joint angles and mouse-hand positions interpolate
-    linearly; models with a quaternion base are refused (the mouse hand has none)."""
+    """``scenario`` played ``speed`` times faster: its states at times ``0, speed,
+    2 speed, ...`` (frames), interpolated on the state manifold
+    (:func:`~digiteyes.kinematics.resample_states`)."""
     if speed <= 0:
         raise DatasetError(f"speed must be positive, got {speed}")
-    if scenario.model.base_state is not None:
-        raise DatasetError(f"scenario {scenario.name!r} has a quaternion base: cannot be "
-                           "resampled linearly")
-    n = scenario.n_frames
-    times = np.arange(0.0, n - 1 + 1e-9, speed)
-    source = np.arange(n)
-    states = np.stack([np.interp(times, source, scenario.states[:, j])
-                       for j in range(scenario.model.n_q)], axis=1)
-    return replace(scenario, states=states)
+    return replace(scenario, states=resample_states(scenario.model, scenario.states, speed))
 
 
 def replay_frames(run_dir: str | Path, model: KinematicModel, fps: float
@@ -292,7 +287,7 @@ def _open_source(source: str | None = None, *, replay: str | Path | None = None,
     options = FeatureTrackerOptions(iterations_per_frame=iterations)
     if replay is not None:
         model = load_model(model_name or "mouse-hand")
-        rate = fps or 10.0
+        rate = fps or DEFAULT_FPS
         stream = replay_frames(replay, model, rate)
         return MouseStream(model, _limit(stream, frames), rate, f"replay of {replay}", frames)
     if source is None:
@@ -326,14 +321,14 @@ def _open_source(source: str | None = None, *, replay: str | Path | None = None,
             raise CameraError(f"{rig_path}: a live camera needs a one-camera rig, got "
                               f"{len(rig)}")
         raw, reported = camera_frames(int(source), rig)
-        rate = fps or reported or 30.0
+        rate = fps or reported or DEFAULT_CAMERA_FPS
         description = f"camera {source}"
     else:
         if not path.is_file():
             raise DatasetError(f"{source}: no such video file, dataset folder or camera index")
         if len(rig) != 1:
             raise CameraError(f"{rig_path}: one video needs a one-camera rig, got {len(rig)}")
-        rate = fps or frame_rate(path) or 10.0
+        rate = fps or frame_rate(path) or DEFAULT_FPS
         raw = paced(open_video_frames([path], gray=True), rate)
         description = f"video {path}"
     raw = islice(raw, frames) if frames is not None else raw

@@ -41,7 +41,7 @@ from digiteyes.kinematics.keypoints import keypoints
 from digiteyes.pipeline import recovered_state, step_frames
 from digiteyes.synth.scenarios import build_scenario
 from digiteyes.track_job import tracker_options
-from digiteyes.trackers import FeatureTracker, restart
+from digiteyes.trackers import FeatureTracker
 
 SETUPS = ("desk-2cam", "webcam-1cam")
 SEEDS = (0, 1, 2)
@@ -73,7 +73,6 @@ def track_states(tracker: FeatureTracker, frames, start: np.ndarray,
         started = time.perf_counter()
         fresh = recovered_state(tracker, images, result, recover)
         if fresh is not None:
-            restart(tracker, fresh)
             q = fresh
             fresh_frames.append(index)
         seconds += step_s + time.perf_counter() - started

@@ -49,7 +49,7 @@ import numpy as np
 from digiteyes.benchmarks._machine import emit, machine_info, machine_lines
 from digiteyes.benchmarks.tracker import SEED, render_sequence, track_sequence
 from digiteyes.filters import OneEuroOptions, one_euro_filter, one_euro_trace
-from digiteyes.kinematics import KinematicModel, difference, forward_kinematics, integrate
+from digiteyes.kinematics import KinematicModel, forward_kinematics, resample_states
 from digiteyes.kinematics.joint_angles import joint_angles_deg
 from digiteyes.kinematics.keypoints import keypoints
 from digiteyes.synth.scenarios import build_scenario
@@ -66,7 +66,7 @@ DEADBANDS_MM_S = (0.0, 5.0, 10.0, 15.0, 20.0)
 SLOW_FACTORS = (1, 2, 4, 8)
 """How many times slower than ``whole-hand`` the slow-motion check plays it."""
 SLOW_FRAMES = 400
-"""Frames of each slowed sequence."""
+"""Frames of each slowed sequence, at most."""
 FAST_RATE_FACTOR = 3
 """The held-out check at another frame rate films ``whole-hand`` this many times faster
 (30 frames/s: the same motion, a third of the motion per frame)."""
@@ -140,12 +140,12 @@ def tracked_pair(seed: int, n_still: int, n_moving: int, progress: bool,
     of ``whole-hand`` with ``seed``: the model, fps, the estimated states and the true
     keypoints of both, and the moving hand's true states. ``rate_factor`` films the same
     motion at that many times the scenario's frame rate (states interpolated on the
-    manifold, :func:`slowed`; both sequences get that many times more frames)."""
+    manifold, :func:`~digiteyes.kinematics.resample_states`; both sequences get that many
+    times more frames)."""
     moving = build_scenario("whole-hand", seed=seed, n_frames=n_moving)
     states = moving.states[:n_moving]
     if rate_factor > 1:
-        states = slowed(moving.model, states, rate_factor,
-                        n_frames=rate_factor * (len(states) - 1) + 1)
+        states = resample_states(moving.model, states, 1.0 / rate_factor)
     moving = replace(moving, states=states, fps=moving.fps * rate_factor)
     still = replace(moving, name="still",
                     states=np.repeat(states[:1], n_still * rate_factor, axis=0))
@@ -160,26 +160,13 @@ def tracked_pair(seed: int, n_still: int, n_moving: int, progress: bool,
     return pair
 
 
-def slowed(model: KinematicModel, states: np.ndarray, factor: int,
-           n_frames: int = SLOW_FRAMES) -> np.ndarray:
-    """``states`` (T, n_q) played ``factor`` times slower: (n_frames, n_q) states
-    interpolated on the manifold between consecutive frames (at most the slowed length)."""
-    out = []
-    for i in range(min(len(states) * factor - factor + 1, n_frames)):
-        a, w = divmod(i, factor)
-        b = min(a + 1, len(states) - 1)
-        out.append(integrate(model, states[a], (w / factor) * difference(model, states[a],
-                                                                           states[b])))
-    return np.array(out)
-
-
 def slow_motion(model: KinematicModel, states: np.ndarray, fps: float,
                 options: OneEuroOptions) -> list[dict[str, float]]:
     """The filter on noise-free ``states`` slowed by each of :data:`SLOW_FACTORS`: RMS
     keypoint speed (median, mm/s), lag (frames) and keypoint error (mean, largest; mm)."""
     rows = []
     for factor in SLOW_FACTORS:
-        truth = slowed(model, states, factor)
+        truth = resample_states(model, states, 1.0 / factor)[:SLOW_FRAMES]
         truth_kp = keypoint_tracks(model, truth)
         filtered_kp = keypoint_tracks(model, one_euro_filter(model, truth, fps, options))
         speed = fps * np.sqrt(np.mean(np.sum(np.diff(truth_kp, axis=0) ** 2, axis=-1),

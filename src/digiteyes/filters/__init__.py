@@ -6,6 +6,8 @@ from digiteyes.filters.one_euro import (
     OneEuroTrace,
     one_euro_filter,
     one_euro_trace,
+    restarts_after_losses,
 )
 
-__all__ = ["OneEuroFilter", "OneEuroOptions", "OneEuroTrace", "one_euro_filter", "one_euro_trace"]
+__all__ = ["OneEuroFilter", "OneEuroOptions", "OneEuroTrace", "one_euro_filter", "one_euro_trace",
+           "restarts_after_losses"]

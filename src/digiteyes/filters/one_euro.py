@@ -118,8 +118,9 @@ class OneEuroFilter:
     """The filter run online, one state at a time (live tracking, streams).
 
     ``update(z)`` takes the next measured state (n_q,) and returns the filtered one; with
-    ``restart=True`` (e.g. the frame after a lost one) the output is the measurement and
-    the speed estimate starts again. After each update, ``speed_mm_s`` and ``cutoff_hz``
+    ``restart=True`` the output is the measurement and the speed estimate starts again.
+    :meth:`follow` applies the track rule (restart on the frame after a lost one, as
+    :func:`restarts_after_losses`). After each update, ``speed_mm_s`` and ``cutoff_hz``
     hold that frame's ``s_t`` and ``f_c`` (0 and infinity on a restart).
     """
 
@@ -135,6 +136,7 @@ class OneEuroFilter:
 
     def reset(self) -> None:
         """Forget the past: the next update restarts."""
+        self._previous_lost = False
         self.state: np.ndarray | None = None
         self._velocity: np.ndarray | None = None
         self._previous: np.ndarray | None = None
@@ -162,6 +164,21 @@ class OneEuroFilter:
                                alpha * difference(self.model, self.state, z))
         self._previous = _keypoints(self.model, self.state[None])[0]
         return self.state.copy()
+
+
+    def follow(self, z: np.ndarray, lost: bool) -> np.ndarray:
+        """The filtered state for a tracked state ``z`` (n_q,) whose frame the tracker
+        flagged ``lost`` or not: restarting on the frame after a lost one."""
+        restart, self._previous_lost = self._previous_lost, bool(lost)
+        return self.update(z, restart=restart)
+
+
+def restarts_after_losses(lost: np.ndarray) -> np.ndarray:
+    """The ``reset`` mask (T,) of a track whose frames are flagged ``lost`` (T,): the frame
+    after each lost one (after a loss the estimate may jump back to the hand, and
+    smoothing across the jump would drag the old, wrong pose along)."""
+    lost = np.asarray(lost, dtype=bool)
+    return np.concatenate([[False], lost[:-1]]) if len(lost) else lost
 
 
 def one_euro_trace(model: KinematicModel, states: np.ndarray, fps: float,

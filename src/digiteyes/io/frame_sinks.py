@@ -150,7 +150,6 @@ class JsonLinesStream:
         self.rig = rig
         self._socket = None
         self._filter = None if smooth is None else OneEuroFilter(model, fps, smooth)
-        self._previous_lost = False
         address = parse_stream_target(target)
         if address is None:
             self._out = out or sys.stdout
@@ -168,11 +167,10 @@ class JsonLinesStream:
             return
         message = frame_message(self.model, self.rig, index, result, reinitialised)
         if self._filter is not None:
-            smoothed = self._filter.update(result.state, restart=self._previous_lost)
+            smoothed = self._filter.follow(result.state, result.lost)
             message["state_smoothed"] = state_by_name(self.model, smoothed)
             message["keypoints_smoothed"] = keypoints_by_camera(self.model, self.rig,
                                                                 smoothed)
-        self._previous_lost = bool(result.lost)
         try:
             self._out.write(json.dumps(message) + "\n")
             self._out.flush()

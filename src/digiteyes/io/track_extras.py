@@ -8,10 +8,8 @@ import csv
 import json
 from pathlib import Path
 
-import numpy as np
-
 from digiteyes.errors import DatasetError, DigitEyesError
-from digiteyes.filters import OneEuroOptions, one_euro_filter
+from digiteyes.filters import OneEuroOptions, one_euro_filter, restarts_after_losses
 from digiteyes.io.state_log import (
     LOG_COLUMNS,
     OPTIONAL_COLUMNS,
@@ -19,6 +17,7 @@ from digiteyes.io.state_log import (
     StateLogWriter,
     read_state_log,
 )
+from digiteyes.io.video import DEFAULT_FPS
 from digiteyes.kinematics import KinematicModel, load_model
 from digiteyes.kinematics.joint_angles import write_joint_angles_csv
 from digiteyes.models import shipped_models
@@ -27,14 +26,13 @@ STATES = "states.csv"
 SMOOTHED_STATES = "states-smoothed.csv"
 JOINT_ANGLES = "joint_angles.csv"
 SMOOTHED_JOINT_ANGLES = "joint_angles-smoothed.csv"
-DEFAULT_FPS = 10.0
 
 
 def smooth_log(log: StateLog, model: KinematicModel, fps: float,
                options: OneEuroOptions | None = None) -> StateLog:
     """The log with its states One Euro-filtered (restarting after each lost frame)."""
-    reset = np.concatenate([[False], log.lost[:-1]]) if len(log) else log.lost
-    states = one_euro_filter(model, log.states, fps, options, reset=reset)
+    states = one_euro_filter(model, log.states, fps, options,
+                             reset=restarts_after_losses(log.lost))
     return StateLog(log.frames, states, log.lost, log.residual_rms_px, log.iterations,
                     log.time_s)
 

@@ -25,6 +25,11 @@ import numpy as np
 
 from digiteyes.errors import DatasetError
 
+DEFAULT_FPS = 10.0
+"""Frame rate assumed for frames whose source declares none (a video without a rate, a
+state log without a summary), frames/s."""
+DEFAULT_CAMERA_FPS = 30.0
+"""Frame rate assumed for a live camera that reports none, frames/s."""
 DEFAULT_H264_CRF = 12
 """H.264 constant rate factor of :class:`VideoWriter` (0 lossless .. 51 worst)."""
 H264_PRESETS = ("ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow",

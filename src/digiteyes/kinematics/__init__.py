@@ -10,6 +10,7 @@ from digiteyes.kinematics.state import (
     difference,
     integrate,
     read_states_csv,
+    resample_states,
     validate_state,
     write_states_csv,
 )
@@ -19,5 +20,6 @@ __all__ = [
     "STEP_FORMS", "KinematicModel", "Kinematics", "Link", "State", "StepForm",
     "clip_to_limits", "dh_transform", "difference", "format_model_text", "forward_kinematics",
     "integrate", "load_model", "model_from_file", "parse_model_text", "point_jacobian",
-    "read_model_file", "read_states_csv", "validate_state", "write_states_csv",
+    "read_model_file", "read_states_csv", "resample_states", "validate_state",
+    "write_states_csv",
 ]

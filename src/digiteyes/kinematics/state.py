@@ -85,6 +85,23 @@ def difference(model: KinematicModel, q0: np.ndarray, q1: np.ndarray) -> np.ndar
     return dv
 
 
+def resample_states(model: KinematicModel, states: np.ndarray, speed: float) -> np.ndarray:
+    """A state sequence (T, n_q) played ``speed`` times faster: the states at times
+    ``0, speed, 2 speed, ...`` frames (up to ``T - 1``), each between its two neighbouring
+    frames on the state manifold (:func:`difference`, :func:`integrate`: joint angles and
+    positions linearly, the base rotation along the great circle). ``speed`` < 1 plays it
+    slower. Raises :class:`StateError` for a non-positive speed."""
+    if not speed > 0:
+        raise StateError(f"speed must be positive, got {speed}")
+    states = np.asarray(states, dtype=float)
+    last = len(states) - 1
+    times = np.arange(int(np.floor(last / speed + 1e-9)) + 1) * speed
+    before = np.minimum(np.floor(times + 1e-9).astype(int), last)
+    after = np.minimum(before + 1, last)
+    step = (times - before)[:, None] * difference(model, states[before], states[after])
+    return integrate(model, states[before], step)
+
+
 def clip_to_limits(model: KinematicModel, q: np.ndarray) -> np.ndarray:
     """Clip joint and translation states into their declared limits."""
     return np.minimum(np.maximum(q, model.lower), model.upper)  # np.clip, without its overhead

@@ -16,7 +16,8 @@ clipped to [0, 1], with ``mcp_c, pip_c`` its fully curled angles
 (:func:`~digiteyes.kinematics.anatomy.digit_joint_angles`). The offset is fitted at the
 start: ``(abd_start - abd_projected) / openness_projected`` (none for a finger less than
 :data:`MIN_OPENNESS` open). ``to_joints`` adds ``offset x openness`` to each abduction;
-``to_coordinates`` removes it first, so the two stay inverse on the space.
+``to_coordinates`` removes it first (at the openness of the joints it is given), so the
+two are inverse to a fraction of a degree of abduction.
 """
 
 from __future__ import annotations
