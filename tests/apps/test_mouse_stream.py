@@ -71,3 +71,22 @@ def test_open_mouse_stream_with_smooth_filters_the_tracked_scenario():
                                smooth=OneEuroOptions())
     got = np.array([f.state for f in steady.frames])
     np.testing.assert_allclose(got, one_euro_filter(plain.model, raw, 200.0), atol=1e-9)
+
+
+def test_a_replay_plays_at_the_rate_its_run_recorded(tmp_path):
+    """``--replay RUN`` without ``--fps`` takes RUN/summary.json's frame rate, else 10."""
+    import json
+
+    from digiteyes.apps.mouse_stream import open_mouse_stream
+    from digiteyes.io import StateLogWriter
+    from digiteyes.kinematics import load_model
+
+    model = load_model("mouse-hand")
+    with StateLogWriter(tmp_path / "states.csv", model) as log:
+        for i in range(3):
+            log.append(i, model.neutral(), time_s=0.0, lost=False, residual_rms_px=0.0,
+                       iterations=1)
+    assert open_mouse_stream(replay=str(tmp_path)).fps == 10.0
+    (tmp_path / "summary.json").write_text(json.dumps({"fps": 25.0}))
+    assert open_mouse_stream(replay=str(tmp_path)).fps == 25.0
+    assert open_mouse_stream(replay=str(tmp_path), fps=5.0).fps == 5.0

@@ -36,6 +36,7 @@ from digiteyes.camera import Rig, load_rig
 from digiteyes.errors import CameraError, DatasetError
 from digiteyes.filters import OneEuroFilter, OneEuroOptions
 from digiteyes.io import VideoReader, open_sequence, open_video_frames, read_state_log
+from digiteyes.io.track_extras import track_fps
 from digiteyes.io.video import (
     DEFAULT_CAMERA_FPS,
     DEFAULT_FPS,
@@ -280,14 +281,14 @@ def _open_source(source: str | None = None, *, replay: str | Path | None = None,
     replay : a ``digiteyes track`` output folder to replay instead of tracking.
     frames : stop after this many frames (None: the whole source).
     fps : frames per second to pace files, the scenario and replays at (None: the
-        source's rate: a video's declared rate, else 10 Hz); live cameras run at their
-        own rate.
+        source's rate: a video's declared rate, a replayed run's ``summary.json`` rate,
+        else 10 Hz); live cameras run at their own rate.
     iterations : Gauss-Newton iterations per frame (the mouse needs several, docs/mouse3d.md).
     """
     options = FeatureTrackerOptions(iterations_per_frame=iterations)
     if replay is not None:
         model = load_model(model_name or "mouse-hand")
-        rate = fps or DEFAULT_FPS
+        rate = fps or track_fps(replay) or DEFAULT_FPS
         stream = replay_frames(replay, model, rate)
         return MouseStream(model, _limit(stream, frames), rate, f"replay of {replay}", frames)
     if source is None:
