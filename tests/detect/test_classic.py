@@ -2,17 +2,18 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
-from digiteyes.detect.classic import ClassicDetector, similarity_2d
+from digiteyes.detect.classic import ClassicDetector, analyse_blob, similarity_2d
 from digiteyes.detect.hand21 import TIPS, model_anchors
 from digiteyes.detect.model_fit import KeypointObservation, fit_keypoints
 from digiteyes.detect.segmentation import BackgroundModel, border_background, hand_mask
 from digiteyes.kinematics import forward_kinematics
 from digiteyes.kinematics.rotations import quaternion_from_rotvec
 from digiteyes.synth.options import RenderOptions
-from digiteyes.synth.scenarios import basis_joint_angles
+from digiteyes.synth.scenarios import basis_joint_angles, build_scenario
 from digiteyes.synth.views import render_views
 
 
@@ -70,6 +71,45 @@ def test_classic_keypoints_start_the_model_fit(hand, camera):
     fitted, true = camera.to_camera(fit.keypoints_world[palm]), camera.to_camera(truth[palm])
     assert np.linalg.norm(fitted[:, :2] - true[:, :2], axis=1).max() < 25.0
     assert np.abs(fitted[:, 2] / true[:, 2] - 1).max() < 0.10
+
+
+def test_classic_on_the_flesh_hand_seen_from_above():
+    """The independently drawn hand of the desk setup (docs/appearance.md), seen from
+    above with its fingers close together and its wrist cut off inside the picture: the
+    wrist's stump is not taken for a digit, and every digit tip lies within 20 px (before
+    the limb thickness rule the stump was labelled a digit, tips 85-321 px off)."""
+    scenario = build_scenario("desk-2cam", seed=0, n_frames=1)
+    hand, q = scenario.model, scenario.states[0]
+    options = RenderOptions(appearance="flesh", background="black", background_level=0.08)
+    views = render_views(hand, q, list(scenario.rig.cameras), options, rng=0)
+    rows, points = model_anchors(hand)
+    for camera, view in zip(scenario.rig.cameras, views, strict=True):
+        truth = camera.project(forward_kinematics(hand, q).points(rows, points))
+        blob, back = ClassicDetector().analyse(view.image)
+        assert blob.wrist_found
+        wrist = np.arctan2(*(truth[0] - (blob.centre + 0.5) * back + 0.5)[::-1])
+        assert abs(np.angle(np.exp(1j * (blob.wrist_angle - wrist)))) < np.radians(30)
+        cand = ClassicDetector().detect(view.image, camera)[0]
+        found = [d for d in range(5)
+                 if np.linalg.norm(cand.keypoints[TIPS[d]] - truth[TIPS[d]]) < 20.0]
+        assert len(found) >= 4, found  # fingers that touch can merge into one
+
+
+def test_a_thick_limb_is_the_wrist_not_a_digit():
+    """A disc (palm, radius 50 px) with four thin digits and, down the image, a wrist 40
+    px wide (too narrow to cross the ring as a wide run) that ends in a forearm 70 px
+    wide (cut by a sleeve): the forearm gives the wrist direction and no tip."""
+    mask = np.zeros((400, 400), dtype=np.uint8)
+    cv2.circle(mask, (200, 200), 50, 1, -1)
+    for angle in np.radians([-130, -105, -80, -55]):
+        end = (200 + 150 * np.cos(angle), 200 + 150 * np.sin(angle))
+        cv2.line(mask, (200, 200), tuple(round(v) for v in end), 1, 18)
+    cv2.line(mask, (200, 200), (200, 330), 1, 40)  # the wrist
+    cv2.line(mask, (200, 330), (200, 360), 1, 70)  # the forearm's end
+    blob = analyse_blob(mask > 0)
+    assert blob.wrist_found and abs(blob.wrist_angle - np.pi / 2) < np.radians(10)
+    assert len(blob.tips) == 4
+    assert np.all(np.abs(blob.tip_angles - np.pi / 2) > np.radians(90))
 
 
 def test_no_hand_on_an_empty_wall(camera):

@@ -6,9 +6,11 @@ Steps (each a function below):
 2. the largest blob; its palm centre and radius from the distance transform (the centre of
    the largest inscribed circle);
 3. digit tips as the peaks of the contour's distance from the palm centre (at least
-   ``TIP_DISTANCE`` palm radii out); the wrist or forearm where the blob crosses a circle
-   of ``RING`` palm radii in a crossing wider than ``WIDE`` radii (else opposite to the
-   tips), and a peak towards the wrist is the forearm's end, not a tip;
+   ``TIP_DISTANCE`` palm radii out) that end a thin limb: a peak whose limb is thicker
+   than ``THICK`` palm radii is the end of the wrist or forearm (a sleeve or the end of
+   the picture cuts it); the wrist lies towards the thickest such end, else where the
+   blob crosses a circle of ``RING`` palm radii in a crossing wider than ``WIDE`` radii
+   (else opposite to the tips), and a peak towards the wrist is not a tip;
 4. a model-based labelling: the model's keypoints of an open hand (a right hand,
    seen from its palmar or its dorsal side) are placed on the image by the similarity that
    puts the model's palm centre on the blob's, its wrist towards the image wrist and its
@@ -42,7 +44,13 @@ WIDE = 1.1
 """A crossing wider than this many palm radii is the wrist or forearm, not a digit."""
 TIP_DISTANCE = 1.5
 """A digit tip lies at least this many palm radii from the palm centre."""
-VALLEY = 0.5
+THICK = 0.5
+"""A limb whose largest inscribed circle within ``THICK_DEPTH`` palm radii of its end has
+a radius above this many palm radii is a wrist or forearm, not a digit (digits: under
+0.4; a forearm cut by a sleeve: 0.55 and more)."""
+THICK_DEPTH = 0.8
+"""How far in from a peak (palm radii) its limb's thickness is measured."""
+VALLEY = 0.25
 """Between two digit tips the contour comes at least this many palm radii closer to the
 palm centre than the nearer tip (the web between the digits)."""
 PALM_RADIUS_MM = 30.0
@@ -110,16 +118,20 @@ def analyse_blob(mask: np.ndarray) -> BlobAnalysis | None:
     height, width = blob.shape
     cut = ((contour[:, 0] <= 1) | (contour[:, 0] >= width - 2) | (contour[:, 1] <= 1)
            | (contour[:, 1] >= height - 2))
-    tips = _contour_peaks(np.where(cut, 0.0, c_dist), TIP_DISTANCE * radius, VALLEY * radius,
-                          0.5 * radius, keep=7)
-    if wide:
-        wrist = max(wide)[1]
+    peaks = _contour_peaks(np.where(cut, 0.0, c_dist), TIP_DISTANCE * radius,
+                           VALLEY * radius, 0.5 * radius, keep=8)
+    thickness = [_limb_thickness(dist, contour[i], centre, THICK_DEPTH * radius)
+                 for i in peaks]
+    ends = [(t, i) for t, i in zip(thickness, peaks, strict=True) if t > THICK * radius]
+    tips = [i for t, i in zip(thickness, peaks, strict=True) if t <= THICK * radius]
+    wrist = c_angle[max(ends)[1]] if ends else max(wide)[1] if wide else None
+    if wrist is not None:
         tips = [i for i in tips if abs(_wrap(c_angle[i] - wrist)) > np.radians(50.0)]
     tips = tips[:5]
     tip_angles = [c_angle[i] for i in tips]
     tips = [contour[i] for i in tips]
-    if wide:
-        wrist_angle, wrist_found = max(wide)[1], True
+    if wrist is not None:
+        wrist_angle, wrist_found = float(wrist), True
     elif tips:
         mean = np.mean([[np.cos(a), np.sin(a)] for a in tip_angles], axis=0)
         wrist_angle, wrist_found = float(np.arctan2(-mean[1], -mean[0])), False
@@ -127,6 +139,19 @@ def analyse_blob(mask: np.ndarray) -> BlobAnalysis | None:
         wrist_angle, wrist_found = np.pi / 2, False
     return BlobAnalysis(mask, centre, radius, np.array(tips).reshape(-1, 2),
                         np.array(tip_angles), float(wrist_angle), wrist_found)
+
+
+def _limb_thickness(dist: np.ndarray, end: np.ndarray, centre: np.ndarray,
+                    depth: float) -> float:
+    """Radius (px) of the largest inscribed circle (distance transform ``dist``) on the
+    segment from a limb's ``end`` (contour point) ``depth`` px towards the palm ``centre``."""
+    toward = centre - end
+    toward /= max(float(np.linalg.norm(toward)), 1e-9)
+    steps = np.linspace(0.0, depth, max(2, int(depth)))
+    points = np.round(end + steps[:, None] * toward).astype(int)
+    points[:, 0] = np.clip(points[:, 0], 0, dist.shape[1] - 1)
+    points[:, 1] = np.clip(points[:, 1], 0, dist.shape[0] - 1)
+    return float(dist[points[:, 1], points[:, 0]].max())
 
 
 def _contour_peaks(distance: np.ndarray, min_distance: float, valley: float,
