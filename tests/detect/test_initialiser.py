@@ -3,13 +3,24 @@ detections cannot be fitted."""
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
+import pytest
 
 from digiteyes.camera import Rig
+from digiteyes.detect import pose
 from digiteyes.detect.candidate import HandCandidate
+from digiteyes.detect.classic import ClassicDetector
+from digiteyes.detect.fallback import FallbackDetector
 from digiteyes.detect.hand21 import model_anchors
 from digiteyes.detect.initialiser import AutoInitialiser
+from digiteyes.detect.mediapipe_detector import MediaPipeDetector, mediapipe_available
 from digiteyes.kinematics import forward_kinematics
+from digiteyes.kinematics.keypoints import keypoints
+from digiteyes.synth.options import RenderOptions
+from digiteyes.synth.scenarios import build_scenario
+from digiteyes.synth.views import render_views
 
 
 class FixedDetector:
@@ -48,3 +59,57 @@ def test_keypoints_no_pose_explains_give_no_state(hand, camera):
     init = initialiser_with(hand, camera, np.full((21, 2), 320.0))
     assert init([np.zeros((480, 640), np.uint8)]) is None
     assert init.calls == 1 and init.found == 0
+
+
+class Stub:
+    """A detector returning fixed candidates of the given confidences."""
+
+    locates_joints = True
+
+    def __init__(self, name: str, confidences: list[float]) -> None:
+        self.name, self.confidences, self.calls = name, confidences, 0
+
+    def detect(self, image, camera=None):
+        self.calls += 1
+        return [HandCandidate(np.zeros((21, 2)), np.ones(21), c, (0.0, 0.0, 1.0, 1.0),
+                              None, self.name) for c in self.confidences]
+
+
+def test_the_fallback_detector_asks_the_second_only_when_the_first_finds_nothing():
+    image = np.zeros((4, 4), np.uint8)
+    first, second = Stub("first", [0.9]), Stub("second", [0.8, 0.6])
+    both = FallbackDetector(first, second)
+    assert [c.detector for c in both.detect(image)] == ["first"] and second.calls == 0
+    first.confidences = []
+    found = both.detect(image)
+    assert [(c.detector, c.confidence) for c in found] == [("second", 0.8)]  # 0.6 < 0.7
+    assert second.calls == 1 and both.name == "first, else second"
+
+
+def test_auto_falls_back_to_the_classic_detector_only_beside_mediapipe(hand, camera,
+                                                                       monkeypatch):
+    init = AutoInitialiser(hand, Rig((camera,)), "classic")
+    assert isinstance(init._detector, ClassicDetector)
+    monkeypatch.setattr(pose, "mediapipe_available", lambda: False, raising=False)
+    monkeypatch.setitem(sys.modules, "mediapipe", None)  # the extra absent: classic alone
+    assert isinstance(AutoInitialiser(hand, Rig((camera,)), "auto")._detector, ClassicDetector)
+
+
+@pytest.mark.skipif(not mediapipe_available(), reason="optional extra digiteyes[mediapipe]")
+def test_auto_starts_where_mediapipe_sees_no_hand():
+    """The webcam render of the flesh hand (palm on, back-lit): MediaPipe finds no hand in
+    it, the classic detector does, and the automatic start is within 20 mm."""
+    scenario = build_scenario("webcam-1cam", seed=0, n_frames=1)
+    options = RenderOptions(appearance="flesh", color=True, background="black",
+                            background_level=0.08)
+    image = render_views(scenario.model, scenario.states[0], list(scenario.rig.cameras),
+                         options, rng=0)[0].image
+    assert MediaPipeDetector().detect(image) == []
+    init = AutoInitialiser(scenario.model, scenario.rig, "auto")
+    assert isinstance(init._detector, FallbackDetector)
+    state = init([image])
+    assert state is not None and init.last.candidates[0].detector == "classic"
+    _, start = keypoints(scenario.model, forward_kinematics(scenario.model, state[None]))
+    _, true = keypoints(scenario.model, forward_kinematics(scenario.model,
+                                                           scenario.states[:1]))
+    assert np.linalg.norm(start - true, axis=2).mean() < 20.0

@@ -2,8 +2,9 @@
 
 For each setup (``desk-2cam``, ``webcam-1cam``; seeds :data:`SEEDS`) and each variant of
 :data:`VARIANTS` (the classic detector on grey images of our own drawing and of the
-independent flesh hand; MediaPipe, when installed, on colour images of the flesh hand,
-which it recognises as a hand)
+independent flesh hand; MediaPipe alone and ``auto`` (MediaPipe, else the classic
+detector), when MediaPipe is installed, on colour images of the flesh hand, which it
+recognises as a hand)
 the frames are rendered once (black cloth, the tracker benchmark's noise) and tracked
 twice by the feature tracker with the settings of ``digiteyes track``, both with the
 recovery of ``--init auto`` (re-detection after a lost frame), so that the two runs differ
@@ -49,10 +50,13 @@ SEEDS = (0, 1, 2)
 """Scenario and render seeds: each gives other motion, noise and start."""
 SETTLE_FRAMES = 10
 """The issue's budget: frames after which the automatic start must match the true one."""
-VARIANTS = (("classic", "model"), ("classic", "flesh"), ("mediapipe", "flesh"))
+VARIANTS = (("classic", "model"), ("classic", "flesh"), ("mediapipe", "flesh"),
+            ("auto", "flesh"))
 """(detector, appearance): grey images for the classic detector (our drawing and, beside
 it, the independent flesh hand), colour for MediaPipe (which does not take our capsule
-drawing for a hand)."""
+drawing for a hand) and for ``auto``, what ``--init auto`` uses by default (MediaPipe,
+and the classic detector where MediaPipe finds no hand:
+:class:`~digiteyes.detect.fallback.FallbackDetector`)."""
 TOLERANCE_MM = 1.0
 """Mean keypoint error the automatic run may exceed the run from truth by, mm."""
 
@@ -88,7 +92,7 @@ def setup_entry(name: str, n_frames: int, detector: str = "classic",
     """Both runs on one setup with one variant and seed (see the module docstring)."""
     scenario = build_scenario(name, seed=seed, n_frames=n_frames)
     sequence = render_sequence(scenario, seed=seed, appearance=appearance,
-                               color=detector == "mediapipe")
+                               color=detector in ("mediapipe", "auto"))
     model, rig = scenario.model, sequence.rig
     options = tracker_options(5, 20.0, "default", model, None, "none")
     entry: dict[str, Any] = {"setup": name, "detector": detector, "appearance": appearance,
@@ -129,8 +133,9 @@ def setup_entry(name: str, n_frames: int, detector: str = "classic",
 
 
 def variants() -> list[tuple[str, str]]:
-    """(detector, appearance) pairs measured: :data:`VARIANTS`, MediaPipe when installed."""
-    return [v for v in VARIANTS if v[0] != "mediapipe" or mediapipe_available()]
+    """(detector, appearance) pairs measured: :data:`VARIANTS`, those with MediaPipe
+    (``mediapipe``, ``auto``) when it is installed."""
+    return [v for v in VARIANTS if v[0] == "classic" or mediapipe_available()]
 
 
 def summarise(entries: list[dict[str, Any]]) -> dict[str, Any]:

@@ -20,6 +20,8 @@ from itertools import chain
 import numpy as np
 
 from digiteyes.camera import Rig
+from digiteyes.detect.classic import ClassicDetector
+from digiteyes.detect.fallback import FallbackDetector
 from digiteyes.detect.model_fit import FitOptions, KeypointObservation, PoseFit, fit_keypoints
 from digiteyes.detect.pose import PoseResult, estimate_pose, make_detector
 from digiteyes.errors import DatasetError, DigitEyesError
@@ -37,8 +39,10 @@ class AutoInitialiser:
     Attributes
     ----------
     model, rig : the tracker's model and cameras.
-    detector : ``"auto"`` (MediaPipe when installed, else classic), ``"mediapipe"`` or
-        ``"classic"``.
+    detector : ``"auto"`` (MediaPipe when installed, with the classic detector for the
+        images where MediaPipe finds no hand: :class:`~digiteyes.detect.fallback.
+        FallbackDetector`; else classic), or any name of
+        :data:`~digiteyes.detect.pose.DETECTORS` for that detector alone.
     max_error_px : reprojection error (px) a keypoint of an accepted fit stays within.
     calls, found : how many times it ran and found a hand; ``seconds`` their total (s).
     last : the last :class:`PoseResult` (None before the first call).
@@ -56,6 +60,8 @@ class AutoInitialiser:
 
     def __post_init__(self) -> None:
         self._detector = make_detector(self.detector, self.model)
+        if self.detector == "auto" and not isinstance(self._detector, ClassicDetector):
+            self._detector = FallbackDetector(self._detector, ClassicDetector(self.model))
         self._options = FitOptions(fit_scale=False)
 
     @property

@@ -28,12 +28,16 @@ SKIN_CR = (136, 175)
 """Skin chrominance Cr range (YCrCb, 8-bit)."""
 SKIN_CB = (77, 127)
 """Skin chrominance Cb range (YCrCb, 8-bit)."""
+WEAK_SKIN_CR = 131
+"""Lower Cr edge for skin whose colour the light has washed out (dim or grey-lit skin),
+accepted only where the colour does not occur on the image border."""
 
 
-def skin_mask(rgb: np.ndarray) -> np.ndarray:
-    """Bool (H, W): pixels whose chrominance falls in the skin box."""
+def skin_mask(rgb: np.ndarray, low_cr: int = SKIN_CR[0]) -> np.ndarray:
+    """Bool (H, W): pixels whose chrominance falls in the skin box (its Cr range from
+    ``low_cr``)."""
     ycrcb = cv2.cvtColor(rgb, cv2.COLOR_RGB2YCrCb)
-    return cv2.inRange(ycrcb, (0, SKIN_CR[0], SKIN_CB[0]), (255, SKIN_CR[1], SKIN_CB[1])) > 0
+    return cv2.inRange(ycrcb, (0, low_cr, SKIN_CB[0]), (255, SKIN_CR[1], SKIN_CB[1])) > 0
 
 
 def border_background(image: np.ndarray, width: int = 4, bin_levels: int = 16,
@@ -122,7 +126,7 @@ def hand_mask(image: np.ndarray, background: BackgroundModel | None = None) -> n
             and (image[..., 0] == image[..., 1]).all() and (image[..., 0] == image[..., 2]).all()):
         image = image[..., 0]  # a grey video decoded as RGB: no chrominance for the skin box
     if image.ndim == 3:
-        fg = skin_mask(image)
+        fg = skin_mask(image) | (skin_mask(image, WEAK_SKIN_CR) & ~border_background(image))
         if background is not None:
             fg &= background.foreground(image)
     elif background is not None:
