@@ -139,3 +139,18 @@ def test_similarity_2d_recovers_scale_and_turn():
     z = a * (x[:, 0] + 1j * x[:, 1]) + (3 - 2j)
     fit_a, fit_b = similarity_2d(x, np.column_stack([z.real, z.imag]), np.ones(6))
     assert fit_a == pytest.approx(a) and fit_b == pytest.approx(3 - 2j)
+
+
+def test_washed_out_skin_counts_where_the_border_lacks_its_colour():
+    """Dim skin of low chrominance (Cr about 134, below the skin box's 136) on a dark
+    cloth is hand; the same colour filling the border is background."""
+    image = np.full((60, 80, 3), 20, dtype=np.uint8)
+    patch = (68, 56, 52)  # a dim, greyish skin tone
+    image[20:40, 30:50] = patch
+    ycrcb = cv2.cvtColor(np.array([[patch]], dtype=np.uint8), cv2.COLOR_RGB2YCrCb)[0, 0]
+    assert 131 <= ycrcb[1] < 136
+    mask = hand_mask(image)
+    assert mask[22:38, 32:48].all() and mask.sum() < 450
+    wall = np.empty_like(image)
+    wall[:] = patch
+    assert not hand_mask(wall).any()

@@ -110,6 +110,7 @@ def feature_residuals(
     axis_points: int = 2,
     width_weight: float = 0.0,
     max_width_error: float = 0.15,
+    radius_scale: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None, ResidualLayout]:
     """Residuals of the valid features of one measurement at the state of ``kin``.
 
@@ -126,6 +127,9 @@ def feature_residuals(
         in the thesis.
     max_width_error : width rows whose predicted and measured widths differ by more than
         this fraction of the predicted width are left out.
+    radius_scale : (len(model.links),) factor on each link's radius in the predicted
+        widths (the user's fingers measured on the first frame,
+        :mod:`digiteyes.features.width_scale`); None: the model's radii.
 
     Returns
     -------
@@ -146,6 +150,13 @@ def feature_residuals(
             f"{kin.T_world_shape.shape[0]}"
         )
     model = kin.model
+    table = _link_table(model)
+    if radius_scale is not None:
+        scale = np.asarray(radius_scale, dtype=float)
+        if scale.shape != (len(model.links),) or not np.all(scale > 0):
+            raise ValueError(f"radius_scale must hold {len(model.links)} positive factors, "
+                             f"got shape {scale.shape}")
+        table = (*table[:3], table[3] * scale)
     n_links, n_tips = len(meas.link_ids), len(meas.tip_ids)
     n_max = axis_points * n_links + 2 * n_tips + n_links
     n_cols = form.n_columns(model) if jacobian else 0
@@ -161,7 +172,7 @@ def feature_residuals(
          meas.slice_centres[:, middle] if middle else np.zeros((n_links, 2)),
          float(meas.slice_fractions[middle]) if middle else 0.5,
          meas.tip_ids, meas.tip_valid, meas.measured_tip),
-        _link_table(model), axis_points, float(width_weight),
+        table, axis_points, float(width_weight),
         float(max_width_error), jacobian, r, J, points_px, *labels)
     kind_code, feature, link_index, component = labels[:, :n]
     layout = ResidualLayout(camera=meas.camera, kind_code=kind_code, feature=feature,

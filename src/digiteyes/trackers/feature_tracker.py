@@ -47,6 +47,7 @@ from digiteyes.errors import StateError
 from digiteyes.features import FeatureOptions, feature_residuals, measure_features
 from digiteyes.features.appearance import EdgeBias, ShadingModel, edge_bias, fit_shading
 from digiteyes.features.slices import prepare_image
+from digiteyes.features.width_scale import link_radius_scales
 from digiteyes.kinematics import (
     STEP_FORMS,
     KinematicModel,
@@ -114,6 +115,13 @@ class FeatureTrackerOptions(SilhouetteLossOptions, LossHoldOptions):
         the thesis's residuals only.
     max_width_error : width rows whose measured width is off the predicted one by more
         than this fraction are left out.
+    fit_widths : with one camera, on the first frame of a track, measure each link's
+        width at the start state and scale its radius in the width residuals to match
+        (:mod:`digiteyes.features.width_scale`: the user's fingers, not the model's),
+        when the start fits the image (else keep the model's radii); kept through a
+        :meth:`FeatureTracker.restart`. Several cameras see depth by themselves, and
+        there the fitted widths made the track worse (docs/features.md, "Width
+        calibration").
     conditioning : weights of ``S`` for (quaternion/rotation, translation, joint angle),
         thesis eq. 2.22 and Table 4.2: 1, 10, 1000 (px^2 per squared step unit).
     use_conditioning : False drops ``S`` (plain Gauss-Newton; an ablation).
@@ -171,6 +179,7 @@ class FeatureTrackerOptions(SilhouetteLossOptions, LossHoldOptions):
     axis_points: int = 2
     width_weight: float = 1.0
     max_width_error: float = 0.15
+    fit_widths: bool = True
     conditioning: tuple[float, float, float] = (1.0, 10.0, 1000.0)
     use_conditioning: bool = True
     shading_correction: bool = True
@@ -319,12 +328,15 @@ class FeatureProblem:
     edge_bias : per camera, the predicted edge bias subtracted from the residuals (empty
         for none; :mod:`digiteyes.features.appearance`).
     timings : seconds per stage, added to in place.
+    radius_scale : per link, the factor on its radius in the width residuals (None: 1;
+        :mod:`digiteyes.features.width_scale`).
     """
 
     def __init__(self, model: KinematicModel, rig: Rig, images: list[np.ndarray],
                  link_names: Sequence[str], tip_names: Sequence[str],
                  options: FeatureTrackerOptions, parameterisation: StateParameterisation,
-                 edge_bias: Sequence[EdgeBias], timings: dict[str, float]) -> None:
+                 edge_bias: Sequence[EdgeBias], timings: dict[str, float],
+                 radius_scale: np.ndarray | None = None) -> None:
         self.model = model
         self.rig = rig
         self.images = images
@@ -334,6 +346,7 @@ class FeatureProblem:
         self.param = parameterisation
         self.edge_bias = list(edge_bias)
         self.timings = timings
+        self.radius_scale = radius_scale
         self.n_v = self.param.n_v
         self.evaluations: list[_Evaluation] = []
 
@@ -352,7 +365,7 @@ class FeatureProblem:
             r, J, layout = feature_residuals(
                 meas, camera, kin, jacobian=jacobian, form=self.param.form,
                 axis_points=opts.axis_points, width_weight=opts.width_weight,
-                max_width_error=opts.max_width_error)
+                max_width_error=opts.max_width_error, radius_scale=self.radius_scale)
             if self.edge_bias:
                 r -= self.edge_bias[index].of_rows(layout.kind_code, layout.link_index,
                                                    layout.component)
@@ -433,6 +446,10 @@ class FeatureTracker:
         self.silhouette_loss = SilhouetteLoss.from_options(model, rig, opts)
         self.loss_hold = LossHold(opts.hold_lost_frames)
         self._invalid_baseline: float | None = None
+        self.radius_scale: np.ndarray | None = None
+        """Per link, the factor on its radius fitted on the first frame (``fit_widths``;
+        None before it, or when the start did not fit the image)."""
+        self._widths_tried = False
 
     @staticmethod
     def _split_features(model: KinematicModel, names: tuple[str, ...] | None
@@ -479,15 +496,18 @@ class FeatureTracker:
         self.silhouette_loss.reset()
         self.loss_hold.reset()
         self._invalid_baseline = None
+        self.radius_scale = None
+        self._widths_tried = False
 
     def restart(self, state: np.ndarray) -> None:
         """Continue the same scene from ``state`` (n_q,) after a re-detection: the motion
         history is dropped and the silhouette baselines are taken anew at ``state``, but
-        the shading model, its backdrop and the foreground colours of the first frame stay,
-        so a recovery costs no refit."""
-        foreground = self.silhouette_loss.foreground
+        the shading model, its backdrop, the foreground colours and the link widths of the
+        first frame stay, so a recovery costs no refit."""
+        foreground, radius_scale = self.silhouette_loss.foreground, self.radius_scale
         self.reset(state, shading=self.shading)
         self.silhouette_loss.foreground = foreground
+        self.radius_scale, self._widths_tried = radius_scale, True
 
     def step(self, frames: Sequence[np.ndarray]) -> TrackResult:
         """Estimate the state for one set of frames (one image per camera, rig order).
@@ -512,9 +532,15 @@ class FeatureTracker:
             start = time.perf_counter()
             self._predict_edge_bias(images, predicted)
             timings["shading"] = time.perf_counter() - start
+        if (not self._widths_tried and self.options.fit_widths and len(self.rig) == 1
+                and self.options.width_weight > 0):
+            start = time.perf_counter()
+            self.radius_scale = self._fit_widths(images, predicted)
+            self._widths_tried = True
+            timings["feature_detection"] += time.perf_counter() - start
         problem = FeatureProblem(self.model, self.rig, images, self.link_names,
                                  self.tip_names, self.options, self.parameterisation,
-                                 self.edge_bias, timings)
+                                 self.edge_bias, timings, self.radius_scale)
         q, summary = gauss_newton(problem, predicted, self.solver_options)
         timings["linear_solve"] = summary.timings["linear_solve"]
         final = problem.evaluation_at(q)
@@ -528,6 +554,18 @@ class FeatureTracker:
         self._frame_index += 1
         timings["total"] = time.perf_counter() - start_total
         return self.loss_hold.apply(result)
+
+    def _fit_widths(self, images: list[np.ndarray], q: np.ndarray) -> np.ndarray | None:
+        """Each link's radius factor from the features measured at ``q`` (the start of
+        the track), or None when too few links lie where ``q`` puts them
+        (:func:`~digiteyes.features.width_scale.link_radius_scales`)."""
+        opts = self.options
+        kin = forward_kinematics(self.model, q)
+        measurements = [measure_features(image, camera, self.model, kin, opts.features,
+                                         self.link_names, self.tip_names)
+                        for camera, image in zip(self.rig, images, strict=True)]
+        return link_radius_scales(measurements, list(self.rig), kin, self.edge_bias,
+                                  opts.axis_points, opts.width_weight)
 
     def _predict_edge_bias(self, images: list[np.ndarray], predicted: np.ndarray) -> None:
         """Fit the shading model on the first frame, then predict each camera's edge bias
