@@ -20,11 +20,14 @@ edges inwards by a fixed fraction of the width, so a link ``scale_k`` times as w
 ``scale_k bias_k``. Only links that lie where the state says are measured, so a start a
 few centimetres off (an automatic one) gives no factors, and the tracker keeps the
 model's radii: calibrating later, once the track has settled in the image, would freeze
-whatever depth error the start left (a factor absorbs it). A perspective
-cylinder's apparent width is ``2 f r / sqrt(z^2 - r^2)``, linear in ``r`` to 0.3 % for a
-finger at 300 mm, so two evaluations of the width rows at radius factors 1 and
-:data:`PROBE` give the predicted width without reaching into the kernels. Factors are
-clipped to :data:`LIMITS`; links not measured get the median of the others.
+whatever depth error the start left (a factor absorbs it).
+
+A perspective cylinder's apparent width is ``2 f r / sqrt(z^2 - r^2)``: for a finger of
+10 mm radius at 300 mm the slope between radius factors 1 and :data:`PROBE` is within
+0.2 % of the width at 1, so two evaluations of the width rows give the predicted width
+without reaching into the kernels. Factors are
+clipped to :data:`LIMITS`; links not measured get the median of the others; factors
+within :data:`DEAD_BAND` of 1 are 1.
 """
 
 from __future__ import annotations
@@ -47,8 +50,16 @@ neighbouring finger's edge, a shadow)."""
 MAX_AXIS_PX = 1.5
 """A link whose measured axis lies farther than this (px) from the predicted one at either
 axis point is not where the state puts it: its width is not used."""
+DEAD_BAND = 0.05
+"""Factors within this of 1 are set to 1: the measurement's own spread (the model's own
+links measure 0.997-1.003 on its rendered whole-hand frame, and up to 1.03 where the drawn
+links are 5 % longer or shorter than the model's). A long one-camera track is chaotic: a
+0.1 % change of the radii turned the 3-iteration `whole-hand` track of our own drawing
+from 8.0 to 18.4 mm, and one factor of 1.03 its perturbed-hand track from 9.6 to 14.1 mm,
+so a correction within the precision would only add chance."""
 MIN_LINKS = 5
-"""Fewest links measured for the factors to be given (else None: not yet)."""
+"""Fewest links measured for the factors to be given (else None: the state does not fit
+the image)."""
 MAX_SPREAD = 0.1
 """Largest difference of one link's factors in two cameras."""
 MAX_DIFFERENCE = 0.6
@@ -103,5 +114,6 @@ def link_radius_scales(measurements: Sequence[FeatureMeasurement], cameras: Sequ
     scales = np.ones(n_links)
     for link_index, link in enumerate(model.links):
         if link.kind == "link":
-            scales[link_index] = float(np.clip(factor.get(link_index, fallback), *LIMITS))
+            value = float(np.clip(factor.get(link_index, fallback), *LIMITS))
+            scales[link_index] = 1.0 if abs(value - 1.0) < DEAD_BAND else value
     return scales
