@@ -135,6 +135,7 @@ def test_auto_start_reaches_the_truth_within_five_frames(webcam, tmp_path):
     assert error[5] < 5.0  # the tracker has pulled it onto the image
     summary = json.loads((out / "summary.json").read_text())
     assert summary["start"]["init"] == "auto" and summary["start"]["first_frame"] == 0
+    assert summary["start"]["found_by"] == ["classic"]
     assert summary["reinitialisations"] == 0
 
 

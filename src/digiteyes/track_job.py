@@ -261,10 +261,12 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
     if auto:
         initial, skipped, frames = start_automatically(initialiser, frames, job.init_frames)
         start_note["first_frame"] = skipped
+        start_note["found_by"] = sorted({c.detector for c in initialiser.last.candidates
+                                         if c is not None})
         if total is not None:
             total -= skipped
         say(f"--init auto: hand found in frame {skipped} "
-            f"({start_note['detector']} + model fit)")
+            f"({', '.join(start_note['found_by'])} + model fit)")
     else:
         initial = np.asarray(source.initial)
     recover = initialiser if (job.recover if job.recover is not None else auto) else None
