@@ -5,6 +5,8 @@
   protocol;
 * :mod:`~digiteyes.detect.mediapipe_detector` MediaPipe Hands (optional extra);
 * :mod:`~digiteyes.detect.classic` a detector with no learned parts (plain backgrounds);
+* :mod:`~digiteyes.detect.fallback` one detector, and another where the first finds none
+  (what ``--init auto`` runs with MediaPipe installed);
 * :mod:`~digiteyes.detect.model_fit` the kinematic model fitted to keypoints.
 """
 

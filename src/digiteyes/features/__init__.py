@@ -3,7 +3,9 @@
 ``measure_features`` places the T-shaped link trackers and the tip trackers of the report
 (Sec. 4) at the predicted projection of the model and measures link axis lines and tip
 points; ``feature_residuals`` turns them into the residual vector and its analytic
-Jacobian (thesis eq. 2.17-2.20, report eq. 2-3, 6-10). See docs/features.md.
+Jacobian (thesis eq. 2.17-2.20, report eq. 2-3, 6-10);
+:mod:`~digiteyes.features.width_scale` measures the user's link widths on a frame whose
+state is known. See docs/features.md.
 """
 
 from digiteyes.features.lines import LineFit, bisector, fit_lines
