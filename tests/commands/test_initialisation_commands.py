@@ -14,9 +14,10 @@ from digiteyes.camera import Camera, Rig, load_rig, save_rig
 from digiteyes.camera.calibration import CharucoBoard, render_charuco, render_chessboard
 from digiteyes.cli import main
 from digiteyes.detect.hand_size import model_hand_length
+from digiteyes.detect.mediapipe_detector import mediapipe_available
 from digiteyes.kinematics.rotations import matrix_from_quaternion, quaternion_from_rotvec
 from digiteyes.synth.options import RenderOptions
-from digiteyes.synth.scenarios import basis_joint_angles
+from digiteyes.synth.scenarios import basis_joint_angles, build_scenario
 from digiteyes.synth.views import render_views
 
 
@@ -60,6 +61,24 @@ def test_pose_without_a_rig_uses_the_default_camera(hand_image, tmp_path):
     assert main(["pose", str(image), "--detector", "classic", "-o", str(tmp_path)]) == 0
     record = json.loads((tmp_path / "hand.json").read_text())
     assert record["hand"] is not None and "camera" in record["hand"]["keypoints_camera_mm"]
+
+
+@pytest.mark.skipif(not mediapipe_available(), reason="optional extra digiteyes[mediapipe]")
+def test_pose_auto_asks_the_classic_detector_where_mediapipe_sees_no_hand(tmp_path):
+    """The flesh hand's palm-on, back-lit webcam render: MediaPipe finds no hand in it;
+    ``pose`` (``--detector auto``) then reports the classic detector's hand."""
+    scenario = build_scenario("webcam-1cam", seed=0, n_frames=1)
+    view = render_views(scenario.model, scenario.states[0], list(scenario.rig.cameras),
+                        RenderOptions(appearance="flesh", color=True, background="black",
+                                      background_level=0.08), rng=0)[0]
+    path = tmp_path / "webcam.png"
+    cv2.imwrite(str(path), cv2.cvtColor(view.image, cv2.COLOR_RGB2BGR))
+    save_rig(scenario.rig, tmp_path / "rig.json")
+    assert main(["pose", str(path), "--rig", str(tmp_path / "rig.json"), "-o",
+                 str(tmp_path / "out")]) == 0
+    record = json.loads((tmp_path / "out" / "webcam.json").read_text())
+    assert record["detections"][scenario.rig.cameras[0].name]["detector"] == "classic"
+    assert record["hand"] is not None
 
 
 def test_pose_reports_an_unreadable_image(tmp_path, capsys):

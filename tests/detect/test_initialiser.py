@@ -90,9 +90,13 @@ def test_auto_falls_back_to_the_classic_detector_only_beside_mediapipe(hand, cam
                                                                        monkeypatch):
     init = AutoInitialiser(hand, Rig((camera,)), "classic")
     assert isinstance(init._detector, ClassicDetector)
-    monkeypatch.setattr(pose, "mediapipe_available", lambda: False, raising=False)
+    if mediapipe_available():
+        assert isinstance(pose.make_detector("auto", hand, classic_fallback=True),
+                          FallbackDetector)
+        assert not isinstance(pose.make_detector("auto", hand), FallbackDetector)
     monkeypatch.setitem(sys.modules, "mediapipe", None)  # the extra absent: classic alone
     assert isinstance(AutoInitialiser(hand, Rig((camera,)), "auto")._detector, ClassicDetector)
+    assert isinstance(pose.make_detector("auto", hand, classic_fallback=True), ClassicDetector)
 
 
 @pytest.mark.skipif(not mediapipe_available(), reason="optional extra digiteyes[mediapipe]")

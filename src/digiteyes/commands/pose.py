@@ -19,7 +19,8 @@ from digiteyes.detect.pose import DETECTORS
                    "a time, in rig order. Default: one camera with a 60 deg field of view.")
 @click.option("--detector", type=click.Choice(DETECTORS),
               default="auto", show_default=True,
-              help="auto = MediaPipe when installed, else the classic detector.")
+              help="auto = MediaPipe when installed (the classic detector where it finds "
+                   "no hand), else the classic detector.")
 @click.option("--model", "model_name", default="hand", show_default=True,
               help="Model name or model file (e.g. a personal model from calibrate-hand).")
 @click.option("--hand-scale", type=click.FloatRange(0.5, 2.0), default=1.0, show_default=True,
@@ -51,7 +52,7 @@ def pose(images: tuple[Path, ...], output: Path, rig: Path | None, detector: str
     if len(images) % per_set:
         raise DigitEyesError(f"{len(images)} image(s) for a rig of {per_set} cameras: give "
                              f"them {per_set} at a time")
-    det = make_detector(detector, model)
+    det = make_detector(detector, model, classic_fallback=True)
     output.mkdir(parents=True, exist_ok=True)
     options = FitOptions(scale=hand_scale)
     found = 0

@@ -144,7 +144,8 @@ def print_run(run: TrackingRun, err: bool = False) -> None:
                    "output (-) or a listening TCP socket.")
 @click.option("--detector", type=click.Choice(DETECTORS),
               default="auto", show_default=True,
-              help="Detector of --init auto and of the recovery after loss.")
+              help="Detector of --init auto and of the recovery after loss (auto = MediaPipe "
+                   "when installed, the classic detector where it finds no hand).")
 @click.option("--recover/--no-recover", default=None,
               help="Re-detect and re-fit after a lost frame (default: with --init auto).")
 @click.option("--hfov", type=click.FloatRange(min=1, max=179, min_open=True, max_open=True),

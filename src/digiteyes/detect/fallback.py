@@ -1,6 +1,7 @@
 """Two detectors in turn: the first one's hands, else the second one's confident ones.
 
-``--init auto`` and the recovery after a lost frame use MediaPipe when it is installed.
+``--init auto``, the recovery after a lost frame and ``pose`` use MediaPipe when it is
+installed (:func:`~digiteyes.detect.pose.make_detector` with ``classic_fallback``).
 MediaPipe misses some hands a plain background shows plainly (docs/initialisation.md: the
 palm-on, back-lit webcam render of the flesh hand), and then a run could not start at all.
 :class:`FallbackDetector` asks the classic detector in exactly those images, and keeps its

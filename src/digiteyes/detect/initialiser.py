@@ -20,8 +20,6 @@ from itertools import chain
 import numpy as np
 
 from digiteyes.camera import Rig
-from digiteyes.detect.classic import ClassicDetector
-from digiteyes.detect.fallback import FallbackDetector
 from digiteyes.detect.model_fit import FitOptions, KeypointObservation, PoseFit, fit_keypoints
 from digiteyes.detect.pose import PoseResult, estimate_pose, make_detector
 from digiteyes.errors import DatasetError, DigitEyesError
@@ -59,9 +57,7 @@ class AutoInitialiser:
     _detector: object = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
-        self._detector = make_detector(self.detector, self.model)
-        if self.detector == "auto" and not isinstance(self._detector, ClassicDetector):
-            self._detector = FallbackDetector(self._detector, ClassicDetector(self.model))
+        self._detector = make_detector(self.detector, self.model, classic_fallback=True)
         self._options = FitOptions(fit_scale=False)
 
     @property

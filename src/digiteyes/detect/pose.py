@@ -27,15 +27,23 @@ DETECTORS = ("auto", "mediapipe", "mediapipe-lite", "classic")
 
 
 def make_detector(name: str, model: KinematicModel | None = None,
-                  video: bool = False) -> HandDetector:
+                  video: bool = False, classic_fallback: bool = False) -> HandDetector:
     """``"mediapipe"`` (needs the extra; its full landmark network), ``"mediapipe-lite"``
     (its lite landmark network: faster, see docs/initialisation.md for what it costs),
     ``"classic"`` or ``"auto"`` (MediaPipe when installed, else classic). ``video``:
     images come in order from one video, and MediaPipe follows its landmarks from one to
-    the next instead of detecting afresh in each (the classic detector has no such mode)."""
+    the next instead of detecting afresh in each (the classic detector has no such mode).
+    ``classic_fallback``: ``"auto"`` with MediaPipe installed asks the classic detector
+    in the images where MediaPipe finds no hand
+    (:class:`~digiteyes.detect.fallback.FallbackDetector`); what ``track`` and ``pose``
+    use, not ``calibrate-hand``, which measures segments from joints a network located."""
     from digiteyes.detect.classic import ClassicDetector
+    from digiteyes.detect.fallback import FallbackDetector
     from digiteyes.detect.mediapipe_detector import MediaPipeDetector, mediapipe_available
 
+    if name == "auto" and classic_fallback and mediapipe_available():
+        return FallbackDetector(make_detector("mediapipe", model, video),
+                                ClassicDetector(model))
     if name == "auto":
         name = "mediapipe" if mediapipe_available() else "classic"
     if name in ("mediapipe", "mediapipe-lite"):
