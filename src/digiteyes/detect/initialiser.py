@@ -38,9 +38,9 @@ class AutoInitialiser:
     ----------
     model, rig : the tracker's model and cameras.
     detector : ``"auto"`` (MediaPipe when installed, with the classic detector for the
-        images where MediaPipe finds no hand: :class:`~digiteyes.detect.fallback.
-        FallbackDetector`; else classic), or any name of
-        :data:`~digiteyes.detect.pose.DETECTORS` for that detector alone.
+        images where MediaPipe finds no hand,
+        :class:`~digiteyes.detect.fallback.FallbackDetector`; else classic), or any name
+        of :data:`~digiteyes.detect.pose.DETECTORS` for that detector alone.
     max_error_px : reprojection error (px) a keypoint of an accepted fit stays within.
     calls, found : how many times it ran and found a hand; ``seconds`` their total (s).
     last : the last :class:`PoseResult` (None before the first call).
