@@ -95,3 +95,18 @@ def test_a_start_that_does_not_fit_the_image_keeps_the_models_radii(scene):
     for _ in range(4):
         tracker.step([image])
     assert tracker.radius_scale is None
+
+
+def test_the_factors_do_not_depend_on_the_width_weight(scene):
+    """The shading model's predicted bias carries the tracker's width weight on its width
+    rows; the factors take it out."""
+    model, q, camera = scene
+    image = render_views(thinner(model, 0.85), q, [camera], RenderOptions(noise_sigma=2.0),
+                         rng=0)[0].image
+    scales = []
+    for weight in (1.0, 3.0):
+        tracker = FeatureTracker(model, Rig((camera,)), FeatureTrackerOptions(width_weight=weight))
+        tracker.reset(q)
+        tracker.step([image])
+        scales.append(tracker.radius_scale)
+    assert scales[0] is not None and np.allclose(scales[0], scales[1], atol=1e-9)

@@ -91,9 +91,11 @@ def link_radius_scales(measurements: Sequence[FeatureMeasurement], cameras: Sequ
     for index, (meas, camera) in enumerate(zip(measurements, cameras, strict=True)):
         r1, _, layout1 = feature_residuals(meas, camera, kin, **options)
         r2, _, layout2 = feature_residuals(meas, camera, kin, radius_scale=probe, **options)
-        bias = (edge_bias[index].of_rows(layout1.kind_code, layout1.link_index,
-                                         layout1.component) / width_weight
-                if index < len(edge_bias) and width_weight > 0 else np.zeros(len(r1)))
+        bias = np.zeros(len(r1))
+        if index < len(edge_bias) and width_weight > 0:
+            bias = np.array(edge_bias[index].of_rows(layout1.kind_code, layout1.link_index,
+                                                     layout1.component), dtype=float)
+            bias[layout1.rows("width")] /= width_weight  # the tracker's rows carry the weight
         axis = layout1.rows("link")
         misplaced = {int(link) for link, value in zip(layout1.link_index[axis],
                                                       r1[axis] - bias[axis], strict=True)
