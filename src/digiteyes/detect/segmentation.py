@@ -4,7 +4,8 @@ camera.
 
 * **Skin** (colour images): chrominance in YCrCb inside a box that holds skin of every
   tone under white light (Cr 136..175, Cb 77..127; Chai & Ngan's box widened on the red
-  side), which a grey wall (Cr = Cb = 128) fails.
+  side), which a grey wall (Cr = Cb = 128) fails; down to Cr 131 (skin washed out by dim
+  or grey light) where that colour does not occur on the image border.
 * **Border colour** (a plain wall): the colours that occur on the image border (a coarse
   colour histogram); a pixel of one of those colours is background.
 * **Static background** (:class:`BackgroundModel`): mean and standard deviation of every
@@ -33,11 +34,14 @@ WEAK_SKIN_CR = 131
 accepted only where the colour does not occur on the image border."""
 
 
-def skin_mask(rgb: np.ndarray, low_cr: int = SKIN_CR[0]) -> np.ndarray:
-    """Bool (H, W): pixels whose chrominance falls in the skin box (its Cr range from
-    ``low_cr``)."""
+def skin_masks(rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Bool (H, W) twice, from one colour conversion: pixels whose chrominance falls in the
+    skin box, and those that fall in it with its Cr range widened down to
+    :data:`WEAK_SKIN_CR` (washed-out skin, a superset)."""
     ycrcb = cv2.cvtColor(rgb, cv2.COLOR_RGB2YCrCb)
-    return cv2.inRange(ycrcb, (0, low_cr, SKIN_CB[0]), (255, SKIN_CR[1], SKIN_CB[1])) > 0
+    washed = cv2.inRange(ycrcb, (0, WEAK_SKIN_CR, SKIN_CB[0]),
+                         (255, SKIN_CR[1], SKIN_CB[1])) > 0
+    return washed & (ycrcb[..., 1] >= SKIN_CR[0]), washed
 
 
 def border_background(image: np.ndarray, width: int = 4, bin_levels: int = 16,
@@ -126,7 +130,8 @@ def hand_mask(image: np.ndarray, background: BackgroundModel | None = None) -> n
             and (image[..., 0] == image[..., 1]).all() and (image[..., 0] == image[..., 2]).all()):
         image = image[..., 0]  # a grey video decoded as RGB: no chrominance for the skin box
     if image.ndim == 3:
-        fg = skin_mask(image) | (skin_mask(image, WEAK_SKIN_CR) & ~border_background(image))
+        skin, washed = skin_masks(image)
+        fg = skin | (washed & ~border_background(image))
         if background is not None:
             fg &= background.foreground(image)
     elif background is not None:
