@@ -31,3 +31,59 @@ def test_size_zero_passes_grey_through():
 def test_bad_size_is_refused(size):
     with pytest.raises(TemplateError, match="odd integer"):
         LogFilter(size=size)
+
+
+def _blob_image(contrast: float) -> np.ndarray:
+    """A 61 x 61 float image: a 9 x 21 bright bar of ``contrast`` grey levels on 40."""
+    image = np.full((61, 61), 40.0, dtype=np.float32)
+    image[26:35, 20:41] += np.float32(contrast)
+    return image
+
+
+def test_contrast_normalisation_removes_a_gain():
+    plain, normalised = LogFilter(size=7), LogFilter(size=7, contrast_px=2.0)
+    strong, weak = _blob_image(160.0), _blob_image(80.0)
+    ratio = plain.apply(strong)[26:35, 20:41] / plain.apply(weak)[26:35, 20:41]
+    assert np.nanmedian(ratio) == pytest.approx(2.0, rel=1e-3)
+    a, b = normalised.apply(strong), normalised.apply(weak)
+    edge = np.abs(a) > 5.0
+    assert edge.sum() > 40
+    np.testing.assert_allclose(a[edge], b[edge], rtol=0.02)
+
+
+def test_contrast_normalisation_follows_a_shading_ramp():
+    """A bar lit by a ramp (twice as bright at one end): plain LoG responses along its
+    outline change with the ramp, normalised ones hardly."""
+    image = _blob_image(150.0)
+    ramp = np.linspace(0.5, 1.0, 61, dtype=np.float32)[None, :]
+    shaded = 40.0 + (image - 40.0) * ramp
+    plain = LogFilter(size=7).apply(shaded)
+    normalised = LogFilter(size=7, contrast_px=2.0).apply(shaded)
+    left, right = (25, 22), (25, 38)  # just outside the top edge, near each end
+    gain = ramp[0, 38] / ramp[0, 22]
+    assert plain[right] / plain[left] == pytest.approx(gain, rel=0.02)
+    assert normalised[right] / normalised[left] == pytest.approx(1.0, abs=0.02)
+
+
+def test_normalised_response_has_the_stated_local_rms_and_flat_stays_flat():
+    from digiteyes.templates.filtering import NORMALISED_RMS
+    out = LogFilter(size=7, contrast_px=2.0).apply(_blob_image(200.0))
+    band = out[22:39, 16:45]
+    assert np.sqrt(np.mean(band ** 2)) == pytest.approx(NORMALISED_RMS, rel=0.5)
+    assert np.abs(out[:8, :8]).max() < 1e-3
+    rng = np.random.default_rng(0)
+    for sigma in (0.3, 3.0):  # sensor noise of a render and of a webcam, grey levels
+        noise = rng.normal(40.0, sigma, (121, 121)).astype(np.float32)
+        flat = LogFilter(size=7, contrast_px=2.0).apply(noise)
+        assert np.sqrt(np.mean(flat ** 2)) < 0.4 * NORMALISED_RMS
+    noisy_bar = _blob_image(200.0) + rng.normal(0.0, 3.0, (61, 61)).astype(np.float32)
+    edges = LogFilter(size=7, contrast_px=2.0).apply(noisy_bar)[22:39, 16:45]
+    assert np.sqrt(np.mean(edges ** 2)) > 0.7 * NORMALISED_RMS
+
+
+@pytest.mark.parametrize(("field", "value", "match"), [("contrast_px", -1.0, "contrast_px"),
+                                                       ("contrast_floor", 0.0, "contrast_floor"),
+                                                       ("contrast_noise", -1.0, "contrast_noise")])
+def test_bad_contrast_options_are_refused(field, value, match):
+    with pytest.raises(TemplateError, match=match):
+        LogFilter(size=7, **{field: value})

@@ -37,8 +37,8 @@ def _track(tracker, scenario, frames):
     model = scenario.model
     tips = [link.row for link in model.links if link.kind == "tip"]
     est = np.array([r.state for r in results])
-    kt = forward_kinematics(model, scenario.states).T_world_shape[:, tips, :3, 3]
-    ke = forward_kinematics(model, est).T_world_shape[:, tips, :3, 3]
+    kt = forward_kinematics(model, scenario.states).T_world_shape[:, tips][..., :3, 3]
+    ke = forward_kinematics(model, est).T_world_shape[:, tips][..., :3, 3]
     return results, np.linalg.norm(kt - ke, axis=2)
 
 

@@ -77,8 +77,8 @@ def track_scenario(name: str, n_cameras: int, n_frames: int | None,
     est = np.array(states)
     truth = scenario.states
     tips = [link.row for link in model.links if link.kind == "tip"]
-    kt = forward_kinematics(model, truth).T_world_shape[:, tips, :3, 3]
-    ke = forward_kinematics(model, est).T_world_shape[:, tips, :3, 3]
+    kt = forward_kinematics(model, truth).T_world_shape[:, tips][..., :3, 3]
+    ke = forward_kinematics(model, est).T_world_shape[:, tips][..., :3, 3]
     tip_error = np.linalg.norm(kt - ke, axis=2)
     out = {"scenario": name, "tracker": tracker, "appearance": appearance,
            "cameras": n_cameras,

@@ -5,6 +5,24 @@ brightness and slow shading, so a template taken under one lighting still fits a
 frame with slightly different lighting, and it turns silhouettes into strong, smooth
 responses that pull a misplaced template towards its link. Sec. 4.4.2 used a 13 x 13
 kernel; the size and the Gaussian's sigma are options here.
+
+**Contrast normalisation** (not in the thesis; ``contrast_px > 0``). The LoG removes
+shading that is slow across the filter, but not the shading of a curved link: a capsule
+lit from one side is bright on one flank and dark on the other, and as it bends towards
+or away from the light its outline's contrast, and so the LoG response along it, grows
+and shrinks. Templates acquired on the first frame then no longer match, and the layered
+error's minimum leaves the truth (docs/templates.md measures this). Divisive normalisation
+makes the response invariant to a gain that is locally constant:
+
+    N(x) = c L(x) / sqrt( (G_s * L^2)(x) + f^2 ),
+
+``L`` the LoG response, ``G_s *`` a Gaussian blur of width ``s = contrast_px``, ``f`` a
+floor that keeps flat, noisy regions near 0 instead of blowing them up, and
+``c = NORMALISED_RMS``: where contrast is high, the response has a local RMS of about
+``c`` whatever the light, exposure or skin tone. The floor is ``contrast_floor`` or
+``contrast_noise`` times the frame's noise level in ``L``, whichever is larger; the noise
+level is estimated robustly as 1.4826 times the median of ``|L|`` (most pixels of a frame
+are flat, so the median sees the noise, not the edges).
 """
 
 from __future__ import annotations
@@ -16,6 +34,10 @@ import numpy as np
 
 from digiteyes.errors import DigitEyesError
 from digiteyes.features.slices import prepare_image
+
+NORMALISED_RMS = 20.0
+"""Local RMS of a contrast-normalised response where contrast is high (in the units of the
+grey levels, so residual thresholds keep the same order as without normalisation)."""
 
 
 class TemplateError(DigitEyesError, ValueError):
@@ -32,11 +54,21 @@ class LogFilter:
     sigma : Gaussian standard deviation, px; ``None`` gives ``size / 6``.
     gain : the response is multiplied by this (grey levels per grey level of curvature),
         so that residuals have a few-grey-level scale like the images.
+    contrast_px : width ``s`` (px) of the Gaussian window of the contrast normalisation
+        (module docstring); 0 switches it off (the thesis's plain LoG).
+    contrast_floor : the least floor ``f`` of the normalisation, in units of the LoG
+        response (grey levels times ``gain``): local contrast far below it is not
+        amplified.
+    contrast_noise : the floor is also at least this many times the frame's noise level
+        (module docstring), so sensor noise is not amplified to edge strength.
     """
 
     size: int = 13
     sigma: float | None = None
     gain: float = 4.0
+    contrast_px: float = 0.0
+    contrast_floor: float = 4.0
+    contrast_noise: float = 3.0
 
     def __post_init__(self) -> None:
         if self.size != 0 and (int(self.size) != self.size or self.size < 3
@@ -45,6 +77,15 @@ class LogFilter:
                                 f"got {self.size!r}")
         if self.sigma is not None and not self.sigma > 0:
             raise TemplateError(f"LoG sigma must be positive, got {self.sigma!r}")
+        if not self.contrast_px >= 0:
+            raise TemplateError(f"contrast_px must be 0 (off) or positive, got "
+                                f"{self.contrast_px!r}")
+        if not self.contrast_floor > 0:
+            raise TemplateError(f"contrast_floor must be positive, got "
+                                f"{self.contrast_floor!r}")
+        if not self.contrast_noise >= 0:
+            raise TemplateError(f"contrast_noise must be 0 or positive, got "
+                                f"{self.contrast_noise!r}")
 
     @property
     def kernel(self) -> np.ndarray:
@@ -60,9 +101,19 @@ class LogFilter:
         return np.float32(-sigma * sigma * self.gain) * lap.astype(np.float32)
 
     def apply(self, image: np.ndarray) -> np.ndarray:
-        """Filtered float32 (H, W) image of a grey or RGB ``image``."""
+        """Filtered float32 (H, W) image of a grey or RGB ``image`` (contrast-normalised
+        when ``contrast_px > 0``)."""
         grey = prepare_image(image)
         grey = grey.astype(np.float32) if grey.dtype != np.float32 else grey
         if self.size == 0:
             return np.ascontiguousarray(grey)
-        return cv2.filter2D(grey, cv2.CV_32F, self.kernel, borderType=cv2.BORDER_REPLICATE)
+        response = cv2.filter2D(grey, cv2.CV_32F, self.kernel,
+                                borderType=cv2.BORDER_REPLICATE)
+        if self.contrast_px == 0:
+            return response
+        energy = cv2.GaussianBlur(response * response, (0, 0), float(self.contrast_px),
+                                  borderType=cv2.BORDER_REPLICATE)
+        noise = 1.4826 * float(np.median(np.abs(response[::2, ::2])))
+        floor = max(float(self.contrast_floor), self.contrast_noise * noise)
+        energy += np.float32(floor * floor)
+        return response * (np.float32(NORMALISED_RMS) / np.sqrt(energy))

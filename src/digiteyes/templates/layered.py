@@ -64,7 +64,9 @@ class TemplateOptions:
     ----------
     log : the LoG filter of images and templates (thesis Sec. 2.4.2). The thesis used
         13 x 13 (Sec. 4.4.2); at 640 x 480 a 7 x 7 kernel tracked better here
-        (docs/templates.md), so that is the default.
+        (docs/templates.md), so that is the default, contrast-normalised over 2 px
+        (:mod:`digiteyes.templates.filtering`; the shading of curved links otherwise
+        moves the error's minimum off the truth).
     spacing_px : template pixel spacing in image pixels at acquisition (1: one template
         pixel per image pixel; 2 quarters the work).
     window : ``"unit"`` (thesis Sec. 4.4.2) or ``"smooth"`` (logistic windows).
@@ -80,7 +82,7 @@ class TemplateOptions:
         error (about the LoG's reach), and parts this close count as overlapping.
     """
 
-    log: LogFilter = field(default_factory=lambda: LogFilter(size=7))
+    log: LogFilter = field(default_factory=lambda: LogFilter(size=7, contrast_px=2.0))
     spacing_px: float = 2.0
     window: str = "smooth"
     window_px: float = 1.0
