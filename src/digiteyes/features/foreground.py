@@ -111,12 +111,16 @@ class SilhouetteCheck:
     ``unexplained``: foreground beyond the tolerance of the model silhouette, per model
     pixel; ``finger_outside``: digit name -> fraction of its model pixels beyond the
     tolerance of the foreground (digits with fewer than ``min_pixels`` model pixels are
-    left out); ``model_pixels``: the model's pixels.
+    left out); ``model_pixels``: the model's pixels; ``outside``: all model pixels beyond
+    the tolerance of the foreground, per model pixel; ``link_pixels``: (n_links,) the
+    model's pixels of each link (what the z-buffer shows of it).
     """
 
     unexplained: float
     finger_outside: dict[str, float]
     model_pixels: int
+    outside: float = 0.0
+    link_pixels: np.ndarray | None = None
 
 
 def _digit_links(model: KinematicModel) -> dict[str, np.ndarray]:
@@ -149,4 +153,6 @@ def silhouette_check(model: KinematicModel, kin: Kinematics, camera: Camera,
         pixels = int(against_fg.per_label_pixels[links].sum())
         if pixels >= min_pixels:
             fingers[digit] = int(against_fg.per_label_outside[links].sum()) / pixels
-    return SilhouetteCheck(unexplained, fingers, model_pixels)
+    outside = float(against_fg.per_label_outside.sum()) / model_pixels if model_pixels else 1.0
+    return SilhouetteCheck(unexplained, fingers, model_pixels, outside,
+                           against_fg.per_label_pixels)

@@ -64,6 +64,7 @@ from digiteyes.solvers import (
 from digiteyes.solvers.options import DAMPINGS, Damping
 from digiteyes.solvers.robust import ROBUST_LOSSES, RobustLoss
 from digiteyes.trackers.base import TrackResult
+from digiteyes.trackers.finger_search import FingerRecovery, FingerSearchOptions
 from digiteyes.trackers.loss_hold import LOCAL_HOLD_FRAMES, LossHold, LossHoldOptions
 from digiteyes.trackers.parameterisation import StateParameterisation
 from digiteyes.trackers.prediction import PREDICTIONS, PredictionKind, StatePredictor
@@ -96,7 +97,7 @@ def thesis_whole_hand_links(model: KinematicModel) -> tuple[str, ...]:
 
 
 @dataclass(frozen=True)
-class FeatureTrackerOptions(SilhouetteLossOptions, LossHoldOptions):
+class FeatureTrackerOptions(SilhouetteLossOptions, LossHoldOptions, FingerSearchOptions):
     """Settings of :class:`FeatureTracker` (defaults follow thesis Table 4.2).
 
     Attributes
@@ -171,6 +172,9 @@ class FeatureTrackerOptions(SilhouetteLossOptions, LossHoldOptions):
     hold_lost_frames : after a frame the loss rules call lost, later frames stay lost
         until this many in a row have passed them
         (:class:`~digiteyes.trackers.loss_hold.LossHold`; 0 judges each frame alone).
+    finger_search, finger_search_levels, finger_search_margin : on a frame the silhouette
+        rule calls lost, search each digit's curl by the silhouette and solve again from
+        the result (:mod:`digiteyes.trackers.finger_search`; off by default).
     """
 
     iterations_per_frame: int = 5
@@ -202,6 +206,7 @@ class FeatureTrackerOptions(SilhouetteLossOptions, LossHoldOptions):
     hold_lost_frames: int = LOCAL_HOLD_FRAMES
 
     def __post_init__(self) -> None:
+        FingerSearchOptions.__post_init__(self)
         if isinstance(self.iterations_per_frame, bool) or not isinstance(
                 self.iterations_per_frame, int | np.integer) or self.iterations_per_frame < 1:
             raise ValueError(
@@ -291,6 +296,8 @@ class FeatureDetails:
     n_valid_links, n_valid_tips : features measured at the final state, all cameras.
     n_features : features asked for (links + tips, times cameras).
     summary : the solver's :class:`~digiteyes.solvers.SolverSummary`.
+    searched : the silhouette finger search moved a digit in this frame and the solve
+        from there explained the silhouette better than the first estimate.
     """
 
     measurements: list[Any]
@@ -300,6 +307,7 @@ class FeatureDetails:
     n_valid_tips: int
     n_features: int
     summary: SolverSummary
+    searched: bool = False
 
 
 @dataclass
@@ -415,11 +423,13 @@ class FeatureTracker:
     """
 
     stages = ("prediction", "shading", "forward_kinematics", "feature_detection",
-              "jacobian", "linear_solve", "silhouette")
+              "jacobian", "linear_solve", "silhouette", "finger_search")
     """Timing stages of :attr:`TrackResult.timings` (thesis Table 4.1 rows, plus the
     prediction and the shading prediction): ``"jacobian"`` is residual and Jacobian
     assembly, ``"linear_solve"`` the normal equations, solve and state update,
-    ``"silhouette"`` the silhouette check of the loss rules."""
+    ``"silhouette"`` the silhouette check of the loss rules, ``"finger_search"`` the
+    silhouette finger search and the solve from its result (frames the rule calls lost;
+    their feature and solver time is counted here, not in the stages above)."""
 
     def __init__(self, model: KinematicModel, rig: Rig,
                  options: FeatureTrackerOptions | None = None) -> None:
@@ -444,6 +454,7 @@ class FeatureTracker:
         self.shading: ShadingModel | None = None
         self.edge_bias: list[EdgeBias] = []
         self.silhouette_loss = SilhouetteLoss.from_options(model, rig, opts)
+        self.finger_recovery = FingerRecovery(model, self.silhouette_loss, opts)
         self.loss_hold = LossHold(opts.hold_lost_frames)
         self._invalid_baseline: float | None = None
         self.radius_scale: np.ndarray | None = None
@@ -494,6 +505,7 @@ class FeatureTracker:
         self.shading = shading
         self.edge_bias = []
         self.silhouette_loss.reset()
+        self.finger_recovery.reset()
         self.loss_hold.reset()
         self._invalid_baseline = None
         self.radius_scale = None
@@ -548,12 +560,42 @@ class FeatureTracker:
         verdict = (self.silhouette_loss.check(images, q, predicted)
                    if self.options.silhouette_check else None)
         timings["silhouette"] = time.perf_counter() - start
+        searched = False
+        if verdict is not None and verdict.reasons and self.options.finger_search:
+            start = time.perf_counter()
+            found = self._search_fingers(problem, images, q, predicted)
+            if found is not None:
+                q, summary, final, verdict, moved = found
+                self.finger_recovery.placed(moved)
+                searched = True
+            timings["finger_search"] = time.perf_counter() - start
+        if verdict is not None:
+            verdict = self.finger_recovery.judge(verdict)
         result = self._result(q, predicted, summary, final, timings, verdict)
+        result.details.searched = searched
         self.state = q
-        self.predictor.update(q, reliable=not result.lost)
+        self.predictor.update(q, reliable=not (result.lost or searched))
         self._frame_index += 1
         timings["total"] = time.perf_counter() - start_total
         return self.loss_hold.apply(result)
+
+    def _search_fingers(self, problem: FeatureProblem, images: list[np.ndarray],
+                        q: np.ndarray, predicted: np.ndarray) -> tuple | None:
+        """The silhouette finger search from ``q`` and a solve from its result; (state,
+        summary, evaluation, verdict, digits moved) of that solve if it explains the
+        silhouette better than ``q``, else None. The solve's timings go to the search's
+        stage."""
+        searched = self.finger_recovery.search(images, q)
+        if searched is None:
+            return None
+        start, moved = searched
+        problem.timings = dict.fromkeys(problem.timings, 0.0)
+        found, summary = gauss_newton(problem, start, self.solver_options)
+        before, after = self.silhouette_loss.mismatches(images, [q, found], symmetric=True)
+        if after >= before:
+            return None
+        return (found, summary, problem.evaluation_at(found),
+                self.silhouette_loss.check(images, found, predicted), moved)
 
     def _fit_widths(self, images: list[np.ndarray], q: np.ndarray) -> np.ndarray | None:
         """Each link's radius factor from the features measured at ``q`` (the start of

@@ -69,6 +69,7 @@ from digiteyes.templates.layered import (
     refresh_templates,
 )
 from digiteyes.trackers.base import TrackResult
+from digiteyes.trackers.finger_search import FingerRecovery, FingerSearchOptions
 from digiteyes.trackers.loss_hold import LOCAL_HOLD_FRAMES, LossHold, LossHoldOptions
 from digiteyes.trackers.parameterisation import StateParameterisation
 from digiteyes.trackers.prediction import PREDICTIONS, PredictionKind, StatePredictor
@@ -80,20 +81,21 @@ from digiteyes.trackers.silhouette_loss import (
 
 TEMPLATE_TIMING_STAGES = ("prediction", "filtering", "visibility", "template_rendering",
                           "residual", "jacobian", "features", "linear_solve", "refresh",
-                          "silhouette")
+                          "silhouette", "finger_search")
 """Stages of :attr:`TrackResult.timings` for the template trackers (seconds; ``"total"``
 is reported too). ``template_rendering`` is placing the template pixels (planes, points,
 projection), ``residual`` the compiled pass that samples the image and sums the error and
 normal equations, ``jacobian`` chaining the twist and window sums into ``H`` and ``g``,
 ``features`` the edge features of the combined tracker (measurement, residuals, Jacobian;
-0 for the templates alone), ``silhouette`` the silhouette loss rule."""
+0 for the templates alone), ``silhouette`` the silhouette loss rule, ``finger_search``
+the silhouette finger search and its re-solve (only on frames the rule calls lost)."""
 
 SOLVERS = ("gauss-newton", "gradient-descent")
 BACKGROUNDS = ("none", "filtered", "grey")
 
 
 @dataclass(frozen=True)
-class LayeredTemplateOptions(SilhouetteLossOptions, LossHoldOptions):
+class LayeredTemplateOptions(SilhouetteLossOptions, LossHoldOptions, FingerSearchOptions):
     """Settings of :class:`LayeredTemplateTracker`.
 
     Attributes
@@ -129,6 +131,9 @@ class LayeredTemplateOptions(SilhouetteLossOptions, LossHoldOptions):
     hold_lost_frames : after a frame the loss rules call lost, later frames stay lost
         until this many in a row have passed them
         (:class:`~digiteyes.trackers.loss_hold.LossHold`; 0 judges each frame alone).
+    finger_search, finger_search_levels, finger_search_margin : on a frame the silhouette
+        rule calls lost, search each digit's curl by the silhouette and solve again from
+        the result (:mod:`digiteyes.trackers.finger_search`).
     """
 
     templates: TemplateOptions = field(default_factory=TemplateOptions)
@@ -153,6 +158,7 @@ class LayeredTemplateOptions(SilhouetteLossOptions, LossHoldOptions):
     hold_lost_frames: int = LOCAL_HOLD_FRAMES
 
     def __post_init__(self) -> None:
+        FingerSearchOptions.__post_init__(self)
         if isinstance(self.iterations_per_frame, bool) or int(self.iterations_per_frame) != \
                 self.iterations_per_frame or self.iterations_per_frame < 1:
             raise TemplateError(f"iterations_per_frame must be a positive integer, got "
@@ -201,6 +207,8 @@ class TemplateDetails:
         grey levels (NaN when none of its pixels is visible).
     residual_lost : the template residual rules called the frame lost (they gate the
         refresh and the prediction; the silhouette rule only reports).
+    searched : the silhouette finger search moved a digit in this frame and the solve
+        from there explained the silhouette better than the first estimate.
     """
 
     templates: list[CameraTemplates]
@@ -216,6 +224,7 @@ class TemplateDetails:
     summary: SolverSummary
     finger_rms: dict[str, float]
     residual_lost: bool = False
+    searched: bool = False
 
 
 class LayeredTemplateTracker:
@@ -265,6 +274,7 @@ class LayeredTemplateTracker:
                 self._fingers.setdefault(finger, []).append(k)
         opts = self.options
         self.silhouette_loss = SilhouetteLoss.from_options(model, rig, opts)
+        self.finger_recovery = FingerRecovery(model, self.silhouette_loss, opts)
         self.loss_hold = LossHold(opts.hold_lost_frames)
 
     def reset(self, initial_state: np.ndarray) -> None:
@@ -283,6 +293,7 @@ class LayeredTemplateTracker:
         self._rms_history.clear()
         self._frame_index = 0
         self.silhouette_loss.reset()
+        self.finger_recovery.reset()
         self.loss_hold.reset()
 
     # ------------------------------------------------------------------ per frame
@@ -318,17 +329,46 @@ class LayeredTemplateTracker:
         q, summary = self._solve(predicted, images, greys, setup, timings)
         final = [self._evaluate(q, images, setup, c, timings) for c in range(len(self.rig))]
         verdict = None
+        searched = False
         if self.options.silhouette_check:
             tic = time.perf_counter()
-            verdict = self.silhouette_loss.check(greys or [prepare_image(f) for f in frames],
-                                                 q, predicted)
+            greys = greys or [prepare_image(f) for f in frames]
+            verdict = self.silhouette_loss.check(greys, q, predicted)
             timings["silhouette"] = time.perf_counter() - tic
+            if verdict.reasons and self.options.finger_search:
+                tic = time.perf_counter()
+                found = self._search_fingers(q, images, greys, predicted, timings)
+                if found is not None:
+                    q, summary, final, setup, verdict, moved = found
+                    self.finger_recovery.placed(moved)
+                    searched = True
+                timings["finger_search"] = time.perf_counter() - tic
+            verdict = self.finger_recovery.judge(verdict)
         result = self._result(q, predicted, summary, final, setup, timings, verdict)
+        result.details.searched = searched
         self.state = q
-        self.predictor.update(q, reliable=not result.details.residual_lost)
+        self.predictor.update(q, reliable=not (result.details.residual_lost or searched))
         self._frame_index += 1
         timings["total"] = time.perf_counter() - start_total
         return self.loss_hold.apply(result)
+
+    def _search_fingers(self, q: np.ndarray, images: list[np.ndarray], greys: list[np.ndarray],
+                        predicted: np.ndarray, timings: dict[str, float]) -> tuple | None:
+        """The silhouette finger search from ``q`` and a solve from its result; (state,
+        summary, evaluations, setup, verdict, digits moved) of that solve if it explains
+        the silhouette better than ``q``, else None."""
+        searched = self.finger_recovery.search(greys, q)
+        if searched is None:
+            return None
+        start, moved = searched
+        setup = self._frame_setup(start, timings)
+        found, summary = self._solve(start, images, greys, setup, timings)
+        before, after = self.silhouette_loss.mismatches(greys, [q, found], symmetric=True)
+        if after >= before:
+            return None
+        final = [self._evaluate(found, images, setup, c, timings) for c in range(len(self.rig))]
+        return (found, summary, final, setup, self.silhouette_loss.check(greys, found, predicted),
+                moved)
 
     def _frame_setup(self, predicted: np.ndarray, timings: dict[str, float]) -> dict:
         """Planes, pixel points and visibility orders at the predicted state."""

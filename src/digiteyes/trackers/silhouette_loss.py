@@ -147,18 +147,42 @@ class SilhouetteLoss:
         unexplained per model pixel plus the mean share of its fingers' pixels over the
         backdrop, summed over the cameras. None before the first :meth:`check` or when no
         camera is checked (a textured backdrop)."""
+        scores = self.mismatches(images, [state])
+        return None if scores is None else scores[0]
+
+    def mismatches(self, images: Sequence[np.ndarray], states: Sequence[np.ndarray],
+                   symmetric: bool = False) -> list[float] | None:
+        """:meth:`mismatch` of each of ``states`` (the foreground masks found once). With
+        ``symmetric``, the second term is instead the share of all the model's pixels
+        over the backdrop: the symmetric difference of the two silhouettes per model
+        pixel, in which a finger hidden behind the palm does not drop out (its real
+        pixels are left unexplained), as it does from the mean over the fingers seen."""
         if not self.foreground or all(fg is None for fg in self.foreground):
             return None
-        checks = self._checks([prepare_image(image) for image in images],
-                              forward_kinematics(self.model, state))
-        return float(sum(c.unexplained + (np.mean(list(c.finger_outside.values()))
-                                          if c.finger_outside else 0.0) for c in checks))
+        masks = self._masks([prepare_image(image) for image in images])
+        scores = []
+        for state in states:
+            checks = self._checks_masks(masks, forward_kinematics(self.model, state))
+            scores.append(float(sum(
+                c.unexplained + (c.outside if symmetric else
+                                 np.mean(list(c.finger_outside.values()))
+                                 if c.finger_outside else 0.0)
+                for c in checks)))
+        return scores
+
+    def _masks(self, images: Sequence[np.ndarray]) -> list[np.ndarray | None]:
+        """The foreground mask of each camera's image (None where not checked)."""
+        return [None if fg is None else fg.mask(image)
+                for image, fg in zip(images, self.foreground, strict=True)]
+
+    def _checks_masks(self, masks: list[np.ndarray | None], kin: Kinematics
+                      ) -> list[SilhouetteCheck]:
+        return [silhouette_check(self.model, kin, camera, mask, self.tolerance_px)
+                for mask, camera in zip(masks, self.rig, strict=True) if mask is not None]
 
     def _checks(self, images: Sequence[np.ndarray], kin: Kinematics) -> list[SilhouetteCheck]:
         """The silhouette comparison in every camera whose foreground could be fitted."""
-        return [silhouette_check(self.model, kin, camera, fg.mask(image), self.tolerance_px)
-                for image, camera, fg in zip(images, self.rig, self.foreground, strict=True)
-                if fg is not None]
+        return self._checks_masks(self._masks(images), kin)
 
     def _reasons(self, checks: list[SilhouetteCheck]) -> tuple[list[str], dict[str, bool]]:
         reasons: list[str] = []

@@ -1,0 +1,200 @@
+"""Silhouette finger search: bring back a digit that a local tracker has lost, by trying
+it at a few curls and keeping the one that explains the hand's silhouette best.
+
+A tracker that refines the previous estimate cannot find a finger that curled out of
+sight and opens again: while it was hidden its templates or edges saw nothing, and the
+estimate stayed curled. The silhouette does see it, as foreground the model does not
+cover (:mod:`digiteyes.trackers.silhouette_loss`). So, on a frame the silhouette rule
+calls lost, every digit is set to a few points of its path from fully extended to fully
+curled (the basis configurations of Huang Sec. 2, one digit at a time; abduction kept),
+the other digits held, and all candidates are scored by
+:meth:`~digiteyes.trackers.silhouette_loss.SilhouetteLoss.mismatches`. The single best
+move is kept when it lowers the mismatch by more than ``margin``, and the search is
+repeated from there (``rounds`` times at most). Taking the best move over all digits,
+not the first digit that improves, matters: neighbouring fingers overlap in the
+silhouette, and a wrong neighbour extended over an opening finger's pixels explains some
+of them too. This is the counterpart, scored by the
+silhouette instead of edges, of the divide-and-conquer tracker's digit search
+(:mod:`digiteyes.smc.digit_search`); it needs what the silhouette rule needs, a plain
+backdrop and a static camera, and does nothing otherwise.
+
+The silhouette cannot say where a hidden finger is: a digit the search has curled behind
+the palm fits it at any hidden curl. :class:`FingerRecovery` therefore keeps such a digit
+flagged, and the frame lost, until the silhouette sees it again.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from digiteyes.kinematics import KinematicModel
+from digiteyes.kinematics.anatomy import DIGITS, digit_joint_angles, joint_type_of
+from digiteyes.trackers.silhouette_loss import SilhouetteLoss, SilhouetteVerdict
+
+SEEN_END_SHARE = 0.05
+"""A digit placed by the search counts as seen again when its distal link and tip make up
+at least this share of its drawn pixels in some camera (a straight index seen from above
+its back: 0.12; curled under the palm: 0)."""
+
+
+@dataclass(frozen=True)
+class FingerSearchOptions:
+    """The silhouette finger search's settings, inherited by the options of the trackers
+    that use it.
+
+    finger_search : search the digits on frames the silhouette rule calls lost. Off by
+        default: the search finds states that explain the silhouette but are often still
+        wrong in depth (one view cannot tell a finger bent towards the camera from one
+        bent away), and then the silhouette rule, the loss flag's best witness, falls
+        silent while the track is truly lost (docs/templates.md measures both).
+    finger_search_levels : curls tried per digit, evenly from fully extended (0) to fully
+        curled (1).
+    finger_search_margin : a digit's new curl is kept only if it lowers the silhouette
+        mismatch (unexplained hand pixels per model pixel plus the fingers' mean share
+        over the backdrop, summed over the cameras) by more than this.
+    """
+
+    finger_search: bool = False
+    finger_search_levels: int = 5
+    finger_search_margin: float = 0.02
+
+    def __post_init__(self) -> None:
+        levels = self.finger_search_levels
+        if isinstance(levels, bool) or not isinstance(levels, int) or levels < 2:
+            raise ValueError(f"finger_search_levels must be an integer of at least 2, got "
+                             f"{levels!r}")
+        if not self.finger_search_margin >= 0:
+            raise ValueError(f"finger_search_margin must not be negative, got "
+                             f"{self.finger_search_margin!r}")
+
+
+def digit_curl_paths(model: KinematicModel) -> dict[str, tuple[np.ndarray, np.ndarray,
+                                                                  np.ndarray, np.ndarray]]:
+    """Per digit of ``model``: (state indices, extended angles, curled angles, flexion
+    mask) of its joints, rad; the mask is False for a finger's abduction."""
+    names = set(model.state_names)
+    paths = {}
+    for digit in DIGITS:
+        extended = digit_joint_angles(digit, extended=True)
+        curled = digit_joint_angles(digit, extended=False)
+        joints = [j for j in extended if j in names]
+        if joints:
+            paths[digit] = (np.array([model.state_index(j) for j in joints]),
+                            np.array([extended[j] for j in joints]),
+                            np.array([curled[j] for j in joints]),
+                            np.array([joint_type_of(j) != "abd" for j in joints]))
+    return paths
+
+
+def digit_candidates(model: KinematicModel, state: np.ndarray, levels: int,
+                     with_digits: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    """(C, n_q) states: ``state`` with one digit moved to one of ``levels`` points of its
+    path from fully extended to fully curled, once with its abduction kept and once with
+    the path's (a finger flipped onto its neighbour is off sideways too). With
+    ``with_digits``, also (C,) the position in :func:`digit_curl_paths` of the digit each
+    candidate moves."""
+    curls = np.linspace(0.0, 1.0, levels)[:, None]
+    blocks, owners = [], []
+    for d, (index, extended, curled, flexion) in enumerate(digit_curl_paths(model).values()):
+        path = np.clip(extended + curls * (curled - extended), model.lower[index],
+                       model.upper[index])
+        with_path = np.repeat(state[None], levels, axis=0)
+        with_path[:, index] = path
+        blocks.append(with_path)
+        if not flexion.all():
+            kept = with_path.copy()
+            kept[:, index[~flexion]] = state[index[~flexion]]
+            blocks.append(kept)
+        owners.append(np.full(levels if flexion.all() else 2 * levels, d))
+    candidates = np.concatenate(blocks)
+    return (candidates, np.concatenate(owners)) if with_digits else candidates
+
+
+def search_fingers(model: KinematicModel, rule: SilhouetteLoss, images: Sequence[np.ndarray],
+                   state: np.ndarray, levels: int = 5, margin: float = 0.02,
+                   rounds: int = 2) -> tuple[np.ndarray, tuple[str, ...]] | None:
+    """The silhouette finger search (module docstring) from ``state`` (n_q,) in ``images``
+    (one per camera, rig order): the better state and the digits moved, or None when no
+    digit moved (or the rule checks no camera)."""
+    current = rule.mismatches(images, [state], symmetric=True)
+    if current is None:
+        return None
+    best_state, best = np.array(state, dtype=float), current[0]
+    digits = list(digit_curl_paths(model))
+    moved: list[str] = []
+    for _ in range(rounds):
+        candidates, digit_of = digit_candidates(model, best_state, levels, with_digits=True)
+        scores = rule.mismatches(images, list(candidates), symmetric=True)
+        k = int(np.argmin(scores))
+        if not scores[k] < best - margin:
+            break
+        best_state, best = candidates[k], scores[k]
+        moved.append(digits[digit_of[k]])
+    return (best_state, tuple(dict.fromkeys(moved))) if moved else None
+
+
+class FingerRecovery:
+    """One track's finger search and the digits it has placed that the silhouette has not
+    seen since.
+
+    A digit the search has curled out of sight satisfies the silhouette at any hidden
+    curl, so a wrong one would no longer be flagged. Such a digit stays flagged (and the
+    frame lost) until it is seen again: the silhouette rule passes it, and in some
+    camera its end (distal link and tip) makes up at least :data:`SEEN_END_SHARE` of the
+    digit's drawn pixels (a digit of which only the base shows says nothing of where
+    its tip is).
+    """
+
+    def __init__(self, model: KinematicModel, rule: SilhouetteLoss,
+                 options: FingerSearchOptions) -> None:
+        self.model, self.rule, self.options = model, rule, options
+        self.unseen: list[str] = []
+        self._links = {d: np.array([i for i, link in enumerate(model.links)
+                                    if link.name.split(".")[0] == d and link.kind != "edge"])
+                       for d in DIGITS}
+        self._ends = {d: np.array([i for i, link in enumerate(model.links)
+                                   if link.name in (f"{d}.distal", f"{d}.tip")])
+                      for d in DIGITS}
+
+    def reset(self) -> None:
+        """Forget the placed digits (a new track)."""
+        self.unseen = []
+
+    def search(self, images: Sequence[np.ndarray], state: np.ndarray
+               ) -> tuple[np.ndarray, tuple[str, ...]] | None:
+        """:func:`search_fingers` with this track's settings."""
+        return search_fingers(self.model, self.rule, images, state,
+                              self.options.finger_search_levels,
+                              self.options.finger_search_margin)
+
+    def placed(self, digits: Sequence[str]) -> None:
+        """Record ``digits`` as placed by the search (in the frame being judged)."""
+        self.unseen = list(dict.fromkeys([*self.unseen, *digits]))
+
+    def judge(self, verdict: SilhouetteVerdict) -> SilhouetteVerdict:
+        """``verdict`` with every placed digit the verdict does not see and pass flagged,
+        and a reason naming them; placed digits it sees and passes are let go."""
+        self.unseen = [d for d in self.unseen
+                       if verdict.finger_lost.get(d, True) or not self._end_seen(d, verdict)]
+        if not self.unseen:
+            return verdict
+        fingers = {**verdict.finger_lost, **dict.fromkeys(self.unseen, True)}
+        reason = (f"placed by the finger search and not seen since: "
+                  f"{', '.join(self.unseen)}")
+        return replace(verdict, reasons=[*verdict.reasons, reason], finger_lost=fingers)
+
+    def _end_seen(self, digit: str, verdict: SilhouetteVerdict) -> bool:
+        """Whether the end of ``digit`` shows in some camera of ``verdict``."""
+        links, ends = self._links.get(digit), self._ends.get(digit)
+        if links is None or ends is None or not len(ends):
+            return True
+        for check in verdict.checks:
+            if check.link_pixels is None:
+                continue
+            total = float(check.link_pixels[links].sum())
+            if total > 0 and check.link_pixels[ends].sum() >= SEEN_END_SHARE * total:
+                return True
+        return False
