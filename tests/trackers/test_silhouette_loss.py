@@ -145,3 +145,20 @@ def test_mismatch_ranks_states_by_how_they_explain_the_silhouette(desk):
     rule.check([image], q, q)
     assert rule.mismatch([image], q) < rule.mismatch([image], curled) - 0.05
     assert rule.mismatch([image_curled], curled) < rule.mismatch([image_curled], q) - 0.05
+
+
+def test_hidden_fingers_are_flagged_only_when_asked(desk):
+    """``flag_hidden_fingers``: the estimate curls the index out of sight with the hand
+    (the silhouette agrees), and the option flags it as unverified; a finger that showed
+    at the start and still shows is not flagged, and without the option nothing is."""
+    model, rig, q, curled, image, image_curled = desk
+    plain, strict = SilhouetteLoss(model, rig), SilhouetteLoss(model, rig,
+                                                                flag_hidden_fingers=True)
+    for rule in (plain, strict):
+        assert not rule.check([image], q, q).reasons
+    assert not plain.check([image_curled], curled, q).reasons
+    verdict = strict.check([image_curled], curled, q)
+    assert verdict.reasons == ["hidden, so unverified: index"]
+    assert verdict.finger_lost["index"]
+    assert not any(v for k, v in verdict.finger_lost.items() if k != "index")
+    assert strict.end_shown("index", strict.check([image], q, q).checks)

@@ -34,11 +34,6 @@ from digiteyes.kinematics import KinematicModel
 from digiteyes.kinematics.anatomy import DIGITS, digit_joint_angles, joint_type_of
 from digiteyes.trackers.silhouette_loss import SilhouetteLoss, SilhouetteVerdict
 
-SEEN_END_SHARE = 0.05
-"""A digit placed by the search counts as seen again when its distal link and tip make up
-at least this share of its drawn pixels in some camera (a straight index seen from above
-its back: 0.12; curled under the palm: 0)."""
-
 
 @dataclass(frozen=True)
 class FingerSearchOptions:
@@ -142,22 +137,15 @@ class FingerRecovery:
 
     A digit the search has curled out of sight satisfies the silhouette at any hidden
     curl, so a wrong one would no longer be flagged. Such a digit stays flagged (and the
-    frame lost) until it is seen again: the silhouette rule passes it, and in some
-    camera its end (distal link and tip) makes up at least :data:`SEEN_END_SHARE` of the
-    digit's drawn pixels (a digit of which only the base shows says nothing of where
-    its tip is).
+    frame lost) until it is seen again: the silhouette rule passes it and its end shows
+    in some camera (:meth:`~digiteyes.trackers.silhouette_loss.SilhouetteLoss.end_shown`;
+    a digit of which only the base shows says nothing of where its tip is).
     """
 
     def __init__(self, model: KinematicModel, rule: SilhouetteLoss,
                  options: FingerSearchOptions) -> None:
         self.model, self.rule, self.options = model, rule, options
         self.unseen: list[str] = []
-        self._links = {d: np.array([i for i, link in enumerate(model.links)
-                                    if link.name.split(".")[0] == d and link.kind != "edge"])
-                       for d in DIGITS}
-        self._ends = {d: np.array([i for i, link in enumerate(model.links)
-                                   if link.name in (f"{d}.distal", f"{d}.tip")])
-                      for d in DIGITS}
 
     def reset(self) -> None:
         """Forget the placed digits (a new track)."""
@@ -178,23 +166,11 @@ class FingerRecovery:
         """``verdict`` with every placed digit the verdict does not see and pass flagged,
         and a reason naming them; placed digits it sees and passes are let go."""
         self.unseen = [d for d in self.unseen
-                       if verdict.finger_lost.get(d, True) or not self._end_seen(d, verdict)]
+                       if verdict.finger_lost.get(d, True)
+                       or not self.rule.end_shown(d, verdict.checks)]
         if not self.unseen:
             return verdict
         fingers = {**verdict.finger_lost, **dict.fromkeys(self.unseen, True)}
         reason = (f"placed by the finger search and not seen since: "
                   f"{', '.join(self.unseen)}")
         return replace(verdict, reasons=[*verdict.reasons, reason], finger_lost=fingers)
-
-    def _end_seen(self, digit: str, verdict: SilhouetteVerdict) -> bool:
-        """Whether the end of ``digit`` shows in some camera of ``verdict``."""
-        links, ends = self._links.get(digit), self._ends.get(digit)
-        if links is None or ends is None or not len(ends):
-            return True
-        for check in verdict.checks:
-            if check.link_pixels is None:
-                continue
-            total = float(check.link_pixels[links].sum())
-            if total > 0 and check.link_pixels[ends].sum() >= SEEN_END_SHARE * total:
-                return True
-        return False

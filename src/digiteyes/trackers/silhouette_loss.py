@@ -41,6 +41,7 @@ from digiteyes.features.foreground import (
 )
 from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import KinematicModel, Kinematics, forward_kinematics
+from digiteyes.kinematics.anatomy import DIGITS
 
 TOLERANCE_PX = 5
 """Default distance (px) within which the two silhouettes may differ."""
@@ -48,6 +49,10 @@ MAX_UNEXPLAINED = 0.08
 """Default excess of unexplained hand pixels per model pixel over the first frame."""
 MAX_FINGER_OUTSIDE = 0.35
 """Default excess of a finger's model pixels over the backdrop over the first frame."""
+SEEN_END_SHARE = 0.02
+"""A digit's end (distal link and tip) is shown in a camera when it makes up at least this
+share of the digit's drawn pixels there (a straight index seen from above its back: 0.12;
+curled under the palm: 0)."""
 
 
 @dataclass(frozen=True)
@@ -59,12 +64,16 @@ class SilhouetteLossOptions:
     silhouette_tolerance_px : silhouette differences within this distance are ignored, px.
     max_unexplained, max_finger_outside : the thresholds (fractions, excess over the first
         frame).
+    flag_hidden_fingers : also flag a digit whose end the estimate hides in every checked
+        camera while it showed at the start state (where a hidden finger lies, no
+        silhouette can say).
     """
 
     silhouette_check: bool = True
     silhouette_tolerance_px: int = TOLERANCE_PX
     max_unexplained: float = MAX_UNEXPLAINED
     max_finger_outside: float = MAX_FINGER_OUTSIDE
+    flag_hidden_fingers: bool = False
 
 
 @dataclass(frozen=True)
@@ -94,7 +103,8 @@ class SilhouetteLoss:
 
     def __init__(self, model: KinematicModel, rig: Rig, tolerance_px: int = TOLERANCE_PX,
                  max_unexplained: float = MAX_UNEXPLAINED,
-                 max_finger_outside: float = MAX_FINGER_OUTSIDE) -> None:
+                 max_finger_outside: float = MAX_FINGER_OUTSIDE,
+                 flag_hidden_fingers: bool = False) -> None:
         if isinstance(tolerance_px, bool) or not isinstance(tolerance_px, int | np.integer) \
                 or tolerance_px < 0:
             raise DigitEyesError(f"silhouette_tolerance_px must be an integer >= 0, got "
@@ -107,6 +117,14 @@ class SilhouetteLoss:
         self.tolerance_px = tolerance_px
         self.max_unexplained = max_unexplained
         self.max_finger_outside = max_finger_outside
+        self.flag_hidden_fingers = flag_hidden_fingers
+        self._digit_links = {d: np.array([i for i, link in enumerate(model.links)
+                                          if link.name.split(".")[0] == d
+                                          and link.kind != "edge"], dtype=int)
+                             for d in DIGITS}
+        self._digit_ends = {d: np.array([i for i, link in enumerate(model.links)
+                                         if link.name in (f"{d}.distal", f"{d}.tip")], dtype=int)
+                            for d in DIGITS}
         self.reset()
 
     @classmethod
@@ -114,13 +132,14 @@ class SilhouetteLoss:
                      options: SilhouetteLossOptions) -> SilhouetteLoss:
         """The rule with the settings of a tracker's options."""
         return cls(model, rig, options.silhouette_tolerance_px, options.max_unexplained,
-                   options.max_finger_outside)
+                   options.max_finger_outside, options.flag_hidden_fingers)
 
     def reset(self) -> None:
         """Forget the foreground and the baseline: the next :meth:`check` fits them."""
         self.foreground: list[Foreground | None] | None = None
         self._unexplained_baseline: list[float] | None = None
         self._outside_baseline: list[dict[str, float]] = []
+        self._shown_baseline: set[str] = set()
 
     def check(self, images: Sequence[np.ndarray], state: np.ndarray,
               reference: np.ndarray) -> SilhouetteVerdict:
@@ -137,6 +156,7 @@ class SilhouetteLoss:
             baseline = self._checks(images, forward_kinematics(self.model, reference))
             self._unexplained_baseline = [c.unexplained for c in baseline]
             self._outside_baseline = [dict(c.finger_outside) for c in baseline]
+            self._shown_baseline = {d for d in DIGITS if self.end_shown(d, baseline)}
         checks = self._checks(images, forward_kinematics(self.model, state))
         reasons, fingers = self._reasons(checks)
         return SilhouetteVerdict(reasons, fingers, checks)
@@ -198,4 +218,26 @@ class SilhouetteLoss:
         off = [finger for finger, lost in fingers.items() if lost]
         if off:
             reasons.append(f"off the hand's silhouette: {', '.join(off)}")
+        if self.flag_hidden_fingers and checks:
+            hidden = [d for d in DIGITS
+                      if d in self._shown_baseline and not self.end_shown(d, checks)]
+            for digit in hidden:
+                fingers[digit] = True
+            if hidden:
+                reasons.append(f"hidden, so unverified: {', '.join(hidden)}")
         return reasons, fingers
+
+    def end_shown(self, digit: str, checks: Sequence[SilhouetteCheck]) -> bool:
+        """Whether the end of ``digit`` (distal link and tip) shows in some camera of
+        ``checks``: at least :data:`SEEN_END_SHARE` of the digit's drawn pixels there. A
+        digit the model lacks counts as shown."""
+        links, ends = self._digit_links.get(digit), self._digit_ends.get(digit)
+        if links is None or ends is None or not len(ends):
+            return True
+        for check in checks:
+            if check.link_pixels is None:
+                continue
+            total = float(check.link_pixels[links].sum())
+            if total > 0 and check.link_pixels[ends].sum() >= SEEN_END_SHARE * total:
+                return True
+        return False
