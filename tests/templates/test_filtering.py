@@ -87,3 +87,18 @@ def test_normalised_response_has_the_stated_local_rms_and_flat_stays_flat():
 def test_bad_contrast_options_are_refused(field, value, match):
     with pytest.raises(TemplateError, match=match):
         LogFilter(size=7, **{field: value})
+
+
+def test_a_region_is_filtered_as_the_whole_image_would_be_and_the_rest_is_zero():
+    rng = np.random.default_rng(1)
+    image = _blob_image(150.0) + rng.normal(0.0, 0.2, (61, 61)).astype(np.float32)
+    for log in (LogFilter(size=7), LogFilter(size=7, contrast_px=2.0)):
+        whole = log.apply(image)
+        part = log.apply(image, region=(15, 20, 45, 41))
+        np.testing.assert_allclose(part[20:41, 15:45], whole[20:41, 15:45], atol=1e-4)
+        assert not part[:20].any() and not part[41:].any()
+        assert not part[:, :15].any() and not part[:, 45:].any()
+        # a region reaching over the border is clipped to the image
+        np.testing.assert_allclose(log.apply(image, region=(-10, -10, 100, 100)), whole,
+                                   atol=1e-4)
+    assert not LogFilter(size=7).apply(image, region=(30, 30, 30, 40)).any()

@@ -171,3 +171,20 @@ def test_background_template_joins_the_error(sequence, background, monkeypatch):
         LayeredTemplateOptions(background="sky")
     with pytest.raises(TemplateError, match="background_weight"):
         LayeredTemplateOptions(background="grey", background_weight=0.0)
+
+
+def test_filtering_the_hand_region_only_gives_the_same_track(sequence):
+    """After the first frame only the box around the hand's windows (plus
+    ``filter_pad_px``) is filtered: the states are those of filtering whole images."""
+    from digiteyes.templates.layered import TemplateOptions
+
+    scenario, frames = sequence
+    states = {}
+    for pad in (40.0, None):
+        tracker = LayeredTemplateTracker(scenario.model, scenario.rig, LayeredTemplateOptions(
+            templates=TemplateOptions(filter_pad_px=pad)))
+        tracker.reset(scenario.initial_state)
+        states[pad] = np.array([tracker.step(f).state for f in frames[:8]])
+    np.testing.assert_allclose(states[40.0], states[None], atol=1e-9)
+    with pytest.raises(TemplateError, match="filter_pad_px"):
+        TemplateOptions(filter_pad_px=-1.0)

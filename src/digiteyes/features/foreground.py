@@ -138,8 +138,15 @@ def silhouette_check(model: KinematicModel, kin: Kinematics, camera: Camera,
     """Compare the model drawn at the pose ``kin`` (one state) in ``camera`` with the
     ``foreground`` mask (H, W) bool of the same camera's image (module docstring)."""
     labels = model_labels(model, kin, camera)
-    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * tolerance_px + 1,) * 2)
+    # everything below happens inside the box of both silhouettes grown by the
+    # structuring elements' reach; outside it both are empty, so the counts are the same
     fg = foreground.astype(np.uint8)
+    u, v, w, h = cv2.boundingRect(fg | (labels >= 0).astype(np.uint8))
+    pad = tolerance_px + 3
+    rows = slice(max(v - pad, 0), v + h + pad)
+    cols = slice(max(u - pad, 0), u + w + pad)
+    labels, fg = labels[rows, cols], fg[rows, cols]
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * tolerance_px + 1,) * 2)
     grown_fg = cv2.dilate(fg, kernel).astype(bool)
     grown_model = cv2.dilate((labels >= 0).astype(np.uint8), kernel)
     n_links = len(model.links)

@@ -101,13 +101,38 @@ class LogFilter:
         lap -= lap.mean()
         return np.float32(-sigma * sigma * self.gain) * lap.astype(np.float32)
 
-    def apply(self, image: np.ndarray) -> np.ndarray:
+    def apply(self, image: np.ndarray, region: tuple[int, int, int, int] | None = None
+              ) -> np.ndarray:
         """Filtered float32 (H, W) image of a grey or RGB ``image`` (contrast-normalised
-        when ``contrast_px > 0``)."""
+        when ``contrast_px > 0``).
+
+        ``region`` ``(u0, v0, u1, v1)`` (px, end exclusive) filters only that box and
+        leaves the rest of the output 0: the box is cut with the filters' reach around it
+        (the LoG's half size, four widths of the normalisation window: OpenCV's
+        Gaussian reach), so inside it the
+        result is what the whole image would give, except the noise level of the
+        normalisation floor, which is then estimated from the box.
+        """
         grey = prepare_image(image)
-        grey = grey.astype(np.float32) if grey.dtype != np.float32 else grey
         if self.size == 0:
-            return np.ascontiguousarray(grey)
+            return np.ascontiguousarray(grey, dtype=np.float32)
+        if region is None:
+            return self._filter(grey.astype(np.float32, copy=False))
+        h, w = grey.shape
+        reach = self.size // 2 + int(np.ceil(4.0 * self.contrast_px))
+        u0, v0, u1, v1 = (max(0, int(region[0])), max(0, int(region[1])),
+                          min(w, int(region[2])), min(h, int(region[3])))
+        out = np.zeros((h, w), np.float32)
+        if u1 <= u0 or v1 <= v0:
+            return out
+        cu0, cv0, cu1, cv1 = max(0, u0 - reach), max(0, v0 - reach), min(w, u1 + reach), \
+            min(h, v1 + reach)
+        crop = self._filter(np.ascontiguousarray(grey[cv0:cv1, cu0:cu1], dtype=np.float32))
+        out[v0:v1, u0:u1] = crop[v0 - cv0:v1 - cv0, u0 - cu0:u1 - cu0]
+        return out
+
+    def _filter(self, grey: np.ndarray) -> np.ndarray:
+        """The filter of a float32 grey image (module docstring)."""
         response = cv2.filter2D(grey, cv2.CV_32F, self.kernel,
                                 borderType=cv2.BORDER_REPLICATE)
         if self.contrast_px == 0:

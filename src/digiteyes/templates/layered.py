@@ -80,6 +80,9 @@ class TemplateOptions:
     refresh_min_visibility : a pixel is well seen when its ``V`` is at least this.
     occlusion_margin_px : occluding outlines are grown by this much (px) in the layered
         error (about the LoG's reach), and parts this close count as overlapping.
+    filter_pad_px : after the first frame, images are filtered only within this many px
+        of the box around the hand's windows at the predicted state (the template pixels
+        a frame's iterations can reach); None filters whole images.
     """
 
     log: LogFilter = field(default_factory=lambda: LogFilter(size=7, contrast_px=2.0))
@@ -91,6 +94,7 @@ class TemplateOptions:
     refresh_max_rms: float = 12.0
     refresh_min_visibility: float = 0.99
     occlusion_margin_px: float = 3.0
+    filter_pad_px: float | None = 40.0
 
     def __post_init__(self) -> None:
         if self.window not in WINDOWS:
@@ -99,6 +103,9 @@ class TemplateOptions:
             raise TemplateError(f"spacing_px must be positive, got {self.spacing_px!r}")
         if not self.window_px > 0:
             raise TemplateError(f"window_px must be positive, got {self.window_px!r}")
+        if self.filter_pad_px is not None and not self.filter_pad_px >= 0:
+            raise TemplateError(f"filter_pad_px must be None or not negative, got "
+                                f"{self.filter_pad_px!r}")
         for name in ("refresh_rate", "reference_pull", "refresh_min_visibility"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise TemplateError(f"{name} must be in [0, 1], got {getattr(self, name)!r}")

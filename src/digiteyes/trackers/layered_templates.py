@@ -308,13 +308,15 @@ class LayeredTemplateTracker:
         predicted = self.predictor.predict()
         timings["prediction"] = time.perf_counter() - tic
         tic = time.perf_counter()
-        images = [self.options.templates.log.apply(f) for f in frames]
+        topts = self.options.templates
         greys = [prepare_image(f) for f in frames] if (
             self.options.edge_features or self.options.background == "grey") else []
+        images = None
+        if not self.templates:
+            images = [topts.log.apply(f) for f in frames]
         timings["filtering"] = time.perf_counter() - tic
         if not self.templates:
             kin = forward_kinematics(self.model, predicted)
-            topts = self.options.templates
             self.templates = [acquire_templates(self.parts, image, cam, kin, topts.spacing_px,
                                                 topts.occlusion_margin_px)
                               for image, cam in zip(images, self.rig, strict=True)]
@@ -326,6 +328,11 @@ class LayeredTemplateTracker:
                     for image, cam, t in zip(self._background_images(images, greys),
                                              self.rig, self.templates, strict=True)]
         setup = self._frame_setup(predicted, timings)
+        if images is None:
+            tic = time.perf_counter()
+            images = [topts.log.apply(f, self._filter_region(windows))
+                      for f, windows in zip(frames, setup["windows"], strict=True)]
+            timings["filtering"] += time.perf_counter() - tic
         q, summary = self._solve(predicted, images, greys, setup, timings)
         final = [self._evaluate(q, images, setup, c, timings) for c in range(len(self.rig))]
         verdict = None
@@ -337,7 +344,7 @@ class LayeredTemplateTracker:
             timings["silhouette"] = time.perf_counter() - tic
             if verdict.reasons and self.options.finger_search:
                 tic = time.perf_counter()
-                found = self._search_fingers(q, images, greys, predicted, timings)
+                found = self._search_fingers(q, frames, greys, predicted, timings)
                 if found is not None:
                     q, summary, final, setup, verdict, moved = found
                     self.finger_recovery.placed(moved)
@@ -352,15 +359,18 @@ class LayeredTemplateTracker:
         timings["total"] = time.perf_counter() - start_total
         return self.loss_hold.apply(result)
 
-    def _search_fingers(self, q: np.ndarray, images: list[np.ndarray], greys: list[np.ndarray],
-                        predicted: np.ndarray, timings: dict[str, float]) -> tuple | None:
+    def _search_fingers(self, q: np.ndarray, frames: Sequence[np.ndarray],
+                        greys: list[np.ndarray], predicted: np.ndarray,
+                        timings: dict[str, float]) -> tuple | None:
         """The silhouette finger search from ``q`` and a solve from its result; (state,
         summary, evaluations, setup, verdict, digits moved) of that solve if it explains
-        the silhouette better than ``q``, else None."""
+        the silhouette better than ``q``, else None. The solve filters whole images: a
+        moved finger may lie beyond the region filtered for the prediction."""
         searched = self.finger_recovery.search(greys, q)
         if searched is None:
             return None
         start, moved = searched
+        images = [self.options.templates.log.apply(f) for f in frames]
         setup = self._frame_setup(start, timings)
         found, summary = self._solve(start, images, greys, setup, timings)
         before, after = self.silhouette_loss.mismatches(greys, [q, found], symmetric=True)
@@ -378,9 +388,10 @@ class LayeredTemplateTracker:
         points = [t.shape_points(p) for t, p in zip(self.templates, planes, strict=True)]
         timings["template_rendering"] += time.perf_counter() - tic
         tic = time.perf_counter()
-        orders, events, regions = [], [], []
+        orders, events, regions, all_windows = [], [], [], []
         for c, cam in enumerate(self.rig):
             windows = image_windows(self.parts, planes[c], kin, cam)
+            all_windows.append(windows)
             if self.backgrounds:
                 regions.append(window_region(windows, self.backgrounds[c].values.shape,
                                              self.options.background_pad_px))
@@ -391,7 +402,20 @@ class LayeredTemplateTracker:
         self._orders = list(orders)
         timings["visibility"] += time.perf_counter() - tic
         return {"planes": planes, "points": points, "orders": orders, "events": events,
-                "regions": regions}
+                "regions": regions, "windows": all_windows}
+
+    def _filter_region(self, windows) -> tuple[int, int, int, int] | None:
+        """The image box to filter (``filter_pad_px`` around the windows' box), or None
+        for the whole image (no pad set, or the filtered background needs it all)."""
+        pad = self.options.templates.filter_pad_px
+        if pad is None or self.options.background == "filtered" or not len(windows.kind):
+            return None
+        box = windows.bounds()
+        low, high = box[:, :2].min(axis=0) - pad, box[:, 2:].max(axis=0) + pad
+        if not (np.isfinite(low).all() and np.isfinite(high).all()):
+            return None
+        return (int(np.floor(low[0])), int(np.floor(low[1])), int(np.ceil(high[0])) + 1,
+                int(np.ceil(high[1])) + 1)
 
     def _evaluate(self, q: np.ndarray, images: list[np.ndarray], setup: dict, c: int,
                   timings: dict[str, float], kin=None) -> LayeredEvaluation:
