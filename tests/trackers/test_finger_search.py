@@ -6,31 +6,12 @@ calls lost."""
 import numpy as np
 import pytest
 
-from digiteyes.camera import Rig
 from digiteyes.kinematics import forward_kinematics
 from digiteyes.kinematics.anatomy import DIGITS
 from digiteyes.synth import RenderOptions, render_views
-from digiteyes.synth.scenarios import build_scenario
 from digiteyes.trackers import TrackerError, create_tracker
 from digiteyes.trackers.finger_search import digit_candidates, search_fingers
 from digiteyes.trackers.silhouette_loss import SilhouetteLoss
-
-INDEX = ("index.mcp", "index.pip", "index.dip")
-
-
-@pytest.fixture(scope="module")
-def desk():
-    """The desk view, one camera: the hand with its index straight and with it curled."""
-    scenario = build_scenario("desk-1cam", seed=0, n_frames=2)
-    model, rig = scenario.model, Rig(scenario.rig.cameras[:1])
-    q = np.array(scenario.states[0])
-    curled = q.copy()
-    for name, angle in zip(INDEX, (80.0, 95.0, 60.0), strict=True):
-        curled[model.state_index(name)] = np.radians(angle)
-    options = RenderOptions(appearance="flesh", noise_sigma=2.0)
-    image = render_views(model, q, rig, options, rng=0)[0].image
-    image_curled = render_views(model, curled, rig, options, rng=1)[0].image
-    return model, rig, q, curled, image, image_curled
 
 
 def _index_tip_error(model, a, b) -> float:

@@ -5,28 +5,11 @@ feature tracker and in every other registered tracker."""
 import numpy as np
 import pytest
 
-from digiteyes.camera import Rig
 from digiteyes.errors import DigitEyesError
 from digiteyes.features.foreground import fit_foreground, model_labels, silhouette_check
 from digiteyes.kinematics import forward_kinematics
-from digiteyes.synth import RenderOptions, render_views
-from digiteyes.synth.scenarios import build_scenario
 from digiteyes.trackers import FeatureTracker, FeatureTrackerOptions, create_tracker
 from digiteyes.trackers.silhouette_loss import SilhouetteLoss
-
-
-@pytest.fixture(scope="module")
-def desk():
-    scenario = build_scenario("desk-1cam", seed=0, n_frames=2)
-    model, rig = scenario.model, Rig(scenario.rig.cameras[:1])
-    q = np.array(scenario.states[0])
-    curled = q.copy()
-    for joint, angle in (("mcp", 80.0), ("pip", 95.0), ("dip", 60.0)):
-        curled[model.state_index(f"index.{joint}")] = np.radians(angle)
-    options = RenderOptions(appearance="flesh", noise_sigma=2.0)
-    image = render_views(model, q, rig, options, rng=0)[0].image
-    image_curled = render_views(model, curled, rig, options, rng=1)[0].image
-    return model, rig, q, curled, image, image_curled
 
 
 def test_check_separates_a_wrong_finger(desk):
