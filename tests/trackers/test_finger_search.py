@@ -1,7 +1,7 @@
 """The silhouette finger search: candidates move one digit along its curl; the search
 brings back a finger the estimate has wrong (on images of the independent flesh hand) and
-leaves a right state alone; the template trackers use it on frames the silhouette rule
-calls lost."""
+leaves a right state alone; the trackers use it, when asked, on frames the silhouette
+rule calls lost."""
 
 import numpy as np
 import pytest
@@ -66,11 +66,12 @@ def test_symmetric_mismatch_counts_a_hidden_finger(desk):
     assert hidden > right + 0.05
 
 
-@pytest.mark.parametrize("tracker", ["templates", "templates+features"])
-def test_template_trackers_search_the_fingers_on_a_lost_frame(desk, tracker):
+@pytest.mark.parametrize("tracker", ["templates", "templates+features", "features"])
+def test_trackers_search_the_fingers_on_a_lost_frame(desk, tracker):
     """The hand opens its curled index and middle fingers in one frame, far beyond any
-    local step: the template trackers follow it with the finger search (and the frame is
-    not lost), and lose both fingers without it."""
+    local step: the template trackers follow it with the finger search (and the frame
+    is not lost), the feature tracker halves the error (the index, 60 mm off, stays
+    flagged), and all lose both fingers without it."""
     model, rig, q, _, image, _ = desk
     curled = q.copy()
     for finger in ("index", "middle"):
@@ -89,11 +90,17 @@ def test_template_trackers_search_the_fingers_on_a_lost_frame(desk, tracker):
         assert not first.lost and not first.details.searched
         second = runner.step([image])
         assert second.details.searched is search
-        assert second.lost is not search, second.loss_reason
+        if tracker.startswith("templates"):
+            assert second.lost is not search, second.loss_reason
+        else:
+            assert second.lost
         tips = forward_kinematics(model, second.state).T_world_shape[0, rows, :3, 3]
         errors[search] = np.linalg.norm(tips - truth, axis=1)
-    assert errors[True].max() < 25.0, errors
     assert errors[False].min() > 60.0, errors
+    if tracker.startswith("templates"):
+        assert errors[True].max() < 25.0, errors
+    else:  # the feature tracker's edges pull the index part of the way back: still lost
+        assert errors[True].max() < 0.5 * errors[False].min(), errors
 
 
 def test_a_placed_finger_stays_flagged_until_the_silhouette_sees_it(desk):

@@ -51,7 +51,7 @@ from digiteyes.occlusion.visibility import (
     occlusion_events,
     predict_visibility,
 )
-from digiteyes.occlusion.windows import image_windows
+from digiteyes.occlusion.windows import ImageWindows, image_windows
 from digiteyes.solvers import SolverSummary, hand_conditioning, solve_normal_equations
 from digiteyes.templates.background import (
     BackgroundTemplate,
@@ -404,7 +404,7 @@ class LayeredTemplateTracker:
         return {"planes": planes, "points": points, "orders": orders, "events": events,
                 "regions": regions, "windows": all_windows}
 
-    def _filter_region(self, windows) -> tuple[int, int, int, int] | None:
+    def _filter_region(self, windows: ImageWindows) -> tuple[int, int, int, int] | None:
         """The image box to filter (``filter_pad_px`` around the windows' box), or None
         for the whole image (no pad set, or the filtered background needs it all)."""
         pad = self.options.templates.filter_pad_px
