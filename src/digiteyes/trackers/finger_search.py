@@ -6,9 +6,11 @@ sight and opens again: while it was hidden its templates or edges saw nothing, a
 estimate stayed curled. The silhouette does see it, as foreground the model does not
 cover (:mod:`digiteyes.trackers.silhouette_loss`). So, on a frame the silhouette rule
 calls lost, every digit is set to a few points of its path from fully extended to fully
-curled (the basis configurations of Huang Sec. 2, one digit at a time; abduction kept),
-the other digits held, and all candidates are scored by
-:meth:`~digiteyes.trackers.silhouette_loss.SilhouetteLoss.mismatches`. The single best
+curled (the basis configurations of Huang Sec. 2, one digit at a time; a finger's
+abduction once kept and once from the path), the other digits held, and all candidates
+are scored by the symmetric difference of the two silhouettes
+(:meth:`~digiteyes.trackers.silhouette_loss.SilhouetteLoss.mismatches`, ``symmetric``;
+a finger hidden behind the palm does not drop out of it). The single best
 move is kept when it lowers the mismatch by more than ``margin``, and the search is
 repeated from there (``rounds`` times at most). Taking the best move over all digits,
 not the first digit that improves, matters: neighbouring fingers overlap in the
@@ -20,7 +22,8 @@ backdrop and a static camera, and does nothing otherwise.
 
 The silhouette cannot say where a hidden finger is: a digit the search has curled behind
 the palm fits it at any hidden curl. :class:`FingerRecovery` therefore keeps such a digit
-flagged, and the frame lost, until the silhouette sees it again.
+flagged, and the frame lost, until the silhouette rule passes it and its end shows
+again.
 """
 
 from __future__ import annotations
@@ -47,9 +50,9 @@ class FingerSearchOptions:
         silent while the track is truly lost (docs/templates.md measures both).
     finger_search_levels : curls tried per digit, evenly from fully extended (0) to fully
         curled (1).
-    finger_search_margin : a digit's new curl is kept only if it lowers the silhouette
-        mismatch (unexplained hand pixels per model pixel plus the fingers' mean share
-        over the backdrop, summed over the cameras) by more than this.
+    finger_search_margin : a digit's new curl is kept only if it lowers the symmetric
+        silhouette difference (hand pixels the model leaves unexplained plus model pixels
+        over the backdrop, per model pixel, summed over the cameras) by more than this.
     """
 
     finger_search: bool = False

@@ -17,6 +17,10 @@ estimate is drawn in each checked camera and compared with the foreground
   its value at the start state by more than ``max_finger_outside`` (a finger drawn over the
   backdrop); that finger is flagged in the per-finger flags.
 
+With ``flag_hidden_fingers`` (off by default) a digit whose end (distal link and tip) the
+estimate hides in every checked camera, though it showed at the start state, is flagged
+too: no silhouette says where a hidden finger lies (:meth:`SilhouetteLoss.end_shown`).
+
 Measured against the first frame, so that systematic differences of hand and model (a
 fleshier palm, tapered fingers, a 10 % size difference) do not count. The thresholds were
 chosen with the feature tracker on the flesh appearance, desk setup, two cameras, exact
