@@ -18,3 +18,7 @@ def test_a_short_two_finger_run_in_each_appearance(appearance):
     assert np.isfinite(row["mean_tip_error_mm"])
     assert row["mean_tip_error_mm"] < 10.0  # the first frames, before the occlusion
     assert row["middle_max_deviation_rad"] < 0.2
+    # the worst frame is over frames (the mean over the tips of each), not over tips
+    assert len(row["tip_error_per_frame_mm"]) == 6
+    assert row["max_frame_tip_error_mm"] == pytest.approx(max(row["tip_error_per_frame_mm"]),
+                                                          abs=0.01)

@@ -26,7 +26,7 @@ OpenCV and numba are held to one thread. ``digiteyes bench templates [--json FIL
 from __future__ import annotations
 
 import time
-from dataclasses import fields
+from dataclasses import asdict, fields
 
 import numpy as np
 
@@ -79,13 +79,15 @@ def track_scenario(name: str, n_cameras: int, n_frames: int | None,
     tips = [link.row for link in model.links if link.kind == "tip"]
     kt = forward_kinematics(model, truth).T_world_shape[:, tips][..., :3, 3]
     ke = forward_kinematics(model, est).T_world_shape[:, tips][..., :3, 3]
-    tip_error = np.linalg.norm(kt - ke, axis=2)
+    tip_error = np.linalg.norm(kt - ke, axis=2)  # (frames, tips)
+    per_frame = tip_error.mean(axis=1)
     out = {"scenario": name, "tracker": tracker, "appearance": appearance,
            "cameras": n_cameras,
            "frames": len(truth),
            "iterations_per_frame": options.iterations_per_frame,
            "mean_tip_error_mm": float(tip_error.mean()),
-           "max_frame_tip_error_mm": float(tip_error.mean(axis=1).max()),
+           "max_frame_tip_error_mm": float(per_frame.max()),
+           "tip_error_per_frame_mm": [round(float(e), 2) for e in per_frame],
            "lost_frames": int(lost),
            "frames_per_second": (len(truth) - 1) / seconds if seconds else None,
            "ms_per_iteration": {s: 1e3 * v / max(iterations, 1)
@@ -140,7 +142,12 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
                     for a in APPEARANCES]
         visibility = [visibility_agreement(n, 5 if quick else 30)
                       for n in ("two-finger-occlusion", "natural")]
-    result = {"tracking": tracking, "visibility": visibility,
+    topts = options.templates
+    settings = {"iterations_per_frame": options.iterations_per_frame,
+                "template_weight": options.template_weight, "log": asdict(topts.log),
+                "window": topts.window, "refresh_rate": topts.refresh_rate,
+                "filter_pad_px": topts.filter_pad_px, "finger_search": options.finger_search}
+    result = {"tracking": tracking, "visibility": visibility, "settings": settings,
               "machine": machine_info(), "quick": quick}
     lines = [*machine_lines(result["machine"]), "",
              "scenario              tracker            appearance cams frames  tip mm  max mm"
