@@ -23,13 +23,14 @@ def _index_tip_error(model, a, b) -> float:
 
 def test_candidates_move_one_digit_along_its_curl(desk):
     model, _, q, *_ = desk
-    candidates = digit_candidates(model, q, levels=5)
+    candidates, owners = digit_candidates(model, q, levels=5)
     # four fingers with abduction kept and from the path, the thumb once: 9 blocks of 5
-    assert candidates.shape == (45, model.n_q)
+    assert candidates.shape == (45, model.n_q) and owners.shape == (45,)
     digit_of = np.array([name.split(".")[0] for name in model.state_names])
-    for candidate in candidates:
+    for candidate, owner in zip(candidates, owners, strict=True):
         moved = set(digit_of[~np.isclose(candidate, q)])
         assert len(moved) <= 1 and moved <= set(DIGITS)
+        assert moved <= {DIGITS[owner]}
     assert np.all(candidates >= model.lower - 1e-12) and np.all(candidates <= model.upper + 1e-12)
     pip = model.state_index("index.pip")
     assert {round(float(np.degrees(v))) for v in candidates[:, pip]} >= {0, 95}

@@ -123,7 +123,8 @@ class SilhouetteCheck:
     link_pixels: np.ndarray | None = None
 
 
-def _digit_links(model: KinematicModel) -> dict[str, np.ndarray]:
+def digit_links(model: KinematicModel) -> dict[str, np.ndarray]:
+    """Digit name -> indices of its links in ``model.links`` (digits the model has)."""
     out: dict[str, list[int]] = {}
     for i, link in enumerate(model.links):
         digit = link.name.split(".")[0]
@@ -156,7 +157,7 @@ def silhouette_check(model: KinematicModel, kin: Kinematics, camera: Camera,
     model_pixels = against_fg.model_pixels
     unexplained = float(extra.sum()) / model_pixels if model_pixels else 1.0
     fingers = {}
-    for digit, links in _digit_links(model).items():
+    for digit, links in digit_links(model).items():
         pixels = int(against_fg.per_label_pixels[links].sum())
         if pixels >= min_pixels:
             fingers[digit] = int(against_fg.per_label_outside[links].sum()) / pixels

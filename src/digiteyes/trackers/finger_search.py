@@ -87,13 +87,12 @@ def digit_curl_paths(model: KinematicModel) -> dict[str, tuple[np.ndarray, np.nd
     return paths
 
 
-def digit_candidates(model: KinematicModel, state: np.ndarray, levels: int,
-                     with_digits: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+def digit_candidates(model: KinematicModel, state: np.ndarray, levels: int
+                     ) -> tuple[np.ndarray, np.ndarray]:
     """(C, n_q) states: ``state`` with one digit moved to one of ``levels`` points of its
     path from fully extended to fully curled, once with its abduction kept and once with
-    the path's (a finger flipped onto its neighbour is off sideways too). With
-    ``with_digits``, also (C,) the position in :func:`digit_curl_paths` of the digit each
-    candidate moves."""
+    the path's (a finger flipped onto its neighbour is off sideways too); and (C,) the
+    position in :func:`digit_curl_paths` of the digit each candidate moves."""
     curls = np.linspace(0.0, 1.0, levels)[:, None]
     blocks, owners = [], []
     for d, (index, extended, curled, flexion) in enumerate(digit_curl_paths(model).values()):
@@ -107,8 +106,7 @@ def digit_candidates(model: KinematicModel, state: np.ndarray, levels: int,
             kept[:, index[~flexion]] = state[index[~flexion]]
             blocks.append(kept)
         owners.append(np.full(levels if flexion.all() else 2 * levels, d))
-    candidates = np.concatenate(blocks)
-    return (candidates, np.concatenate(owners)) if with_digits else candidates
+    return np.concatenate(blocks), np.concatenate(owners)
 
 
 def search_fingers(model: KinematicModel, rule: SilhouetteLoss, images: Sequence[np.ndarray],
@@ -124,7 +122,7 @@ def search_fingers(model: KinematicModel, rule: SilhouetteLoss, images: Sequence
     digits = list(digit_curl_paths(model))
     moved: list[str] = []
     for _ in range(rounds):
-        candidates, digit_of = digit_candidates(model, best_state, levels, with_digits=True)
+        candidates, digit_of = digit_candidates(model, best_state, levels)
         scores = rule.mismatches(images, list(candidates), symmetric=True)
         k = int(np.argmin(scores))
         if not scores[k] < best - margin:

@@ -39,6 +39,7 @@ from digiteyes.errors import DigitEyesError
 from digiteyes.features.foreground import (
     Foreground,
     SilhouetteCheck,
+    digit_links,
     fit_foreground,
     model_labels,
     silhouette_check,
@@ -122,10 +123,7 @@ class SilhouetteLoss:
         self.max_unexplained = max_unexplained
         self.max_finger_outside = max_finger_outside
         self.flag_hidden_fingers = flag_hidden_fingers
-        self._digit_links = {d: np.array([i for i, link in enumerate(model.links)
-                                          if link.name.split(".")[0] == d
-                                          and link.kind != "edge"], dtype=int)
-                             for d in DIGITS}
+        self._digit_links = digit_links(model)
         self._digit_ends = {d: np.array([i for i, link in enumerate(model.links)
                                          if link.name in (f"{d}.distal", f"{d}.tip")], dtype=int)
                             for d in DIGITS}
