@@ -309,11 +309,10 @@ class LayeredTemplateTracker:
         timings["prediction"] = time.perf_counter() - tic
         tic = time.perf_counter()
         topts = self.options.templates
-        greys = [prepare_image(f) for f in frames] if (
-            self.options.edge_features or self.options.background == "grey") else []
+        greys = [prepare_image(f) for f in frames]  # once: filter, features, silhouette
         images = None
         if not self.templates:
-            images = [topts.log.apply(f) for f in frames]
+            images = [topts.log.apply(g) for g in greys]
         timings["filtering"] = time.perf_counter() - tic
         if not self.templates:
             kin = forward_kinematics(self.model, predicted)
@@ -330,8 +329,8 @@ class LayeredTemplateTracker:
         setup = self._frame_setup(predicted, timings)
         if images is None:
             tic = time.perf_counter()
-            images = [topts.log.apply(f, self._filter_region(windows))
-                      for f, windows in zip(frames, setup["windows"], strict=True)]
+            images = [topts.log.apply(g, self._filter_region(windows))
+                      for g, windows in zip(greys, setup["windows"], strict=True)]
             timings["filtering"] += time.perf_counter() - tic
         q, summary = self._solve(predicted, images, greys, setup, timings)
         final = [self._evaluate(q, images, setup, c, timings) for c in range(len(self.rig))]
@@ -339,12 +338,11 @@ class LayeredTemplateTracker:
         searched = False
         if self.options.silhouette_check:
             tic = time.perf_counter()
-            greys = greys or [prepare_image(f) for f in frames]
             verdict = self.silhouette_loss.check(greys, q, predicted)
             timings["silhouette"] = time.perf_counter() - tic
             if verdict.reasons and self.options.finger_search:
                 tic = time.perf_counter()
-                found = self._search_fingers(q, frames, greys, predicted, timings)
+                found = self._search_fingers(q, greys, predicted, timings)
                 if found is not None:
                     q, summary, final, setup, verdict, moved = found
                     self.finger_recovery.placed(moved)
@@ -359,8 +357,7 @@ class LayeredTemplateTracker:
         timings["total"] = time.perf_counter() - start_total
         return self.loss_hold.apply(result)
 
-    def _search_fingers(self, q: np.ndarray, frames: Sequence[np.ndarray],
-                        greys: list[np.ndarray], predicted: np.ndarray,
+    def _search_fingers(self, q: np.ndarray, greys: list[np.ndarray], predicted: np.ndarray,
                         timings: dict[str, float]) -> tuple | None:
         """The silhouette finger search from ``q`` and a solve from its result; (state,
         summary, evaluations, setup, verdict, digits moved) of that solve if it explains
@@ -370,7 +367,7 @@ class LayeredTemplateTracker:
         if searched is None:
             return None
         start, moved = searched
-        images = [self.options.templates.log.apply(f) for f in frames]
+        images = [self.options.templates.log.apply(g) for g in greys]
         setup = self._frame_setup(start, timings)
         found, summary = self._solve(start, images, greys, setup, timings)
         before, after = self.silhouette_loss.mismatches(greys, [q, found], symmetric=True)
