@@ -145,3 +145,31 @@ def test_hidden_fingers_are_flagged_only_when_asked(desk):
     assert verdict.finger_lost["index"]
     assert not any(v for k, v in verdict.finger_lost.items() if k != "index")
     assert strict.end_shown("index", strict.check([image], q, q).checks)
+
+
+def test_a_finger_the_estimate_hides_while_the_image_shows_it_is_flagged(desk):
+    """The estimate curls the index under the palm while the hand holds it straight:
+    the hidden-digit rule finds the finger's pixels unexplained where it would lie open
+    and names it (the global share rule is turned off here to see this rule alone); the
+    same estimate on the curled hand, and the right estimate, are not flagged."""
+    model, rig, q, curled, image, image_curled = desk
+    rule = SilhouetteLoss(model, rig, max_unexplained=1.0)
+    assert not rule.check([image], q, q).reasons
+    verdict = rule.check([image], curled, q)
+    assert len(verdict.reasons) == 1
+    assert verdict.reasons[0].startswith("hidden by the estimate while the image shows it: "
+                                         "index (")
+    assert verdict.finger_lost["index"]
+    assert not any(v for k, v in verdict.finger_lost.items() if k != "index")
+    assert rule.hidden_digits(verdict.checks) == ["index"]
+    shown = rule.unexplained_where_open(verdict.checks, curled, ["index"])["index"]
+    assert shown > 0.4
+    agreeing = rule.check([image_curled], curled, q)
+    assert not agreeing.reasons, agreeing.reasons
+    assert rule.unexplained_where_open(agreeing.checks, curled, ["index"])["index"] < 0.05
+    off = SilhouetteLoss(model, rig, max_unexplained=1.0, max_hidden_unexplained=1.0)
+    off.check([image], q, q)
+    assert not off.check([image], curled, q).reasons
+    for bad in (0.0, 1.5):
+        with pytest.raises(DigitEyesError, match="max_hidden_unexplained"):
+            SilhouetteLoss(model, rig, max_hidden_unexplained=bad)

@@ -23,6 +23,12 @@ fleshier palm, tapered fingers, a 10 % size difference) stay inside:
   the palm while the real one is out);
 * per finger: the fraction of the finger's model pixels (its phalanges and tip) lying
   beyond ``tolerance_px`` of any foreground (a finger drawn over the backdrop).
+
+**Where an open digit would lie** (:func:`unexplained_where_open`): the share of the
+pixels a digit would cover if it were extended, beyond the estimate's silhouette, that
+are unexplained foreground. A finger the estimate has curled out of sight while the real
+one is out leaves its pixels unexplained there; the global ``unexplained`` share can miss
+it, because the tolerance band eats most of a thin finger's width.
 """
 
 from __future__ import annotations
@@ -42,6 +48,8 @@ from digiteyes.render.scene import build_scene
 
 MARGIN_PX = 6
 """Distance (px) from the first frame's silhouette of the pixels that fit the levels."""
+MIN_OPEN_PIXELS = 50
+"""Fewest pixels of an open digit beyond the estimate for :func:`unexplained_where_open`."""
 _LIGHT = np.array([0.0, 0.0, -1.0])
 
 
@@ -113,7 +121,10 @@ class SilhouetteCheck:
     tolerance of the foreground (digits with fewer than ``min_pixels`` model pixels are
     left out); ``model_pixels``: the model's pixels; ``outside``: all model pixels beyond
     the tolerance of the foreground, per model pixel; ``link_pixels``: (n_links,) the
-    model's pixels of each link (what the z-buffer shows of it).
+    model's pixels of each link (what the z-buffer shows of it); ``box``: (rows, cols)
+    slices of the image box the comparison was made in (every model and foreground pixel
+    lies inside it); ``unexplained_mask``, ``model_mask``: bool images of that box, the
+    unexplained foreground pixels and the model's pixels.
     """
 
     unexplained: float
@@ -121,6 +132,9 @@ class SilhouetteCheck:
     model_pixels: int
     outside: float = 0.0
     link_pixels: np.ndarray | None = None
+    box: tuple[slice, slice] | None = None
+    unexplained_mask: np.ndarray | None = None
+    model_mask: np.ndarray | None = None
 
 
 def digit_links(model: KinematicModel) -> dict[str, np.ndarray]:
@@ -163,4 +177,24 @@ def silhouette_check(model: KinematicModel, kin: Kinematics, camera: Camera,
             fingers[digit] = int(against_fg.per_label_outside[links].sum()) / pixels
     outside = float(against_fg.per_label_outside.sum()) / model_pixels if model_pixels else 1.0
     return SilhouetteCheck(unexplained, fingers, model_pixels, outside,
-                           against_fg.per_label_pixels)
+                           against_fg.per_label_pixels, (rows, cols), extra.astype(bool),
+                           labels >= 0)
+
+
+def unexplained_where_open(check: SilhouetteCheck, open_labels: np.ndarray,
+                           links: np.ndarray, min_pixels: int = MIN_OPEN_PIXELS
+                           ) -> float | None:
+    """Share of the pixels where a digit would lie if it were open that ``check`` found
+    to be unexplained foreground: ``open_labels`` (H, W) are the model's labels with the
+    digit extended (:func:`model_labels` of
+    :func:`~digiteyes.kinematics.anatomy.open_digits`), ``links`` its link indices. Only
+    the open digit's pixels beyond the checked estimate's own model count. None when
+    fewer than ``min_pixels`` are left (the open digit lies over the estimate)."""
+    if check.box is None or check.unexplained_mask is None or check.model_mask is None:
+        return None
+    region = np.isin(open_labels, links)
+    inside = region[check.box]
+    area = int(region.sum()) - int((inside & check.model_mask).sum())
+    if area < min_pixels:
+        return None
+    return float((inside & check.unexplained_mask).sum()) / area

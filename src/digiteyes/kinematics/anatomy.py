@@ -7,6 +7,7 @@ the finger ``index``; the thumb's joints are ``thumb.cmc_flex`` ... ``thumb.ip``
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from itertools import product
 
 import numpy as np
@@ -112,6 +113,21 @@ def digit_joint_angles(digit: str, extended: bool) -> dict[str, float]:
     if values["abd"] is None:
         values["abd"] = SPREAD_DEG[digit]
     return {f"{digit}.{joint}": value * _DEG for joint, value in values.items()}
+
+
+def open_digits(model: KinematicModel, state: np.ndarray, digits: Sequence[str]
+                ) -> np.ndarray:
+    """``state`` (n_q,) with each of ``digits`` fully extended: its flexion joints (and all
+    of the thumb's) at the angles of :func:`digit_joint_angles`, clipped to the model's
+    limits; a finger keeps its abduction. Joints the model lacks are skipped."""
+    out = np.array(state, dtype=float)
+    names = set(model.state_names)
+    for digit in digits:
+        for name, angle in digit_joint_angles(digit, extended=True).items():
+            if name in names and joint_type_of(name) != "abd":
+                i = model.state_index(name)
+                out[i] = np.clip(angle, model.lower[i], model.upper[i])
+    return out
 
 
 def basis_joint_angles(model: KinematicModel, name: str) -> np.ndarray:

@@ -15,7 +15,14 @@ estimate is drawn in each checked camera and compared with the foreground
   put elsewhere, or curled into the palm while the real one is out), or
 * a finger's fraction of model pixels beyond ``tolerance_px`` of the foreground exceeds
   its value at the start state by more than ``max_finger_outside`` (a finger drawn over the
-  backdrop); that finger is flagged in the per-finger flags.
+  backdrop); that finger is flagged in the per-finger flags, or
+* a digit whose end the estimate hides in every checked camera (though it showed at the
+  start state) would, if it were open, cover pixels beyond the estimate of which more than
+  ``max_hidden_unexplained`` are unexplained foreground in some camera
+  (:func:`~digiteyes.features.foreground.unexplained_where_open`): the estimate has curled
+  a finger out of sight while the real one is out. A thin finger's unexplained pixels are
+  mostly eaten by the tolerance band, so the first rule misses it; this one looks only
+  where that finger would be. That digit is flagged.
 
 With ``flag_hidden_fingers`` (off by default) a digit whose end (distal link and tip) the
 estimate hides in every checked camera, though it showed at the start state, is flagged
@@ -43,10 +50,11 @@ from digiteyes.features.foreground import (
     fit_foreground,
     model_labels,
     silhouette_check,
+    unexplained_where_open,
 )
 from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import KinematicModel, Kinematics, forward_kinematics
-from digiteyes.kinematics.anatomy import DIGITS
+from digiteyes.kinematics.anatomy import DIGITS, open_digits
 
 TOLERANCE_PX = 5
 """Default distance (px) within which the two silhouettes may differ."""
@@ -54,6 +62,9 @@ MAX_UNEXPLAINED = 0.08
 """Default excess of unexplained hand pixels per model pixel over the first frame."""
 MAX_FINGER_OUTSIDE = 0.35
 """Default excess of a finger's model pixels over the backdrop over the first frame."""
+MAX_HIDDEN_UNEXPLAINED = 0.05
+"""Default share of the pixels where a hidden digit would lie open that may be
+unexplained foreground (chosen on the tracking model's own drawing, docs/accuracy.md)."""
 SEEN_END_SHARE = 0.02
 """A digit's end (distal link and tip) is shown in a camera when it makes up at least this
 share of the digit's drawn pixels there (a straight index seen from above its back: 0.12;
@@ -69,6 +80,7 @@ class SilhouetteLossOptions:
     silhouette_tolerance_px : silhouette differences within this distance are ignored, px.
     max_unexplained, max_finger_outside : the thresholds (fractions, excess over the first
         frame).
+    max_hidden_unexplained : the hidden-digit threshold (a fraction; 1 turns the rule off).
     flag_hidden_fingers : also flag a digit whose end the estimate hides in every checked
         camera while it showed at the start state (where a hidden finger lies, no
         silhouette can say).
@@ -78,6 +90,7 @@ class SilhouetteLossOptions:
     silhouette_tolerance_px: int = TOLERANCE_PX
     max_unexplained: float = MAX_UNEXPLAINED
     max_finger_outside: float = MAX_FINGER_OUTSIDE
+    max_hidden_unexplained: float = MAX_HIDDEN_UNEXPLAINED
     flag_hidden_fingers: bool = False
 
 
@@ -101,6 +114,9 @@ class SilhouetteLoss:
     tolerance_px : silhouette differences within this distance are ignored, px.
     max_unexplained, max_finger_outside : the thresholds (fractions, excess over the
         first frame).
+    max_hidden_unexplained : the hidden-digit threshold (a fraction in (0, 1]; 1 turns
+        the rule off).
+    flag_hidden_fingers : flag every digit the estimate hides (module docstring).
 
     Raises :class:`~digiteyes.errors.DigitEyesError` for a negative or non-integer
     tolerance or a threshold that is not positive.
@@ -109,6 +125,7 @@ class SilhouetteLoss:
     def __init__(self, model: KinematicModel, rig: Rig, tolerance_px: int = TOLERANCE_PX,
                  max_unexplained: float = MAX_UNEXPLAINED,
                  max_finger_outside: float = MAX_FINGER_OUTSIDE,
+                 max_hidden_unexplained: float = MAX_HIDDEN_UNEXPLAINED,
                  flag_hidden_fingers: bool = False) -> None:
         if isinstance(tolerance_px, bool) or not isinstance(tolerance_px, int | np.integer) \
                 or tolerance_px < 0:
@@ -118,10 +135,14 @@ class SilhouetteLoss:
                             ("max_finger_outside", max_finger_outside)):
             if not value > 0:
                 raise DigitEyesError(f"{name} must be positive, got {value!r}")
+        if not 0 < max_hidden_unexplained <= 1:
+            raise DigitEyesError(f"max_hidden_unexplained must lie in (0, 1], got "
+                                 f"{max_hidden_unexplained!r}")
         self.model, self.rig = model, rig
         self.tolerance_px = tolerance_px
         self.max_unexplained = max_unexplained
         self.max_finger_outside = max_finger_outside
+        self.max_hidden_unexplained = max_hidden_unexplained
         self.flag_hidden_fingers = flag_hidden_fingers
         self._digit_links = digit_links(model)
         self._digit_ends = {d: np.array([i for i, link in enumerate(model.links)
@@ -134,7 +155,8 @@ class SilhouetteLoss:
                      options: SilhouetteLossOptions) -> SilhouetteLoss:
         """The rule with the settings of a tracker's options."""
         return cls(model, rig, options.silhouette_tolerance_px, options.max_unexplained,
-                   options.max_finger_outside, options.flag_hidden_fingers)
+                   options.max_finger_outside, options.max_hidden_unexplained,
+                   options.flag_hidden_fingers)
 
     def reset(self) -> None:
         """Forget the foreground and the baseline: the next :meth:`check` fits them."""
@@ -160,7 +182,7 @@ class SilhouetteLoss:
             self._outside_baseline = [dict(c.finger_outside) for c in baseline]
             self._shown_baseline = {d for d in DIGITS if self.end_shown(d, baseline)}
         checks = self._checks(images, forward_kinematics(self.model, state))
-        reasons, fingers = self._reasons(checks)
+        reasons, fingers = self._reasons(checks, state)
         return SilhouetteVerdict(reasons, fingers, checks)
 
     def mismatch(self, images: Sequence[np.ndarray], state: np.ndarray) -> float | None:
@@ -206,7 +228,37 @@ class SilhouetteLoss:
         """The silhouette comparison in every camera whose foreground could be fitted."""
         return self._checks_masks(self._masks(images), kin)
 
-    def _reasons(self, checks: list[SilhouetteCheck]) -> tuple[list[str], dict[str, bool]]:
+    def _checked_cameras(self) -> list:
+        """The cameras whose foreground could be fitted (the order of the checks)."""
+        return [camera for camera, fg in zip(self.rig, self.foreground, strict=True)
+                if fg is not None]
+
+    def hidden_digits(self, checks: Sequence[SilhouetteCheck]) -> list[str]:
+        """The digits whose end showed at the start state and that the estimate of
+        ``checks`` hides in every checked camera."""
+        return [d for d in DIGITS
+                if d in self._shown_baseline and not self.end_shown(d, checks)]
+
+    def unexplained_where_open(self, checks: Sequence[SilhouetteCheck], state: np.ndarray,
+                               digits: Sequence[str]) -> dict[str, float]:
+        """Per digit of ``digits``: the largest share, over the checked cameras, of the
+        pixels where it would lie open (beyond the estimate ``state`` of ``checks``) that
+        are unexplained foreground (cameras where it would lie over the estimate left
+        out; digits with no such camera left out)."""
+        if not digits:
+            return {}
+        kin = forward_kinematics(self.model, open_digits(self.model, state, digits))
+        shares: dict[str, float] = {}
+        for check, camera in zip(checks, self._checked_cameras(), strict=True):
+            labels = model_labels(self.model, kin, camera)
+            for digit in digits:
+                share = unexplained_where_open(check, labels, self._digit_links[digit])
+                if share is not None:
+                    shares[digit] = max(share, shares.get(digit, 0.0))
+        return shares
+
+    def _reasons(self, checks: list[SilhouetteCheck], state: np.ndarray
+                 ) -> tuple[list[str], dict[str, bool]]:
         reasons: list[str] = []
         fingers: dict[str, bool] = {}
         for camera, (check, base, outside_base) in enumerate(zip(
@@ -220,13 +272,20 @@ class SilhouetteLoss:
         off = [finger for finger, lost in fingers.items() if lost]
         if off:
             reasons.append(f"off the hand's silhouette: {', '.join(off)}")
-        if self.flag_hidden_fingers and checks:
-            hidden = [d for d in DIGITS
-                      if d in self._shown_baseline and not self.end_shown(d, checks)]
+        hidden = self.hidden_digits(checks) if checks else []
+        if self.max_hidden_unexplained < 1:
+            shares = self.unexplained_where_open(checks, state, hidden)
+            shown = {d: v for d, v in shares.items() if v > self.max_hidden_unexplained}
+            for digit in shown:
+                fingers[digit] = True
+            if shown:
+                reasons.append("hidden by the estimate while the image shows it: " + ", ".join(
+                    f"{d} ({v:.0%} of where it would lie open unexplained)"
+                    for d, v in shown.items()))
+        if self.flag_hidden_fingers and hidden:
             for digit in hidden:
                 fingers[digit] = True
-            if hidden:
-                reasons.append(f"hidden, so unverified: {', '.join(hidden)}")
+            reasons.append(f"hidden, so unverified: {', '.join(hidden)}")
         return reasons, fingers
 
     def end_shown(self, digit: str, checks: Sequence[SilhouetteCheck]) -> bool:
