@@ -22,3 +22,22 @@ def test_a_short_two_finger_run_in_each_appearance(appearance):
     assert len(row["tip_error_per_frame_mm"]) == 6
     assert row["max_frame_tip_error_mm"] == pytest.approx(max(row["tip_error_per_frame_mm"]),
                                                           abs=0.01)
+
+
+def test_rows_average_over_noise_seeds():
+    """Each seed draws other sensor noise (so the tracks differ a little); a row holds
+    the mean of the seeds' figures and every seed's figure beside it."""
+    from digiteyes.benchmarks.templates import seed_mean
+
+    runs = [track_scenario("two-finger-occlusion", 1, 4, LayeredTemplateOptions(),
+                           "templates", "model", seed) for seed in (0, 1)]
+    assert [r["seed"] for r in runs] == [0, 1]
+    assert runs[0]["mean_tip_error_mm"] != runs[1]["mean_tip_error_mm"]
+    assert all(r["truly_lost_frames"] == 0 for r in runs)  # the first frames are easy
+    row = seed_mean(runs)
+    assert row["seeds"] == [0, 1]
+    assert row["per_seed"]["mean_tip_error_mm"] == [r["mean_tip_error_mm"] for r in runs]
+    assert row["mean_tip_error_mm"] == pytest.approx(
+        np.mean([r["mean_tip_error_mm"] for r in runs]))
+    assert row["tip_error_per_frame_mm"] == [r["tip_error_per_frame_mm"] for r in runs]
+    assert set(row["ms_per_iteration"]) == set(runs[0]["ms_per_iteration"])

@@ -83,25 +83,23 @@ def image_windows(parts: tuple[TemplatePart, ...], planes: list[TemplatePlane],
                               zip(parts, planes, strict=True)])
     p_world, J_world = point_jacobian(kin, rows, p_shape)
     w, J_pix = camera.project_with_jacobian(p_world)
-    d_points = np.einsum("pij,pjk->pik", J_pix, J_world)
+    d_points = J_pix @ J_world
     depth = camera.depth(p_world)
     kind = np.array([POLYGON if p.kind == "palm" else CAPSULE for p in parts])
-    radius = np.zeros(K)
-    n_v = J_world.shape[-1]
-    d_radius = np.zeros((K, n_v))
+    capsule = kind == CAPSULE
+    radii = np.array([p.radius if c else 0.0 for p, c in zip(parts, capsule, strict=True)])
     f = float(camera.K[0, 0])
-    R_cam = camera.T_cam_world[:3, :3]
-    for k, part in enumerate(parts):
-        if kind[k] == POLYGON:
-            continue
-        if camera.projection == "perspective":
-            z = 0.5 * (depth[4 * k] + depth[4 * k + 1])
-            dz = 0.5 * R_cam[2] @ (J_world[4 * k] + J_world[4 * k + 1])
-            radius[k] = part.radius * f / z
-            d_radius[k] = -part.radius * f / (z * z) * dz
-        else:
-            scale = 1.0 if camera.projection == "orthographic" else 1.0 / camera.depth_mm
-            radius[k] = part.radius * f * scale
+    n_v = J_world.shape[-1]
+    if camera.projection == "perspective":
+        # a capsule's image radius f r / z at the depth z of its axis's midpoint
+        z = np.where(capsule, 0.5 * (depth[0::4] + depth[1::4]), 1.0)
+        dz = 0.5 * (camera.T_cam_world[2, :3] @ (J_world[0::4] + J_world[1::4]))
+        radius = radii * f / z
+        d_radius = (-radii * f / (z * z))[:, None] * dz
+    else:
+        scale = 1.0 if camera.projection == "orthographic" else 1.0 / camera.depth_mm
+        radius = radii * f * scale
+        d_radius = np.zeros((K, n_v))
     return ImageWindows(kind, np.ascontiguousarray(w.reshape(K, 4, 2)), radius,
                         np.ascontiguousarray(d_points.reshape(K, 4, 2, n_v)), d_radius,
                         depth.reshape(K, 4), p_world.reshape(K, 4, 3))

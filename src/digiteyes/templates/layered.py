@@ -202,7 +202,8 @@ def evaluate_layered(templates: CameraTemplates, image: np.ndarray, camera: Came
                      kin: Kinematics, planes: list[TemplatePlane],
                      order: VisibilityOrder | None, tau: float,
                      form_rows: bool = False, p_shape: np.ndarray | None = None,
-                     margin: float = 0.0) -> LayeredEvaluation:
+                     margin: float = 0.0, twists: np.ndarray | None = None
+                     ) -> LayeredEvaluation:
     """The layered template error and its derivatives (module docstring) for one camera.
 
     Parameters
@@ -219,6 +220,8 @@ def evaluate_layered(templates: CameraTemplates, image: np.ndarray, camera: Came
     margin : occluder outlines are grown by this many pixels (px): the LoG filter
         spreads an occluder's edge over its neighbourhood, so template pixels that close
         to an occluding outline no longer look like the template.
+    twists : the parts' twists (:func:`~digiteyes.templates.deformation.part_twists`) at
+        this state if already computed (they do not depend on the camera).
     """
     if p_shape is None:
         p_shape = templates.shape_points(planes)
@@ -227,7 +230,8 @@ def evaluate_layered(templates: CameraTemplates, image: np.ndarray, camera: Came
     if order is None:
         order = predict_visibility(parts, windows, camera, margin)
     occ_start, occ_index = order.csr()
-    twists = part_twists(parts, kin)
+    if twists is None:
+        twists = part_twists(parts, kin)
     p_world = world_points(templates, kin, p_shape)
     w, Jp = camera.project_with_jacobian(p_world)
     K, n_v = len(parts), twists.shape[2]
@@ -250,8 +254,10 @@ def evaluate_layered(templates: CameraTemplates, image: np.ndarray, camera: Came
                   + np.einsum("kqcn,kqc->n", windows.d_points, b_pts)
                   + b_r @ windows.d_radius)
     H6 = np.triu(H6) + np.triu(H6, 1).transpose(0, 2, 1)
-    H = np.einsum("kan,kab,kbm->nm", twists, H6, twists)
-    g_region = np.einsum("kan,ka->n", twists, g6)
+    # H = sum_k twists_k^T H6_k twists_k as one (n_v, 6K) x (6K, n_v) product
+    stacked = twists.reshape(6 * K, n_v)
+    H = stacked.T @ (H6 @ twists).reshape(6 * K, n_v)
+    g_region = stacked.T @ g6.reshape(6 * K)
     return LayeredEvaluation(float(energy), H, g_region + g_boundary, g_region, g_boundary,
                              r, V, w, windows, order,
                              rows_r if form_rows else None, rows_v if form_rows else None)

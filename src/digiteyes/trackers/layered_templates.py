@@ -59,6 +59,7 @@ from digiteyes.templates.background import (
     evaluate_background,
     window_region,
 )
+from digiteyes.templates.deformation import part_twists
 from digiteyes.templates.filtering import TemplateError
 from digiteyes.templates.layered import (
     CameraTemplates,
@@ -333,7 +334,7 @@ class LayeredTemplateTracker:
                       for g, windows in zip(greys, setup["windows"], strict=True)]
             timings["filtering"] += time.perf_counter() - tic
         q, summary = self._solve(predicted, images, greys, setup, timings)
-        final = [self._evaluate(q, images, setup, c, timings) for c in range(len(self.rig))]
+        final = self._evaluate_all(q, images, setup, timings)
         verdict = None
         searched = False
         if self.options.silhouette_check:
@@ -373,7 +374,7 @@ class LayeredTemplateTracker:
         before, after = self.silhouette_loss.mismatches(greys, [q, found], symmetric=True)
         if after >= before:
             return None
-        final = [self._evaluate(found, images, setup, c, timings) for c in range(len(self.rig))]
+        final = self._evaluate_all(found, images, setup, timings)
         return (found, summary, final, setup, self.silhouette_loss.check(greys, found, predicted),
                 moved)
 
@@ -414,16 +415,22 @@ class LayeredTemplateTracker:
         return (int(np.floor(low[0])), int(np.floor(low[1])), int(np.ceil(high[0])) + 1,
                 int(np.ceil(high[1])) + 1)
 
-    def _evaluate(self, q: np.ndarray, images: list[np.ndarray], setup: dict, c: int,
-                  timings: dict[str, float], kin=None) -> LayeredEvaluation:
+    def _evaluate_all(self, q: np.ndarray, images: list[np.ndarray], setup: dict,
+                      timings: dict[str, float], kin=None) -> list[LayeredEvaluation]:
+        """The layered template error of every camera at ``q`` (the parts' twists,
+        which do not depend on the camera, computed once)."""
         kin = forward_kinematics(self.model, q) if kin is None else kin
         tic = time.perf_counter()
-        ev = evaluate_layered(self.templates[c], images[c], self.rig[c], kin,
-                              setup["planes"][c], setup["orders"][c],
-                              self.options.templates.tau, p_shape=setup["points"][c],
-                              margin=self.options.templates.occlusion_margin_px)
+        twists = part_twists(self.parts, kin)
+        evaluations = [evaluate_layered(self.templates[c], images[c], self.rig[c], kin,
+                                        setup["planes"][c], setup["orders"][c],
+                                        self.options.templates.tau,
+                                        p_shape=setup["points"][c],
+                                        margin=self.options.templates.occlusion_margin_px,
+                                        twists=twists)
+                       for c in range(len(self.rig))]
         timings["residual"] += time.perf_counter() - tic
-        return ev
+        return evaluations
 
     def _background_images(self, images: list[np.ndarray], greys: list[np.ndarray]
                            ) -> list[np.ndarray]:
@@ -452,8 +459,7 @@ class LayeredTemplateTracker:
             H = np.zeros((self.model.n_v, self.model.n_v))
             g = np.zeros(self.model.n_v)
             energy = 0.0
-            for c in range(len(self.rig)):
-                ev = self._evaluate(q, images, setup, c, timings, kin)
+            for c, ev in enumerate(self._evaluate_all(q, images, setup, timings, kin)):
                 tic = time.perf_counter()
                 H += weight * ev.H
                 g += weight * ev.gradient
