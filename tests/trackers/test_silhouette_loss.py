@@ -173,3 +173,26 @@ def test_a_finger_the_estimate_hides_while_the_image_shows_it_is_flagged(desk):
     for bad in (0.0, 1.5):
         with pytest.raises(DigitEyesError, match="max_hidden_unexplained"):
             SilhouetteLoss(model, rig, max_hidden_unexplained=bad)
+
+
+def test_the_rule_works_through_lens_distortion(desk):
+    """A calibrated camera has lens distortion: the model is drawn through it, so its
+    labels line up with the image (they once came out on the undistorted canvas, of
+    another size, and the rule failed with an IndexError)."""
+    import dataclasses
+
+    from digiteyes.camera import Rig
+    from digiteyes.synth import RenderOptions, render_views
+
+    model, rig, q, curled, _, _ = desk
+    camera = dataclasses.replace(rig.cameras[0], dist=np.array([-0.25, 0.08, 0.0, 0.0, 0.0]))
+    distorted = Rig((camera,))
+    options = RenderOptions(appearance="flesh", noise_sigma=2.0)
+    image, image_curled = (render_views(model, state, distorted, options, rng=seed)[0].image
+                           for seed, state in ((0, q), (1, curled)))
+    labels = model_labels(model, forward_kinematics(model, q), camera)
+    assert labels.shape == image.shape
+    rule = SilhouetteLoss(model, distorted)
+    assert not rule.check([image], q, q).reasons
+    verdict = rule.check([image_curled], q, q)
+    assert verdict.finger_lost["index"]

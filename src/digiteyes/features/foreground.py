@@ -78,10 +78,12 @@ class Foreground:
 def model_labels(model: KinematicModel, kin: Kinematics, camera: Camera,
                  index: int = 0) -> np.ndarray:
     """Label image (H, W) int16 of state ``index`` of ``kin`` in ``camera``: the link
-    index of the model surface seen by each pixel, -1 off the model."""
+    index of the model surface seen by each pixel, -1 off the model; drawn through the
+    camera's lens distortion if it has any (the image's own pixels)."""
     scene = build_scene(model, kin, index).transformed(camera.T_cam_world)
-    grid, _ = camera_canvas(camera)
-    return rasterise(scene, grid, _LIGHT).labels
+    grid, warp = camera_canvas(camera)
+    labels = rasterise(scene, grid, _LIGHT).labels
+    return labels if warp is None else warp.warp(labels, nearest=True, fill=-1)
 
 
 def fit_foreground(image: np.ndarray, labels: np.ndarray,
