@@ -23,10 +23,16 @@ def test_likelihood_rates_and_a_short_track(monkeypatch):
 def test_fig3_records_per_frame_errors_and_plots(monkeypatch, tmp_path):
     monkeypatch.setattr(smc, "FIG3_SCENARIOS", ("natural", "no-such-scenario"))
     monkeypatch.setattr(smc, "FIG3_RUNS", {"DivideConquerTracker": (DivideConquerTracker, None)})
-    fig3 = smc._fig3(n_frames=3)
+    fig3 = smc._fig3(n_frames=3, seeds=(0, 1))
     assert "skipped" in fig3["no-such-scenario"]
-    errors = fig3["natural"]["DivideConquerTracker"]["finger_rms_deg_per_frame"]
+    record = fig3["natural"]["DivideConquerTracker"]
+    errors = record["finger_rms_deg_per_frame"]  # the first seed's
     assert len(errors) == 3 and max(errors) < 8.0
+    seeds = record["seeds"]
+    assert seeds["seeds"] == [0, 1] and seeds["finger_rms_deg_mean"][0] == pytest.approx(
+        record["finger_rms_deg_mean"])
+    assert seeds["mean_over_seeds"] == pytest.approx(np.mean(seeds["finger_rms_deg_mean"]))
+    assert seeds["max_over_seeds"] == pytest.approx(np.mean(seeds["finger_rms_deg_max"]))
     path = smc.plot_fig3(fig3, tmp_path / "fig3.png")
     assert (tmp_path / "fig3.png").stat().st_size > 10_000 and path.endswith("fig3.png")
 
@@ -36,10 +42,10 @@ def test_the_flesh_hand_is_tracked_through_the_same_path(monkeypatch, tmp_path):
     the plot takes one panel per appearance and scenario."""
     monkeypatch.setattr(smc, "FIG3_SCENARIOS", ("natural",))
     monkeypatch.setattr(smc, "FIG3_RUNS", {"DivideConquerTracker": (DivideConquerTracker, None)})
-    flesh = smc._fig3(n_frames=3, appearance="flesh")
+    flesh = smc._fig3(n_frames=3, appearance="flesh", seeds=(0,))
     errors = flesh["natural"]["DivideConquerTracker"]["finger_rms_deg_per_frame"]
     assert len(errors) == 3 and max(errors) < 8.0
-    panels = {"natural, own drawing": smc._fig3(n_frames=3)["natural"],
+    panels = {"natural, own drawing": smc._fig3(n_frames=3, seeds=(0,))["natural"],
               "natural, flesh hand": flesh["natural"]}
     smc.plot_fig3(panels, tmp_path / "fig3.png")
     assert (tmp_path / "fig3.png").stat().st_size > 10_000
