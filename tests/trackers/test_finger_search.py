@@ -132,3 +132,49 @@ def test_bad_search_options_are_refused(desk, key, value):
     model, rig, *_ = desk
     with pytest.raises(TrackerError, match=key):
         create_tracker("templates", model, rig, **{key: value})
+
+
+def test_the_hidden_digit_test_names_the_digits_to_search(desk):
+    """The estimate has curled the index under the palm while the hand holds it straight:
+    the rule's hidden-digit test names it, and with ``hidden_finger_search`` only it is
+    searched; with ``finger_search`` every digit is, and with both off (the default) none
+    is."""
+    from digiteyes.trackers.finger_search import FingerRecovery, FingerSearchOptions
+
+    model, rig, q, curled, image, _ = desk
+    rule = SilhouetteLoss(model, rig)
+    rule.check([image], q, q)
+    verdict = rule.check([image], curled, q)
+    assert verdict.hidden_shown == ("index",)
+    assert rule.check([image], q, q).hidden_shown == ()
+    hidden = FingerRecovery(model, rule, FingerSearchOptions(hidden_finger_search=True))
+    assert hidden.digits_to_search(verdict) == ["index"]
+    assert FingerRecovery(model, rule, FingerSearchOptions(
+        finger_search=True)).digits_to_search(verdict) is None
+    assert FingerRecovery(model, rule, FingerSearchOptions()).digits_to_search(verdict) == []
+    found, moved = hidden.search([image], curled, ["index"])
+    assert moved == ("index",) and _index_tip_error(model, found, q) < 25.0
+    assert search_fingers(model, rule, [image], curled, digits=["thumb"]) is None
+
+
+@pytest.mark.parametrize("tracker", ["templates", "features"])
+def test_trackers_open_a_finger_they_hid_while_the_hand_shows_it(desk, tracker):
+    """The track has curled the index under the palm (set here by hand) while the hand
+    holds it straight: with the hidden-digit search (opt-in) the next frame opens
+    it and reports the found state, which the rules pass; without it the index stays
+    curled, more than 60 mm off, and the frames are lost."""
+    model, rig, q, curled, image, _ = desk
+    errors = {}
+    for hidden_search in (True, False):
+        runner = create_tracker(tracker, model, rig, hidden_finger_search=hidden_search)
+        runner.reset(q)
+        assert not runner.step([image]).lost
+        runner.state = curled  # the estimate has lost the finger under the palm
+        runner.predictor.reset(curled)
+        second = runner.step([image])
+        assert second.details.searched is hidden_search
+        assert second.lost is not hidden_search, second.loss_reason
+        errors[hidden_search] = _index_tip_error(model, second.state, q)
+        third = runner.step([image])
+        assert third.lost is not hidden_search, third.loss_reason
+    assert errors[False] > 60.0 and errors[True] < 25.0, errors

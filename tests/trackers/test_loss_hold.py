@@ -57,3 +57,17 @@ def test_trackers_take_the_setting(name, default):
     model, rig = scenario.model, Rig(scenario.rig.cameras[:1])
     assert create_tracker(name, model, rig).loss_hold.frames == default
     assert create_tracker(name, model, rig, hold_lost_frames=4).loss_hold.frames == 4
+
+
+def test_a_frame_whose_finger_search_moved_a_digit_ends_the_hold():
+    """After the silhouette finger search has placed the lost digits, the hold starts
+    afresh (the placed digits stay flagged until seen: FingerRecovery.judge)."""
+    from digiteyes.trackers.finger_search import FingerRecovery, FingerSearchOptions
+
+    recovery = FingerRecovery(None, None, FingerSearchOptions())
+    hold = LossHold(3)
+    assert hold.apply(_result(True)).lost
+    assert recovery.hold(hold, _result(True), searched=True).lost  # this frame is as found
+    assert not hold.apply(_result(False)).lost  # no hold after it
+    assert hold.apply(_result(True)).lost
+    assert recovery.hold(hold, _result(False), searched=False).lost  # held as before

@@ -175,6 +175,8 @@ class FeatureTrackerOptions(SilhouetteLossOptions, LossHoldOptions, FingerSearch
     finger_search, finger_search_levels, finger_search_margin : on a frame the silhouette
         rule calls lost, search each digit's curl by the silhouette and solve again from
         the result (:mod:`digiteyes.trackers.finger_search`; off by default).
+    hidden_finger_search : search only the digits the rule's hidden-digit test names, on
+        the frames it names them (off by default).
     """
 
     iterations_per_frame: int = 5
@@ -561,9 +563,10 @@ class FeatureTracker:
                    if self.options.silhouette_check else None)
         timings["silhouette"] = time.perf_counter() - start
         searched = False
-        if verdict is not None and verdict.reasons and self.options.finger_search:
+        digits = [] if verdict is None else self.finger_recovery.digits_to_search(verdict)
+        if digits is None or digits:
             start = time.perf_counter()
-            found = self._search_fingers(problem, images, q, predicted)
+            found = self._search_fingers(problem, images, q, predicted, digits)
             if found is not None:
                 q, summary, final, verdict, moved = found
                 self.finger_recovery.placed(moved)
@@ -577,15 +580,16 @@ class FeatureTracker:
         self.predictor.update(q, reliable=not (result.lost or searched))
         self._frame_index += 1
         timings["total"] = time.perf_counter() - start_total
-        return self.loss_hold.apply(result)
+        return self.finger_recovery.hold(self.loss_hold, result, searched)
 
     def _search_fingers(self, problem: FeatureProblem, images: list[np.ndarray],
-                        q: np.ndarray, predicted: np.ndarray) -> tuple | None:
-        """The silhouette finger search from ``q`` and a solve from its result; (state,
-        summary, evaluation, verdict, digits moved) of that solve if it explains the
-        silhouette better than ``q``, else None. The solve's timings go to the search's
-        stage."""
-        searched = self.finger_recovery.search(images, q)
+                        q: np.ndarray, predicted: np.ndarray,
+                        digits: list[str] | None) -> tuple | None:
+        """The silhouette finger search of ``digits`` (None: all) from ``q`` and a solve
+        from its result; (state, summary, evaluation, verdict, digits moved) of that solve
+        if it explains the silhouette better than ``q``, else None. The solve's timings go
+        to the search's stage."""
+        searched = self.finger_recovery.search(images, q, digits)
         if searched is None:
             return None
         start, moved = searched

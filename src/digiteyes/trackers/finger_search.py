@@ -35,6 +35,8 @@ import numpy as np
 
 from digiteyes.kinematics import KinematicModel
 from digiteyes.kinematics.anatomy import DIGITS, digit_joint_angles, joint_type_of
+from digiteyes.trackers.base import TrackResult
+from digiteyes.trackers.loss_hold import LossHold
 from digiteyes.trackers.silhouette_loss import SilhouetteLoss, SilhouetteVerdict
 
 
@@ -43,11 +45,17 @@ class FingerSearchOptions:
     """The silhouette finger search's settings, inherited by the options of the trackers
     that use it.
 
-    finger_search : search the digits on frames the silhouette rule calls lost. Off by
+    finger_search : search every digit on frames the silhouette rule calls lost. Off by
         default: the search finds states that explain the silhouette but are often still
         wrong in depth (one view cannot tell a finger bent towards the camera from one
         bent away), and then the silhouette rule, the loss flag's best witness, falls
         silent while the track is truly lost (docs/templates.md measures both).
+    hidden_finger_search : search only the digits the silhouette rule's hidden-digit test
+        names (hidden by the estimate while the image shows them where they would lie
+        open), on the frames it names them. Off by default: over the accuracy table it
+        lowers the feature and template trackers' mean fingertip error by 1-6 mm, but the
+        loss flag's precision over all trackers on the flesh hand falls to 79 % (target
+        80; docs/accuracy.md).
     finger_search_levels : curls tried per digit, evenly from fully extended (0) to fully
         curled (1).
     finger_search_margin : a digit's new curl is kept only if it lowers the symmetric
@@ -56,6 +64,7 @@ class FingerSearchOptions:
     """
 
     finger_search: bool = False
+    hidden_finger_search: bool = False
     finger_search_levels: int = 5
     finger_search_margin: float = 0.02
 
@@ -111,24 +120,31 @@ def digit_candidates(model: KinematicModel, state: np.ndarray, levels: int
 
 def search_fingers(model: KinematicModel, rule: SilhouetteLoss, images: Sequence[np.ndarray],
                    state: np.ndarray, levels: int = 5, margin: float = 0.02,
-                   rounds: int = 2) -> tuple[np.ndarray, tuple[str, ...]] | None:
+                   rounds: int = 2, digits: Sequence[str] | None = None
+                   ) -> tuple[np.ndarray, tuple[str, ...]] | None:
     """The silhouette finger search (module docstring) from ``state`` (n_q,) in ``images``
-    (one per camera, rig order): the better state and the digits moved, or None when no
-    digit moved (or the rule checks no camera)."""
+    (one per camera, rig order), moving only ``digits`` (None: every digit): the better
+    state and the digits moved, or None when no digit moved (or the rule checks no
+    camera)."""
     current = rule.mismatches(images, [state], symmetric=True)
     if current is None:
         return None
     best_state, best = np.array(state, dtype=float), current[0]
-    digits = list(digit_curl_paths(model))
+    names = list(digit_curl_paths(model))
     moved: list[str] = []
     for _ in range(rounds):
         candidates, digit_of = digit_candidates(model, best_state, levels)
+        if digits is not None:
+            keep = np.isin(np.array(names)[digit_of], list(digits))
+            if not keep.any():
+                break
+            candidates, digit_of = candidates[keep], digit_of[keep]
         scores = rule.mismatches(images, list(candidates), symmetric=True)
         k = int(np.argmin(scores))
         if not scores[k] < best - margin:
             break
         best_state, best = candidates[k], scores[k]
-        moved.append(digits[digit_of[k]])
+        moved.append(names[digit_of[k]])
     return (best_state, tuple(dict.fromkeys(moved))) if moved else None
 
 
@@ -152,12 +168,34 @@ class FingerRecovery:
         """Forget the placed digits (a new track)."""
         self.unseen = []
 
-    def search(self, images: Sequence[np.ndarray], state: np.ndarray
+    def digits_to_search(self, verdict: SilhouetteVerdict) -> list[str] | None:
+        """The digits to search after ``verdict``: every digit (None) when
+        ``finger_search`` is on and the frame is lost, the digits its hidden-digit test
+        named when ``hidden_finger_search`` is on, else none (an empty list)."""
+        if self.options.finger_search and verdict.reasons:
+            return None
+        if self.options.hidden_finger_search:
+            return list(verdict.hidden_shown)
+        return []
+
+    def search(self, images: Sequence[np.ndarray], state: np.ndarray,
+               digits: Sequence[str] | None = None
                ) -> tuple[np.ndarray, tuple[str, ...]] | None:
-        """:func:`search_fingers` with this track's settings."""
+        """:func:`search_fingers` with this track's settings, moving only ``digits``
+        (None: every digit)."""
         return search_fingers(self.model, self.rule, images, state,
                               self.options.finger_search_levels,
-                              self.options.finger_search_margin)
+                              self.options.finger_search_margin, digits=digits)
+
+    def hold(self, loss_hold: LossHold, result: TrackResult, searched: bool) -> TrackResult:
+        """``result`` through the track's :class:`~digiteyes.trackers.loss_hold.LossHold`;
+        after a frame whose search moved a digit the hold starts afresh: the hold keeps a
+        local tracker's loss because it rarely finds a lost finger by itself, and here the
+        search has placed it; the placed digits stay flagged until seen (:meth:`judge`)."""
+        reported = loss_hold.apply(result)
+        if searched:
+            loss_hold.reset()
+        return reported
 
     def placed(self, digits: Sequence[str]) -> None:
         """Record ``digits`` as placed by the search (in the frame being judged)."""

@@ -134,7 +134,9 @@ class LayeredTemplateOptions(SilhouetteLossOptions, LossHoldOptions, FingerSearc
         (:class:`~digiteyes.trackers.loss_hold.LossHold`; 0 judges each frame alone).
     finger_search, finger_search_levels, finger_search_margin : on a frame the silhouette
         rule calls lost, search each digit's curl by the silhouette and solve again from
-        the result (:mod:`digiteyes.trackers.finger_search`).
+        the result (:mod:`digiteyes.trackers.finger_search`; off by default).
+    hidden_finger_search : search only the digits the rule's hidden-digit test names, on
+        the frames it names them (off by default).
     """
 
     templates: TemplateOptions = field(default_factory=TemplateOptions)
@@ -341,9 +343,10 @@ class LayeredTemplateTracker:
             tic = time.perf_counter()
             verdict = self.silhouette_loss.check(greys, q, predicted)
             timings["silhouette"] = time.perf_counter() - tic
-            if verdict.reasons and self.options.finger_search:
+            digits = self.finger_recovery.digits_to_search(verdict)
+            if digits is None or digits:
                 tic = time.perf_counter()
-                found = self._search_fingers(q, greys, predicted, timings)
+                found = self._search_fingers(q, greys, predicted, timings, digits)
                 if found is not None:
                     q, summary, final, setup, verdict, moved = found
                     self.finger_recovery.placed(moved)
@@ -356,15 +359,16 @@ class LayeredTemplateTracker:
         self.predictor.update(q, reliable=not (result.details.residual_lost or searched))
         self._frame_index += 1
         timings["total"] = time.perf_counter() - start_total
-        return self.loss_hold.apply(result)
+        return self.finger_recovery.hold(self.loss_hold, result, searched)
 
     def _search_fingers(self, q: np.ndarray, greys: list[np.ndarray], predicted: np.ndarray,
-                        timings: dict[str, float]) -> tuple | None:
-        """The silhouette finger search from ``q`` and a solve from its result; (state,
-        summary, evaluations, setup, verdict, digits moved) of that solve if it explains
-        the silhouette better than ``q``, else None. The solve filters whole images: a
-        moved finger may lie beyond the region filtered for the prediction."""
-        searched = self.finger_recovery.search(greys, q)
+                        timings: dict[str, float], digits: list[str] | None) -> tuple | None:
+        """The silhouette finger search of ``digits`` (None: all) from ``q`` and a solve
+        from its result; (state, summary, evaluations, setup, verdict, digits moved) of that
+        solve if it explains the silhouette better than ``q``, else None. The solve filters
+        whole images: a moved finger may lie beyond the region filtered for the
+        prediction."""
+        searched = self.finger_recovery.search(greys, q, digits)
         if searched is None:
             return None
         start, moved = searched

@@ -98,11 +98,13 @@ class SilhouetteLossOptions:
 class SilhouetteVerdict:
     """One frame's silhouette rule: ``reasons`` (empty when the track holds),
     ``finger_lost`` (digit -> bool, the digits judged), ``checks`` (one per checked
-    camera)."""
+    camera), ``hidden_shown`` (the digits the estimate hides while the image shows them
+    where they would lie open: the hidden-digit test's)."""
 
     reasons: list[str]
     finger_lost: dict[str, bool]
     checks: list[SilhouetteCheck]
+    hidden_shown: tuple[str, ...] = ()
 
 
 class SilhouetteLoss:
@@ -182,8 +184,8 @@ class SilhouetteLoss:
             self._outside_baseline = [dict(c.finger_outside) for c in baseline]
             self._shown_baseline = {d for d in DIGITS if self.end_shown(d, baseline)}
         checks = self._checks(images, forward_kinematics(self.model, state))
-        reasons, fingers = self._reasons(checks, state)
-        return SilhouetteVerdict(reasons, fingers, checks)
+        reasons, fingers, shown = self._reasons(checks, state)
+        return SilhouetteVerdict(reasons, fingers, checks, shown)
 
     def mismatch(self, images: Sequence[np.ndarray], state: np.ndarray) -> float | None:
         """How badly ``state`` (n_q,) explains the hand's silhouette in ``images`` (any
@@ -258,7 +260,7 @@ class SilhouetteLoss:
         return shares
 
     def _reasons(self, checks: list[SilhouetteCheck], state: np.ndarray
-                 ) -> tuple[list[str], dict[str, bool]]:
+                 ) -> tuple[list[str], dict[str, bool], tuple[str, ...]]:
         reasons: list[str] = []
         fingers: dict[str, bool] = {}
         for camera, (check, base, outside_base) in enumerate(zip(
@@ -273,6 +275,7 @@ class SilhouetteLoss:
         if off:
             reasons.append(f"off the hand's silhouette: {', '.join(off)}")
         hidden = self.hidden_digits(checks) if checks else []
+        shown: dict[str, float] = {}
         if self.max_hidden_unexplained < 1:
             shares = self.unexplained_where_open(checks, state, hidden)
             shown = {d: v for d, v in shares.items() if v > self.max_hidden_unexplained}
@@ -286,7 +289,7 @@ class SilhouetteLoss:
             for digit in hidden:
                 fingers[digit] = True
             reasons.append(f"hidden, so unverified: {', '.join(hidden)}")
-        return reasons, fingers
+        return reasons, fingers, tuple(shown)
 
     def end_shown(self, digit: str, checks: Sequence[SilhouetteCheck]) -> bool:
         """Whether the end of ``digit`` (distal link and tip) shows in some camera of
