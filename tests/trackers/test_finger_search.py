@@ -150,10 +150,12 @@ def test_the_hidden_digit_test_names_the_digits_to_search(desk):
     hidden = FingerRecovery(model, rule, FingerSearchOptions(hidden_finger_search=True))
     assert hidden.digits_to_search(verdict) == ["index"]
     assert FingerRecovery(model, rule, FingerSearchOptions(
-        finger_search=True)).digits_to_search(verdict) is None
+        finger_search=True)).digits_to_search(verdict) == list(DIGITS)
     assert FingerRecovery(model, rule, FingerSearchOptions()).digits_to_search(verdict) == []
     found, moved = hidden.search([image], curled, ["index"])
     assert moved == ("index",) and _index_tip_error(model, found, q) < 25.0
+    assert hidden.improves([image], curled, found) and not hidden.improves([image], found,
+                                                                          curled)
     assert search_fingers(model, rule, [image], curled, digits=["thumb"]) is None
 
 

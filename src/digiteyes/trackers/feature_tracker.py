@@ -564,7 +564,7 @@ class FeatureTracker:
         timings["silhouette"] = time.perf_counter() - start
         searched = False
         digits = [] if verdict is None else self.finger_recovery.digits_to_search(verdict)
-        if digits is None or digits:
+        if digits:
             start = time.perf_counter()
             found = self._search_fingers(problem, images, q, predicted, digits)
             if found is not None:
@@ -584,8 +584,8 @@ class FeatureTracker:
 
     def _search_fingers(self, problem: FeatureProblem, images: list[np.ndarray],
                         q: np.ndarray, predicted: np.ndarray,
-                        digits: list[str] | None) -> tuple | None:
-        """The silhouette finger search of ``digits`` (None: all) from ``q`` and a solve
+                        digits: list[str]) -> tuple | None:
+        """The silhouette finger search of ``digits`` from ``q`` and a solve
         from its result; (state, summary, evaluation, verdict, digits moved) of that solve
         if it explains the silhouette better than ``q``, else None. The solve's timings go
         to the search's stage."""
@@ -595,8 +595,7 @@ class FeatureTracker:
         start, moved = searched
         problem.timings = dict.fromkeys(problem.timings, 0.0)
         found, summary = gauss_newton(problem, start, self.solver_options)
-        before, after = self.silhouette_loss.mismatches(images, [q, found], symmetric=True)
-        if after >= before:
+        if not self.finger_recovery.improves(images, q, found):
             return None
         return (found, summary, problem.evaluation_at(found),
                 self.silhouette_loss.check(images, found, predicted), moved)

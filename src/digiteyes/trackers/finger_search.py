@@ -168,15 +168,23 @@ class FingerRecovery:
         """Forget the placed digits (a new track)."""
         self.unseen = []
 
-    def digits_to_search(self, verdict: SilhouetteVerdict) -> list[str] | None:
-        """The digits to search after ``verdict``: every digit (None) when
+    def digits_to_search(self, verdict: SilhouetteVerdict) -> list[str]:
+        """The digits to search after ``verdict``: every digit of the model when
         ``finger_search`` is on and the frame is lost, the digits its hidden-digit test
-        named when ``hidden_finger_search`` is on, else none (an empty list)."""
+        named when ``hidden_finger_search`` is on, else none."""
         if self.options.finger_search and verdict.reasons:
-            return None
+            return list(digit_curl_paths(self.model))
         if self.options.hidden_finger_search:
             return list(verdict.hidden_shown)
         return []
+
+    def improves(self, images: Sequence[np.ndarray], state: np.ndarray,
+                 found: np.ndarray) -> bool:
+        """Whether ``found`` (the solve from a search's result) explains the hand's
+        silhouette in ``images`` better than ``state`` (the symmetric difference): the
+        test a tracker's re-solve must pass to replace its first estimate."""
+        before, after = self.rule.mismatches(images, [state, found], symmetric=True)
+        return after < before
 
     def search(self, images: Sequence[np.ndarray], state: np.ndarray,
                digits: Sequence[str] | None = None

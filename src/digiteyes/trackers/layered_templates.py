@@ -344,7 +344,7 @@ class LayeredTemplateTracker:
             verdict = self.silhouette_loss.check(greys, q, predicted)
             timings["silhouette"] = time.perf_counter() - tic
             digits = self.finger_recovery.digits_to_search(verdict)
-            if digits is None or digits:
+            if digits:
                 tic = time.perf_counter()
                 found = self._search_fingers(q, greys, predicted, timings, digits)
                 if found is not None:
@@ -362,8 +362,8 @@ class LayeredTemplateTracker:
         return self.finger_recovery.hold(self.loss_hold, result, searched)
 
     def _search_fingers(self, q: np.ndarray, greys: list[np.ndarray], predicted: np.ndarray,
-                        timings: dict[str, float], digits: list[str] | None) -> tuple | None:
-        """The silhouette finger search of ``digits`` (None: all) from ``q`` and a solve
+                        timings: dict[str, float], digits: list[str]) -> tuple | None:
+        """The silhouette finger search of ``digits`` from ``q`` and a solve
         from its result; (state, summary, evaluations, setup, verdict, digits moved) of that
         solve if it explains the silhouette better than ``q``, else None. The solve filters
         whole images: a moved finger may lie beyond the region filtered for the
@@ -375,8 +375,7 @@ class LayeredTemplateTracker:
         images = [self.options.templates.log.apply(g) for g in greys]
         setup = self._frame_setup(start, timings)
         found, summary = self._solve(start, images, greys, setup, timings)
-        before, after = self.silhouette_loss.mismatches(greys, [q, found], symmetric=True)
-        if after >= before:
+        if not self.finger_recovery.improves(greys, q, found):
             return None
         final = self._evaluate_all(found, images, setup, timings)
         return (found, summary, final, setup, self.silhouette_loss.check(greys, found, predicted),
