@@ -262,6 +262,52 @@ def test_auto_start_on_an_uncalibrated_video_uses_the_default_camera(webcam, tmp
     assert 100.0 < depth < 2000.0
 
 
+def test_a_hand_that_enters_late_is_found_and_numbered_as_in_the_video(webcam, tmp_path,
+                                                                       capsys):
+    """Three empty frames, then the hand: the start searches past them, and every output
+    numbers the frames as the video does (so they line up with it and with the truth)."""
+    video = tmp_path / "late.mkv"
+    seq = open_sequence(webcam)
+    images = [frame[0] for frame in seq]
+    with VideoWriter(video, 10.0) as writer:
+        for _ in range(3):
+            writer.write(np.zeros_like(images[0]))
+        for image in images[:3]:
+            writer.write(image)
+    out = tmp_path / "late"
+    assert main(["track", str(video), "--init", "auto", "--detector", "classic", "-o",
+                 str(out), "--no-overlay", "--quiet"]) == 0
+    assert "hand found in frame 3" in capsys.readouterr().out
+    log = read_state_log(out / "states.csv", seq.model)
+    assert list(log.frames) == [3, 4, 5]
+    with open(out / "keypoints.csv", newline="", encoding="utf-8") as handle:
+        rows = list(csv.DictReader(handle))
+    assert [int(row["frame"]) for row in rows] == [3, 4, 5]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["start"]["first_frame"] == 3 and summary["frames_missing"] == 0
+    # the tracked tips in the image against the true ones: video frame k + 3 is truth's k
+    truth = seq.truth
+    for k, row in enumerate(rows):
+        for finger in FINGERS:
+            name = f"{finger}.tip"
+            true_uv = truth.keypoints_2d[k, 0, truth.keypoint_names.index(name)]
+            uv = [float(row[f"camera.{name}.u_px"]), float(row[f"camera.{name}.v_px"])]
+            assert np.linalg.norm(np.subtract(uv, true_uv)) < 15.0, (k, name)
+
+
+def test_the_search_for_a_hand_stops_at_init_frames(webcam, tmp_path, capsys):
+    video = tmp_path / "late.mkv"
+    image = next(iter(open_sequence(webcam)))[0]
+    with VideoWriter(video, 10.0) as writer:
+        for _ in range(3):
+            writer.write(np.zeros_like(image))
+        writer.write(image)
+    assert main(["track", str(video), "--init", "auto", "--init-frames", "2", "--detector",
+                 "classic", "-o", str(tmp_path / "o"), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no hand found in 2 frame(s)" in err[0]
+
+
 def test_video_without_any_start_is_one_line_error(webcam, tmp_path, capsys):
     video = tmp_path / "clip.mkv"
     with VideoWriter(video, 10.0) as writer:

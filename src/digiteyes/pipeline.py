@@ -160,13 +160,14 @@ class TrackingRun:
 
 
 def step_frames(tracker: Tracker, frames: Iterable[Sequence[np.ndarray]],
-                initial_state: np.ndarray) -> Iterator[tuple[int, Sequence[np.ndarray],
-                                                          TrackResult, float]]:
+                initial_state: np.ndarray, first_index: int = 0,
+                ) -> Iterator[tuple[int, Sequence[np.ndarray], TrackResult, float]]:
     """Reset ``tracker`` to ``initial_state`` and step it through ``frames`` (one list of
     images per time step, rig order); yields ``(index, images, result, seconds)`` per
-    frame, ``seconds`` the wall time of the ``step`` call."""
+    frame, ``index`` counted from ``first_index`` (the input's number of the first frame),
+    ``seconds`` the wall time of the ``step`` call."""
     tracker.reset(np.asarray(initial_state, dtype=float))
-    for index, images in enumerate(frames):
+    for index, images in enumerate(frames, start=first_index):
         images = list(images)
         start = time.perf_counter()
         result = tracker.step(images)
@@ -216,6 +217,7 @@ def run_tracker(
     warm: bool = True,
     recover: Recover | None = None,
     sinks: Sequence[FrameSink] = (),
+    first_index: int = 0,
 ) -> TrackingRun:
     """Track ``frames`` (one list of images per time step, rig order) from
     ``initial_state`` with any :class:`~digiteyes.trackers.Tracker` and write the outputs
@@ -223,7 +225,8 @@ def run_tracker(
     the tracker's class name). With ``warm`` the tracker first steps once on the first
     frame, untimed, and is reset (:func:`digiteyes.trackers.warm_up`): compiling the
     kernels on a first run stays out of the figures. ``recover`` and ``sinks``: see the
-    module docstring."""
+    module docstring. ``first_index`` numbers the first frame in every output (the input's
+    own number of that frame, e.g. where an automatic start found the hand)."""
     out = Path(out_dir)
     (out / "views").mkdir(parents=True, exist_ok=True)
     stages = tuple(tracker.stages)
@@ -245,7 +248,8 @@ def run_tracker(
     bar = tqdm(frames, total=total, unit="frame", desc="tracking", disable=not progress)
     try:
         with StateLogWriter(log_path, model, reinitialised=recover is not None) as log:
-            for index, images, result, seconds in step_frames(tracker, bar, initial_state):
+            for index, images, result, seconds in step_frames(tracker, bar, initial_state,
+                                                                 first_index):
                 start = time.perf_counter()
                 fresh = recovered_state(tracker, images, result, recover)
                 if fresh is not None:
@@ -278,9 +282,9 @@ def run_tracker(
                 run.files["overlay"] = video.path
     run.files["states"] = log_path
     if states:
-        last_view_written = bool(views_every) and run.n_frames % views_every == 0
-        if not last_view_written:
-            _write_view(model, states[-1], out, run.n_frames - 1, view, run)
+        last = first_index + run.n_frames - 1
+        if not (views_every and last % views_every == views_every - 1):
+            _write_view(model, states[-1], out, last, view, run)
         run.files.update(write_trajectory_plots(model, np.array(states), out))
     run.wall_seconds = time.perf_counter() - started
     summary = out / "summary.json"

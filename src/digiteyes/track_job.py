@@ -21,8 +21,10 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from itertools import islice
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+from tqdm import tqdm
 
 from digiteyes.camera import Rig, load_rig
 from digiteyes.camera.default import DEFAULT_HFOV_DEG, default_camera
@@ -50,6 +52,9 @@ from digiteyes.trackers import (
     create_tracker,
     thesis_whole_hand_links,
 )
+
+if TYPE_CHECKING:
+    from digiteyes.detect.initialiser import AutoInitialiser
 
 AUTO = "auto"
 """``init_path`` value that starts from a detection and model fit (``--init auto``)."""
@@ -106,7 +111,8 @@ class TrackJob:
     detector : detector of the automatic start and the recovery (``auto``, ``mediapipe``,
         ``classic``); hfov : field of view of the default camera (deg).
     recover : re-detect after lost frames (None: exactly when ``init_path`` is ``auto``).
-    init_frames : frames the automatic start may try before giving up.
+    init_frames : frames the automatic start may search for the hand before giving up
+        (None: the whole input; a live camera waits until the hand shows).
     """
 
     inputs: tuple[str, ...]
@@ -134,7 +140,7 @@ class TrackJob:
     detector: str = "auto"
     hfov: float = DEFAULT_HFOV_DEG
     recover: bool | None = None
-    init_frames: int = 10
+    init_frames: int | None = None
 
 
 @dataclass
@@ -254,12 +260,12 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
     initialiser = None
     start_note: dict[str, object] = {"init": "auto" if auto else "given"}
     if auto or job.recover:
-        from digiteyes.detect.initialiser import AutoInitialiser, start_automatically
+        from digiteyes.detect.initialiser import AutoInitialiser
 
         initialiser = AutoInitialiser(model, rig, job.detector)
         start_note["detector"] = initialiser.detector_class
     if auto:
-        initial, skipped, frames = start_automatically(initialiser, frames, job.init_frames)
+        initial, skipped, frames = _search_start(initialiser, frames, job, total, say)
         start_note["first_frame"] = skipped
         start_note["found_by"] = sorted({c.detector for c in initialiser.last.candidates
                                          if c is not None})
@@ -269,6 +275,7 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
             f"({', '.join(start_note['found_by'])} + model fit)")
     else:
         initial = np.asarray(source.initial)
+    first_index = int(start_note.get("first_frame", 0))
     recover = initialiser if (job.recover if job.recover is not None else auto) else None
     tracker = create_tracker(job.tracker_name, model, rig, **_tracker_options(job, model))
     out = Path(job.output)
@@ -277,20 +284,47 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
     try:
         run = run_tracker(tracker, model, rig, frames, initial, out, fps=source.rate,
                           total=total, overlay=job.overlay, progress=job.progress,
-                          tracker_name=job.tracker_name, recover=recover, sinks=sinks)
+                          tracker_name=job.tracker_name, recover=recover, sinks=sinks,
+                          first_index=first_index)
     finally:
         for sink in sinks:
             sink.close()
     run.files["keypoints"] = out / KEYPOINTS_FILE
     _record_start(run, start_note, initialiser, job.smooth, source.rate)
     if source.lengths is not None and not run.interrupted and job.max_frames is None:
-        record_missing(run.files["summary"], source.lengths[0], run.n_frames,
+        record_missing(run.files["summary"], source.lengths[0], first_index + run.n_frames,
                        source.lengths[1])
     run.files.update(write_track_extras(out, model, source.rate, job.smooth))
     from digiteyes.evaluate.report_page import write_report_page
 
     run.files["report"] = write_report_page(out)
     return run
+
+
+def _search_start(initialiser: AutoInitialiser, frames: Iterator[list[np.ndarray]],
+                  job: TrackJob, total: int | None, say: Callable[[str], None],
+                  ) -> tuple[np.ndarray, int, Iterator[list[np.ndarray]]]:
+    """The automatic start: search the input for the first frame with a hand (a bar while
+    the search lasts more than the first frame)."""
+    from digiteyes.detect.initialiser import start_automatically
+
+    bar = None
+
+    def searched(index: int) -> None:
+        nonlocal bar
+        if bar is None:
+            say("--init auto: no hand in frame 0; searching the following frames"
+                if job.camera is None else "--init auto: waiting for a hand in view")
+            bar = tqdm(total=total, initial=1, unit="frame", desc="looking for a hand",
+                       disable=not job.progress)
+        else:
+            bar.update()
+
+    try:
+        return start_automatically(initialiser, frames, job.init_frames, searched)
+    finally:
+        if bar is not None:
+            bar.close()
 
 
 def _open_sinks(job: TrackJob, model: KinematicModel, rig: Rig, out: Path, fps: float,

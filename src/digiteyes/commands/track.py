@@ -146,6 +146,8 @@ def print_run(run: TrackingRun, err: bool = False) -> None:
               default="auto", show_default=True,
               help="Detector of --init auto and of the recovery after loss (auto = MediaPipe "
                    "when installed, the classic detector where it finds no hand).")
+@click.option("--init-frames", type=click.IntRange(min=1), default=None,
+              help="Frames --init auto may search for the hand (default: until it shows).")
 @click.option("--recover/--no-recover", default=None,
               help="Re-detect and re-fit after a lost frame (default: with --init auto).")
 @click.option("--hfov", type=click.FloatRange(min=1, max=179, min_open=True, max_open=True),
@@ -196,7 +198,8 @@ def print_run(run: TrackingRun, err: bool = False) -> None:
               help="Refuse videos of different lengths instead of tracking the shortest.")
 def track(inputs: tuple[str, ...], model_name: str | None, rig_path: str | None,
           init_path: str | None, output: str, camera: int | None, show: bool,
-          stream: str | None, detector: str, recover: bool | None, hfov: float,
+          stream: str | None, detector: str, init_frames: int | None,
+          recover: bool | None, hfov: float,
           tracker_name: str, option_pairs: tuple[str, ...], iterations: int, window: float,
           links: str, robust: str | None, prediction: str, shading: bool,
           max_frames: int | None, fps: float | None, no_overlay: bool, smooth: bool,
@@ -211,7 +214,8 @@ def track(inputs: tuple[str, ...], model_name: str | None, rig_path: str | None,
         prediction, shading, max_frames, fps, overlay=not no_overlay, progress=not quiet,
         tracker_name=tracker_name, options=tuple(parse_tracker_options(option_pairs).items()),
         strict=strict, smooth=smoothing_options(smooth, min_cutoff, beta), camera=camera,
-        show=show, stream=stream, detector=detector, hfov=hfov, recover=recover)
+        show=show, stream=stream, detector=detector, hfov=hfov, recover=recover,
+        init_frames=init_frames)
     # the default tracker compiles the demo's kernels (its silhouette check draws with the
     # renderer's); other trackers may compile any
     if cold_kernels(only=DEMO_KERNELS if tracker_name == DEFAULT_TRACKER else None):

@@ -13,7 +13,7 @@ is taken (the tracker, seeing every camera, corrects its depth).
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from itertools import chain
 
@@ -110,20 +110,29 @@ class AutoInitialiser:
 
 
 def start_automatically(initialiser: AutoInitialiser, frames: Iterator[list[np.ndarray]],
-                        max_frames: int = 10) -> tuple[np.ndarray, int, Iterator]:
-    """Try the first ``max_frames`` frames until ``initialiser`` finds the hand.
+                        max_frames: int | None = None,
+                        progress: Callable[[int], None] | None = None,
+                        ) -> tuple[np.ndarray, int, Iterator]:
+    """Run ``initialiser`` on the frames in turn until it finds the hand.
 
-    Returns ``(state, skipped, frames)``: the state fitted to frame ``skipped`` (the frames
-    before it had no hand and are not tracked) and the frames from that one on. Raises
-    :class:`DatasetError` when none of them shows a hand.
+    ``max_frames`` bounds the search (None: until the input ends, e.g. a video whose hand
+    enters late, or a live camera until the hand is raised); ``progress(k)`` is called
+    after each frame ``k`` that showed no hand. Returns ``(state, skipped, frames)``: the
+    state fitted to frame ``skipped`` (the frames before it had no hand and are not
+    tracked) and the frames from that one on. Raises :class:`DatasetError` when none of
+    them shows a hand.
     """
-    for skipped in range(max_frames):
+    searched = 0
+    while max_frames is None or searched < max_frames:
         images = next(frames, None)
         if images is None:
             break
         state = initialiser(images)
         if state is not None:
-            return state, skipped, chain([images], frames)
-    raise DatasetError(f"--init auto: no hand found in the first {max_frames} frame(s) "
+            return state, searched, chain([images], frames)
+        searched += 1
+        if progress is not None:
+            progress(searched - 1)
+    raise DatasetError(f"--init auto: no hand found in {searched} frame(s) "
                        f"(detector {initialiser.detector!r}); give an initial state with "
                        "--init FILE")
