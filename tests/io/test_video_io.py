@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import struct
+
 import av
+import cv2
 import numpy as np
 import pytest
 
@@ -145,3 +148,40 @@ def test_frame_rate_is_what_the_writer_declared(tmp_path, fps, codec, suffix):
     broken.write_bytes(b"not a video")
     with pytest.raises(DatasetError, match=r"broken\.mp4"):
         frame_rate(broken)
+
+
+def _set_display_rotation(path, a, b, c, d):
+    """Write the 2x2 part of the MP4 track header's display matrix (16.16 fixed point), as
+    a phone does for a portrait recording: the frames stay landscape."""
+    data = bytearray(path.read_bytes())
+    # tkhd (version 0): type, version+flags, 2 times, id, reserved, duration, 8 reserved,
+    # layer, group, volume, reserved, then the 3x3 matrix
+    start = data.index(b"tkhd") + 4 + 4 + 20 + 8 + 8
+    one = 1 << 16
+    assert struct.unpack(">9i", data[start:start + 36]) == (one, 0, 0, 0, one, 0, 0, 0,
+                                                             1 << 30)
+    data[start:start + 36] = struct.pack(">9i", a * one, b * one, 0, c * one, d * one, 0,
+                                         0, 0, 1 << 30)
+    path.write_bytes(bytes(data))
+
+
+@pytest.mark.parametrize("matrix", [(0, 1, -1, 0), (0, -1, 1, 0), (-1, 0, 0, -1)])
+@pytest.mark.parametrize("gray", [False, True])
+def test_a_phones_display_rotation_is_applied_as_opencv_applies_it(tmp_path, matrix, gray):
+    """A portrait phone video (landscape frames plus a display rotation) reads upright:
+    the same pictures as OpenCV's reader, which applies the rotation itself."""
+    image = np.full((48, 64, 3), 40, np.uint8)
+    image[4:16, 6:30] = 230  # a bright patch near the top-left corner
+    path = tmp_path / "phone.mp4"
+    write_video(path, [image] * 2, codec="h264")
+    _set_display_rotation(path, *matrix)
+    with VideoReader(path, gray=gray) as reader:
+        ours = list(reader)
+    capture = cv2.VideoCapture(str(path))
+    ok, theirs = capture.read()
+    capture.release()
+    assert ok
+    theirs = cv2.cvtColor(theirs, cv2.COLOR_BGR2GRAY if gray else cv2.COLOR_BGR2RGB)
+    assert ours[0].shape[:2] == ((48, 64) if matrix == (-1, 0, 0, -1) else (64, 48))
+    assert ours[0].shape == theirs.shape
+    assert np.abs(ours[0].astype(int) - theirs.astype(int)).mean() < 3.0

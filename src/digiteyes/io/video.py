@@ -173,6 +173,16 @@ _LIMITED_TO_FULL = np.clip(np.round((np.arange(256) - 16) * (255 / 219)), 0, 255
                            ).astype(np.uint8)
 
 
+def _upright(image: np.ndarray, frame: av.VideoFrame) -> np.ndarray:
+    """``image`` turned the way the container says it is shown: a phone records a portrait
+    video as landscape frames plus a display rotation (multiples of 90 deg), which players
+    and OpenCV apply and FFmpeg's decoder does not."""
+    quarter_turns = round(frame.rotation / 90.0) % 4
+    if not quarter_turns:
+        return image
+    return np.ascontiguousarray(np.rot90(image, quarter_turns))
+
+
 def _gray_image(frame: av.VideoFrame) -> np.ndarray:
     """A decoded frame as a full-range grey ``uint8`` (H, W) image.
 
@@ -230,9 +240,8 @@ class VideoReader:
             self.close()
             return None
         self.n_read += 1
-        if self.gray:
-            return _gray_image(frame)
-        return frame.to_ndarray(format="rgb24")
+        image = _gray_image(frame) if self.gray else frame.to_ndarray(format="rgb24")
+        return _upright(image, frame)
 
     def __iter__(self) -> Iterator[np.ndarray]:
         while (image := self.read()) is not None:
