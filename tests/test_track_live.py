@@ -14,6 +14,8 @@ import numpy as np
 import pytest
 
 from digiteyes import forward_kinematics
+from digiteyes.camera import save_rig
+from digiteyes.camera.mirror import mirrored_rig
 from digiteyes.cli import main
 from digiteyes.io import VideoReader, VideoWriter, open_sequence, read_state_log
 from digiteyes.io.video import CaptureReader, open_capture_frames
@@ -306,6 +308,50 @@ def test_the_search_for_a_hand_stops_at_init_frames(webcam, tmp_path, capsys):
                  "classic", "-o", str(tmp_path / "o"), "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no hand found in 2 frame(s)" in err[0]
+
+
+def test_a_left_hand_is_tracked_as_the_mirror_image_of_a_right_one(webcam, tmp_path, capsys):
+    """The rendered right hand's images flipped, with the mirrored rig, show a left hand.
+    ``--hand left`` tracks it as the right hand of their mirror image, which is the
+    original scene: the same track, and every output in the left hand's images."""
+    seq = open_sequence(webcam)
+    images = [frame[0] for frame in seq]
+    width = seq.rig[0].width
+    right_video, left_video = tmp_path / "right.mkv", tmp_path / "left.mkv"
+    for path, flip in ((right_video, False), (left_video, True)):
+        with VideoWriter(path, 10.0) as writer:  # FFV1: lossless
+            for image in images:
+                writer.write(image[:, ::-1] if flip else image)
+    save_rig(seq.rig, tmp_path / "right-rig.json")
+    save_rig(mirrored_rig(seq.rig), tmp_path / "left-rig.json")
+    init = str(webcam / "initial_state.json")
+    for side in ("right", "left"):
+        assert main(["track", str(tmp_path / f"{side}.mkv"), "--rig",
+                     str(tmp_path / f"{side}-rig.json"), "--init", init, "--hand", side,
+                     "-o", str(tmp_path / side), "--quiet"]) == 0
+    capsys.readouterr()
+    right = read_state_log(tmp_path / "right" / "states.csv", seq.model)
+    left = read_state_log(tmp_path / "left" / "states.csv", seq.model)
+    np.testing.assert_allclose(left.states, right.states, atol=1e-9)
+
+    def columns(side):
+        with open(tmp_path / side / "keypoints.csv", newline="", encoding="utf-8") as handle:
+            rows = list(csv.DictReader(handle))
+        return {key: np.array([float(row[key]) for row in rows]) for key in rows[0]}
+
+    r, l_ = columns("right"), columns("left")
+    for key in r:
+        if key.endswith(".u_px"):
+            np.testing.assert_allclose(l_[key], width - 1 - r[key], atol=1e-6)
+        elif key.endswith(".x_mm"):
+            np.testing.assert_allclose(l_[key], -r[key], atol=1e-6)
+        else:
+            np.testing.assert_allclose(l_[key], r[key], atol=1e-6)
+    # the overlay is drawn over the left hand's own images
+    with VideoReader(tmp_path / "right" / "overlay.mp4") as a, \
+            VideoReader(tmp_path / "left" / "overlay.mp4") as b:
+        first_right, first_left = a.read(), b.read()
+    assert np.abs(first_left.astype(int) - first_right[:, ::-1].astype(int)).mean() < 2.0
 
 
 def test_video_without_any_start_is_one_line_error(webcam, tmp_path, capsys):

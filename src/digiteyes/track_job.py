@@ -28,6 +28,7 @@ from tqdm import tqdm
 
 from digiteyes.camera import Rig, load_rig
 from digiteyes.camera.default import DEFAULT_HFOV_DEG, default_camera
+from digiteyes.camera.mirror import mirror_images, mirrored_rig
 from digiteyes.errors import CameraError, DatasetError
 from digiteyes.features import FeatureOptions
 from digiteyes.filters import OneEuroOptions
@@ -111,6 +112,8 @@ class TrackJob:
     detector : detector of the automatic start and the recovery (``auto``, ``mediapipe``,
         ``classic``); hfov : field of view of the default camera (deg).
     recover : re-detect after lost frames (None: exactly when ``init_path`` is ``auto``).
+    hand : ``"right"`` or ``"left"``: the side of the hand in the images; a left hand is
+        tracked as the right hand of the mirror image (:mod:`digiteyes.camera.mirror`).
     init_frames : frames the automatic start may search for the hand before giving up
         (None: the whole input; a live camera waits until the hand shows).
     """
@@ -141,6 +144,7 @@ class TrackJob:
     hfov: float = DEFAULT_HFOV_DEG
     recover: bool | None = None
     init_frames: int | None = None
+    hand: str = "right"
 
 
 @dataclass
@@ -255,6 +259,9 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
                                             job.hfov),))
     rig.check_images(first)
     frames = _prepend(first, frames)
+    if job.hand == "left":
+        rig = mirrored_rig(rig)
+        frames = (mirror_images(images) for images in frames)
     model = source.model
     auto = source.initial is None
     initialiser = None
@@ -273,6 +280,10 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
             total -= skipped
         say(f"--init auto: hand found in frame {skipped} "
             f"({', '.join(start_note['found_by'])} + model fit)")
+        seen = _sides_seen(initialiser, rig)
+        if seen and job.hand not in seen:
+            say(f"warning: the detector sees a {' and a '.join(sorted(seen))} hand, the run "
+                f"tracks a {job.hand} hand (--hand {sorted(seen)[0]} if that is the one)")
     else:
         initial = np.asarray(source.initial)
     first_index = int(start_note.get("first_frame", 0))
@@ -348,6 +359,14 @@ def _open_sinks(job: TrackJob, model: KinematicModel, rig: Rig, out: Path, fps: 
             sink.close()
         raise
     return sinks
+
+
+def _sides_seen(initialiser: AutoInitialiser, rig: Rig) -> set[str]:
+    """The sides of the hand (``"right"``/``"left"``, in the real images) the detectors of
+    the last detection reported (a mirrored rig's images show the other side)."""
+    flip = {"right": "left", "left": "right"}
+    return {flip[c.handedness] if rig.mirrored else c.handedness
+            for c in initialiser.last.candidates if c is not None and c.handedness in flip}
 
 
 def _prepend(first: list[np.ndarray], frames: Iterator) -> Iterator[list[np.ndarray]]:

@@ -12,6 +12,7 @@ import pytest
 from digiteyes import load_model
 from digiteyes.camera import Camera, Rig, load_rig, save_rig
 from digiteyes.camera.calibration import CharucoBoard, render_charuco, render_chessboard
+from digiteyes.camera.mirror import mirrored_rig
 from digiteyes.cli import main
 from digiteyes.detect.hand_size import model_hand_length
 from digiteyes.detect.mediapipe_detector import mediapipe_available
@@ -54,6 +55,35 @@ def test_pose_writes_json_and_csv(hand_image, tmp_path):
         rows = list(csv.DictReader(handle))
     assert len(rows) == 21 and rows[0]["keypoint"] == "wrist"
     assert float(rows[0]["z_cam_mm"]) == pytest.approx(wrist[2], abs=0.01)
+
+
+def test_pose_of_a_left_hand_is_the_mirror_image_of_the_right_hands(hand_image, tmp_path):
+    """The rendered right hand flipped is a left hand (with the mirrored rig). ``--hand
+    left`` fits it as the right hand of its mirror image, which is the original: the
+    reported detections and points are exactly the right hand's, reflected."""
+    image, rig_path, _ = hand_image
+    flipped = tmp_path / "left.png"
+    cv2.imwrite(str(flipped), cv2.imread(str(image))[:, ::-1])
+    save_rig(mirrored_rig(load_rig(rig_path)), tmp_path / "left-rig.json")
+    assert main(["pose", str(image), "--rig", str(rig_path), "--detector", "classic",
+                 "-o", str(tmp_path / "r")]) == 0
+    assert main(["pose", str(flipped), "--rig", str(tmp_path / "left-rig.json"), "--hand",
+                 "left", "--detector", "classic", "-o", str(tmp_path / "l")]) == 0
+    right = json.loads((tmp_path / "r" / "hand.json").read_text())
+    left = json.loads((tmp_path / "l" / "left.json").read_text())
+    assert left["hand_side"] == "left" and right["hand_side"] == "right"
+    width = load_rig(rig_path)[0].width
+    for name, (u, v) in right["detections"]["front"]["keypoints_px"].items():
+        assert left["detections"]["front"]["keypoints_px"][name] == \
+            pytest.approx([width - 1 - u, v], abs=1e-6)
+    for name, (x, y, z) in right["hand"]["keypoints_camera_mm"]["front"].items():
+        assert left["hand"]["keypoints_camera_mm"]["front"][name] == \
+            pytest.approx([-x, y, z], abs=1e-2)
+    assert left["hand"]["joint_angles_deg"] == pytest.approx(right["hand"]["joint_angles_deg"])
+    with open(tmp_path / "l" / "left.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    wrist = left["hand"]["keypoints_camera_mm"]["front"]["wrist"]
+    assert float(rows[0]["x_cam_mm"]) == pytest.approx(wrist[0], abs=0.01)
 
 
 def test_pose_without_a_rig_uses_the_default_camera(hand_image, tmp_path):

@@ -35,9 +35,16 @@ from digiteyes.jsonfile import read_json_object
 
 @dataclass(frozen=True)
 class Rig:
-    """An ordered set of cameras sharing one world frame."""
+    """An ordered set of cameras sharing one world frame.
+
+    ``mirrored``: the cameras see the mirror image of the real scene, through images
+    flipped left to right (a left hand tracked by a right-hand model,
+    :mod:`digiteyes.camera.mirror`); outputs in image and camera coordinates are turned
+    back to the real images.
+    """
 
     cameras: tuple[Camera, ...]
+    mirrored: bool = False
 
     def __post_init__(self) -> None:
         if not self.cameras:

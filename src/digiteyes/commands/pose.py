@@ -6,6 +6,7 @@ from pathlib import Path
 
 import click
 
+from digiteyes.camera.mirror import HANDS
 from digiteyes.detect.pose import DETECTORS
 
 
@@ -27,19 +28,24 @@ from digiteyes.detect.pose import DETECTORS
               help="Assumed hand size relative to the model (sets depth with one camera).")
 @click.option("--hfov", type=click.FloatRange(10, 170), default=60.0, show_default=True,
               help="Horizontal field of view (deg) of the default camera (no --rig).")
+@click.option("--hand", type=click.Choice(HANDS), default="right", show_default=True,
+              help="The hand in the images; a left hand is fitted as the right hand of the "
+                   "mirror image (outputs in the real images).")
 def pose(images: tuple[Path, ...], output: Path, rig: Path | None, detector: str,
-         model_name: str, hand_scale: float, hfov: float) -> None:
+         model_name: str, hand_scale: float, hfov: float, hand: str) -> None:
     """Detect the hand in each image and fit the model: 3D keypoints in the camera frame
     (mm), joint angles (deg) and the state, as JSON and CSV per image."""
     import cv2
 
     from digiteyes.camera import Rig, load_rig
     from digiteyes.camera.default import default_camera
+    from digiteyes.camera.mirror import mirror_images, rig_for_hand
     from digiteyes.detect.model_fit import FitOptions
     from digiteyes.detect.pose import (
         estimate_pose,
         make_detector,
         pose_to_json,
+        real_keypoints,
         write_pose_csv,
         write_pose_json,
     )
@@ -64,7 +70,10 @@ def pose(images: tuple[Path, ...], output: Path, rig: Path | None, detector: str
             if bgr is None:
                 raise DigitEyesError(f"{path}: not an image OpenCV can read")
             frames.append(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
-        cams = the_rig or Rig((default_camera(frames[0].shape[1], frames[0].shape[0], hfov),))
+        cams = rig_for_hand(the_rig or Rig((default_camera(frames[0].shape[1],
+                                                          frames[0].shape[0], hfov),)), hand)
+        if cams.mirrored:
+            frames = mirror_images(frames)
         result = estimate_pose(frames, cams, det, model, options)
         stem = paths[0].stem
         write_pose_json(pose_to_json(result, cams, [str(p) for p in paths]),
@@ -72,8 +81,11 @@ def pose(images: tuple[Path, ...], output: Path, rig: Path | None, detector: str
         write_pose_csv(result, cams, output / f"{stem}.csv")
         found += result.fit is not None
         ms = 1000 * sum(result.seconds.values())
-        state = "no hand" if result.fit is None else (
-            f"hand at {result.fit.keypoints_camera(cams[0])[9].round(0).tolist()} mm "
-            f"(middle MCP, camera {cams[0].name})")
+        if result.fit is None:
+            state = "no hand"
+        else:
+            middle_mcp = real_keypoints(result.fit.keypoints_camera(cams[0]), cams)[9]
+            state = (f"hand at {middle_mcp.round(0).tolist()} mm "
+                     f"(middle MCP, camera {cams[0].name})")
         click.echo(f"{paths[0].name}: {state}, {ms:.0f} ms")
     click.echo(f"{found}/{len(images) // per_set} image set(s) with a hand; wrote {output}")

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -39,6 +39,19 @@ class HandCandidate:
     mask: np.ndarray | None = None
 
     names: tuple[str, ...] = HAND21_NAMES
+
+    def mirrored(self, width: int) -> HandCandidate:
+        """The same hand in the image flipped left to right (``width`` px): pixels, box
+        and side mirrored (:mod:`digiteyes.camera.mirror`); 3D points and mask too."""
+        keypoints = np.array(self.keypoints, dtype=float)
+        keypoints[:, 0] = width - 1 - keypoints[:, 0]
+        x0, y0, x1, y1 = self.bbox
+        side = {"right": "left", "left": "right"}.get(self.handedness or "")
+        points = None if self.keypoints_3d is None else \
+            np.asarray(self.keypoints_3d, dtype=float) * [-1.0, 1.0, 1.0]
+        return replace(self, keypoints=keypoints, bbox=(width - 1 - x1, y0, width - 1 - x0, y1),
+                       handedness=side, keypoints_3d=points,
+                       mask=None if self.mask is None else self.mask[:, ::-1].copy())
 
     def to_json(self) -> dict:
         """A JSON-ready dict (no mask)."""

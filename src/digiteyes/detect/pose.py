@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from digiteyes.camera import Rig
+from digiteyes.camera.mirror import unmirror_points
 from digiteyes.detect.candidate import HandCandidate, HandDetector
 from digiteyes.detect.hand21 import HAND21_NAMES
 from digiteyes.detect.model_fit import FitOptions, KeypointObservation, PoseFit, fit_keypoints
@@ -88,12 +89,31 @@ def estimate_pose(images: Sequence[np.ndarray], rig: Rig, detector: HandDetector
                                         "fit": time.perf_counter() - detected})
 
 
+def real_candidates(result: PoseResult, rig: Rig) -> list[HandCandidate | None]:
+    """The detections in the real images (a mirrored rig's, :mod:`digiteyes.camera.mirror`,
+    were made in flipped ones)."""
+    if not rig.mirrored:
+        return list(result.candidates)
+    return [None if c is None else c.mirrored(cam.width)
+            for cam, c in zip(rig, result.candidates, strict=True)]
+
+
+def real_keypoints(points: np.ndarray, rig: Rig) -> np.ndarray:
+    """Fitted points (..., 3) of the world or a camera frame of ``rig``, in the real scene
+    (a mirrored rig's are reflected back)."""
+    return unmirror_points(points) if rig.mirrored else np.asarray(points)
+
+
 def pose_to_json(result: PoseResult, rig: Rig, sources: Sequence[str]) -> dict:
     """A JSON-ready record: detections, 3D keypoints (mm) in the world and in each camera,
-    joint angles (deg), the scaled state, hand scale and timings."""
+    joint angles (deg), the scaled state, hand scale and timings. With a mirrored rig (a
+    left hand) pixels and points are the real images' and scene's; the state is that of
+    the mirror image's right hand."""
     out: dict = {"images": list(sources), "seconds": result.seconds,
+                 "hand_side": "left" if rig.mirrored else "right",
                  "detections": {cam.name: None if c is None else c.to_json()
-                                for cam, c in zip(rig, result.candidates, strict=True)}}
+                                for cam, c in zip(rig, real_candidates(result, rig),
+                                                  strict=True)}}
     fit = result.fit
     if fit is None:
         out["hand"] = None
@@ -105,8 +125,9 @@ def pose_to_json(result: PoseResult, rig: Rig, sources: Sequence[str]) -> dict:
 
     out["hand"] = {
         "scale": fit.scale, "scale_fitted": fit.scale_fitted,
-        "keypoints_world_mm": named(fit.keypoints_world),
-        "keypoints_camera_mm": {cam.name: named(fit.keypoints_camera(cam)) for cam in rig},
+        "keypoints_world_mm": named(real_keypoints(fit.keypoints_world, rig)),
+        "keypoints_camera_mm": {cam.name: named(real_keypoints(fit.keypoints_camera(cam), rig))
+                                for cam in rig},
         "joint_angles_deg": fit.joint_angles_deg(),
         "state": dict(zip(fit.model.state_names, fit.scaled_state().tolist(), strict=True)),
         "reprojection_rms_px": float(np.sqrt(np.mean(fit.reprojection_px ** 2)))
@@ -122,9 +143,9 @@ def write_pose_csv(result: PoseResult, rig: Rig, path: str | Path) -> None:
         writer = csv.writer(handle)
         writer.writerow(["camera", "keypoint", "u_px", "v_px", "confidence", "x_cam_mm",
                          "y_cam_mm", "z_cam_mm"])
-        for cam, cand in zip(rig, result.candidates, strict=True):
-            xyz = (result.fit.keypoints_camera(cam) if result.fit is not None
-                   else np.full((21, 3), np.nan))
+        for cam, cand in zip(rig, real_candidates(result, rig), strict=True):
+            xyz = (real_keypoints(result.fit.keypoints_camera(cam), rig)
+                   if result.fit is not None else np.full((21, 3), np.nan))
             for k, name in enumerate(HAND21_NAMES):
                 uv = (np.full(2, np.nan) if cand is None else cand.keypoints[k])
                 conf = np.nan if cand is None else cand.keypoint_confidence[k]

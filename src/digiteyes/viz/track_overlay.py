@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from digiteyes.camera import Camera, Rig
+from digiteyes.camera.mirror import mirror_images
 from digiteyes.kinematics import KinematicModel
 from digiteyes.trackers import FeatureDetails, TemplateDetails, TrackResult
 from digiteyes.viz.model_view import draw_wireframe
@@ -61,9 +62,12 @@ def draw_result(image: np.ndarray, camera_index: int, camera: Camera, result: Tr
 def overlay_image(images: Sequence[np.ndarray], result: TrackResult, rig: Rig,
                   model: KinematicModel) -> np.ndarray:
     """Cameras side by side, each panel drawn by :func:`draw_result` (RGB uint8, padded
-    to an even size for H.264)."""
+    to an even size for H.264); a mirrored rig's panels (a left hand,
+    :mod:`digiteyes.camera.mirror`) are flipped back to the real images."""
     panels = [draw_result(image, index, camera, result, model)
               for index, (image, camera) in enumerate(zip(images, rig, strict=True))]
+    if rig.mirrored:
+        panels = mirror_images(panels)
     height = max(p.shape[0] for p in panels)
     height += height % 2
     width = sum(p.shape[1] for p in panels)
