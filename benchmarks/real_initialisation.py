@@ -25,8 +25,9 @@ Usage::
    (:func:`digiteyes.detect.link_lengths.triangulate`) and the 15 finger segments
    measured, against the same segments of the 3D labels (mm).
 2c. **InterHand2.6M** (4 annotated 334x512 images with 3D joints and their cameras):
-   for each image whose right hand is annotated, each detector's candidate nearest the
-   right hand's projected joints (oracle association: three of the images show two hands),
+   for each annotated hand (three right, three left; a left hand through the mirror image,
+   as ``--hand left`` runs it), each detector's candidate nearest the hand's projected
+   joints (oracle association: three of the images show two hands),
    its 2D error, the one-camera fit's root-relative and root errors (default hand size),
    and MediaPipe's own 3D keypoints' root-relative error in the same run.
 3. **The real video** (621 frames, 1280x720, grey wall): detection rate per frame of both
@@ -57,6 +58,7 @@ from digiteyes import load_model
 from digiteyes.benchmarks._machine import machine_info
 from digiteyes.camera import Camera, Rig
 from digiteyes.camera.default import default_camera
+from digiteyes.camera.mirror import mirror_images, mirrored_camera, unmirror_points
 from digiteyes.detect.hand21 import BONES
 from digiteyes.detect.hand_size import measure_hand
 from digiteyes.detect.link_lengths import (
@@ -234,48 +236,75 @@ INTERHAND_OF_HAND21 = [20, 3, 2, 1, 0, 7, 6, 5, 4, 11, 10, 9, 8, 15, 14, 13, 12,
 
 
 def interhand_stage(data: Path, hand) -> dict | None:
-    """The InterHand2.6M test images (see the module docstring), right hands only."""
+    """The InterHand2.6M test images (see the module docstring), every annotated hand: a
+    left hand through the mirror image (flipped image, mirrored camera and truth,
+    :mod:`digiteyes.camera.mirror`), as ``--hand left`` runs it."""
     root = data / INTERHAND
     if not (root / "test_interhand2.6m_data.json").is_file():
         return None
     cameras, joints, meta = (json.loads((root / f"test_interhand2.6m_{name}.json").read_text())
                              for name in ("camera", "joint_3d", "data"))
-    out: dict = {"images": len(meta["images"]), "right_hands": 0}
+    out: dict = {"images": len(meta["images"]), "right_hands": 0, "left_hands": 0}
     rows: dict[str, list[dict]] = {name: [] for name in detectors()}
     for image, ann in zip(meta["images"], meta["annotations"], strict=True):
-        if not np.array(ann["joint_valid"]).ravel()[:21].all():
-            continue
-        out["right_hands"] += 1
+        valid = np.array(ann["joint_valid"]).ravel()
         capture, cam_id = str(image["capture"]), image["camera"]
         params = {k: cameras[capture][k][cam_id] for k in ("campos", "camrot", "focal",
                                                            "princpt")}
-        world = np.array(joints[capture][str(image["frame_idx"])]["world_coord"])[:21]
-        truth = (world[INTERHAND_OF_HAND21] - params["campos"]) @ np.array(params["camrot"]).T
+        world = np.array(joints[capture][str(image["frame_idx"])]["world_coord"])
         (fx, fy), (cx, cy) = params["focal"], params["princpt"]
-        camera = Camera.create(cam_id, np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1]]),
-                               image["width"], image["height"], np.eye(4))
-        truth_px = camera.project(truth)
+        real_camera = Camera.create(cam_id, np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1]]),
+                                    image["width"], image["height"], np.eye(4))
         rgb = cv2.cvtColor(cv2.imread(str(root / image["file_name"])), cv2.COLOR_BGR2RGB)
-        for name, det in detectors().items():
-            found = det.detect(rgb, camera)
-            if not found:
-                rows[name].append({"image": image["file_name"], "detected": False})
+        for side, joint_rows in (("right", slice(0, 21)), ("left", slice(21, 42))):
+            if not valid[joint_rows].all():
                 continue
-            c = min(found, key=lambda k: np.linalg.norm(k.keypoints - truth_px, axis=1).mean())
-            p = fit_keypoints(hand, [KeypointObservation.of(c, camera)]).keypoints_world
-            row = {"image": image["file_name"], "detected": True,
-                   "px_error_mean": float(np.linalg.norm(c.keypoints - truth_px, axis=1).mean()),
-                   **root_errors(p, truth)}
-            if c.keypoints_3d is not None:  # the same fit with the detector's 3D shape too
-                p2 = fit_keypoints(hand, [KeypointObservation.of(c, camera)], options=FitOptions(
-                    sigma_shape_mm=SHAPE_SIGMA_MM)).keypoints_world
-                row["with_its_3d_shape"] = root_errors(p2, truth)
-            if c.keypoints_3d is not None:
-                row["own_3d_root_relative_mm"] = root_errors(c.keypoints_3d,
-                                                             truth)["root_relative_mm"]
-            rows[name].append(row)
+            out[f"{side}_hands"] += 1
+            truth = (world[joint_rows][INTERHAND_OF_HAND21] - params["campos"]) \
+                @ np.array(params["camrot"]).T
+            camera = real_camera if side == "right" else mirrored_camera(real_camera)
+            view = rgb if side == "right" else mirror_images([rgb])[0]
+            if side == "left":
+                truth = unmirror_points(truth)  # the mirror image's right hand
+            truth_px = camera.project(truth)
+            label = f"{image['file_name']} ({side})"
+            for name, det in detectors().items():
+                found = det.detect(view, camera)
+                if not found:
+                    rows[name].append({"image": label, "side": side, "detected": False})
+                    continue
+                c = min(found,
+                        key=lambda k: np.linalg.norm(k.keypoints - truth_px, axis=1).mean())
+                p = fit_keypoints(hand, [KeypointObservation.of(c, camera)]).keypoints_world
+                row = {"image": label, "side": side, "detected": True,
+                       "px_error_mean": float(np.linalg.norm(c.keypoints - truth_px,
+                                                             axis=1).mean()),
+                       **root_errors(p, truth)}
+                if c.keypoints_3d is not None:  # the same fit with the detector's 3D shape
+                    p2 = fit_keypoints(hand, [KeypointObservation.of(c, camera)],
+                                       options=FitOptions(sigma_shape_mm=SHAPE_SIGMA_MM)
+                                       ).keypoints_world
+                    row["with_its_3d_shape"] = root_errors(p2, truth)
+                    row["own_3d_root_relative_mm"] = root_errors(c.keypoints_3d,
+                                                                 truth)["root_relative_mm"]
+                rows[name].append(row)
     out["detectors"] = rows
+    out["means"] = {name: _interhand_means(r) for name, r in rows.items()}
     return out
+
+
+def _interhand_means(rows: list[dict]) -> dict:
+    """Detected hands and the mean figures over them (ours and, where given, the detector's
+    own 3D keypoints on the same hands)."""
+    found = [r for r in rows if r["detected"]]
+    means: dict = {"hands": len(rows), "detected": len(found)}
+    if found:
+        means["root_relative_mm"] = float(np.mean([r["root_relative_mm"] for r in found]))
+        means["root_position_mm"] = float(np.mean([r["root_position_mm"] for r in found]))
+        own = [r["own_3d_root_relative_mm"] for r in found if "own_3d_root_relative_mm" in r]
+        if len(own) == len(found):
+            means["own_3d_root_relative_mm"] = float(np.mean(own))
+    return means
 
 
 def stb_link_length_stage(data: Path, hand) -> dict | None:
@@ -380,8 +409,16 @@ def format_table(result: dict) -> str:
                              f"{c['root_relative_mm']:.1f} mm, root {c['root_position_mm']:.1f} mm")
     ih = result.get("interhand")
     if ih:
-        lines += ["", f"InterHand2.6M: {ih['right_hands']} of {ih['images']} images with the right "
-                  "hand annotated (3D, camera known; default hand size)"]
+        lines += ["", f"InterHand2.6M: {ih['right_hands']} right and {ih['left_hands']} left "
+                  f"hands annotated in {ih['images']} images (3D, camera known; default hand "
+                  "size; left hands through the mirror image)"]
+        for name, m in ih["means"].items():
+            if m["detected"]:
+                own = m.get("own_3d_root_relative_mm")
+                lines.append(f"  {name:<14} mean over {m['detected']} of {m['hands']} hands "
+                             f"found: root-relative {m['root_relative_mm']:.1f} mm, root "
+                             f"{m['root_position_mm']:.1f} mm"
+                             + ("" if own is None else f"; its own 3D {own:.1f} mm"))
         for name, rows in ih["detectors"].items():
             for r in rows:
                 if not r["detected"]:

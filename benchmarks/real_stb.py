@@ -41,6 +41,7 @@ import scipy.io
 
 from digiteyes import load_model
 from digiteyes.camera import Camera, Rig
+from digiteyes.camera.mirror import mirrored_rig, unmirror_points
 from digiteyes.features import FeatureOptions, feature_residuals, measure_features, prepare_image
 from digiteyes.kinematics import (
     KinematicModel,
@@ -76,7 +77,6 @@ STB_FINGERS = {"palm": [0], "little": [1, 2, 3, 4], "ring": [5, 6, 7, 8],
                "thumb": [17, 18, 19, 20]}
 # Joints fixed in the palm frame: the Kabsch/Procrustes initialisation uses them.
 PALM_JOINTS = (0, 1, 5, 9, 13)
-MIRROR = np.diag([-1.0, 1.0, 1.0])
 
 
 # ----------------------------------------------------------------------------- data
@@ -103,22 +103,21 @@ def stb_rig(params: dict, width: int = 640, height: int = 480, mirrored: bool = 
 
     The right camera is the left one translated by the baseline along +x, so its
     ``T_cam_world`` has ``t = (-baseline, 0, 0)``. ``mirrored=True`` gives the rig that sees
-    the mirrored world (x -> -x) in left-right flipped images: ``cx -> W - 1 - cx`` and
-    ``t = (+baseline, 0, 0)``.
+    the mirrored world (x -> -x) in left-right flipped images
+    (:func:`digiteyes.camera.mirror.mirrored_rig`).
     """
-    cx = params["tx"]
-    if mirrored:
-        cx = width - 1 - cx
-    K = np.array([[params["fx"], 0.0, cx], [0.0, params["fy"], params["ty"]], [0.0, 0.0, 1.0]])
+    K = np.array([[params["fx"], 0.0, params["tx"]], [0.0, params["fy"], params["ty"]],
+                  [0.0, 0.0, 1.0]])
     T_right = np.eye(4)
-    T_right[0, 3] = params["baseline"] if mirrored else -params["baseline"]
-    return Rig((Camera.create("left", K, width, height, np.eye(4)),
-                Camera.create("right", K, width, height, T_right)))
+    T_right[0, 3] = -params["baseline"]
+    rig = Rig((Camera.create("left", K, width, height, np.eye(4)),
+               Camera.create("right", K, width, height, T_right)))
+    return mirrored_rig(rig) if mirrored else rig
 
 
 def mirror(points: np.ndarray) -> np.ndarray:
     """Mirror points (..., 3) in the camera's y-z plane (x -> -x)."""
-    return np.asarray(points) @ MIRROR
+    return unmirror_points(points)
 
 
 # ----------------------------------------------------------------------------- model
