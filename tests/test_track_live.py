@@ -354,6 +354,27 @@ def test_a_left_hand_is_tracked_as_the_mirror_image_of_a_right_one(webcam, tmp_p
     assert np.abs(first_left.astype(int) - first_right[:, ::-1].astype(int)).mean() < 2.0
 
 
+def test_large_images_are_tracked_at_the_working_size_with_outputs_in_their_pixels(
+        webcam, tmp_path, capsys):
+    """``--max-size 480`` on the 640x480 render: tracked at 480x360 with the resized
+    camera, the keypoints reported in the 640x480 images, on the true ones."""
+    seq = open_sequence(webcam)
+    out = tmp_path / "small"
+    assert main(["track", str(webcam), "--max-size", "480", "-o", str(out), "--quiet"]) == 0
+    assert "tracking at 480x360 (images 640x480" in capsys.readouterr().out
+    assert json.loads((out / "summary.json").read_text())["start"]["working_size"] == [480, 360]
+    with open(out / "keypoints.csv", newline="", encoding="utf-8") as handle:
+        rows = list(csv.DictReader(handle))
+    truth, camera = seq.truth, seq.rig[0].name
+    errors = [np.linalg.norm(np.subtract(
+        [float(row[f"{camera}.{name}.u_px"]), float(row[f"{camera}.{name}.v_px"])],
+        truth.keypoints_2d[k, 0, truth.keypoint_names.index(name)]))
+        for k, row in enumerate(rows) for name in (f"{f}.tip" for f in FINGERS)]
+    assert np.mean(errors) < 6.0
+    with VideoReader(out / "overlay.mp4") as reader:
+        assert reader.read().shape[:2] == (360, 480)  # drawn at the working size
+
+
 def test_video_without_any_start_is_one_line_error(webcam, tmp_path, capsys):
     video = tmp_path / "clip.mkv"
     with VideoWriter(video, 10.0) as writer:

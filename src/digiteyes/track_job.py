@@ -29,6 +29,7 @@ from tqdm import tqdm
 from digiteyes.camera import Rig, load_rig
 from digiteyes.camera.default import DEFAULT_HFOV_DEG, default_camera
 from digiteyes.camera.mirror import mirror_images, mirrored_rig
+from digiteyes.camera.working_size import DEFAULT_MAX_SIDE, resize_images, working_rig
 from digiteyes.errors import CameraError, DatasetError
 from digiteyes.features import FeatureOptions
 from digiteyes.filters import OneEuroOptions
@@ -114,6 +115,8 @@ class TrackJob:
     recover : re-detect after lost frames (None: exactly when ``init_path`` is ``auto``).
     hand : ``"right"`` or ``"left"``: the side of the hand in the images; a left hand is
         tracked as the right hand of the mirror image (:mod:`digiteyes.camera.mirror`).
+    max_side : images whose longer side exceeds this (px) are tracked resized to it
+        (:mod:`digiteyes.camera.working_size`; None: never).
     init_frames : frames the automatic start may search for the hand before giving up
         (None: the whole input; a live camera waits until the hand shows).
     """
@@ -145,6 +148,7 @@ class TrackJob:
     recover: bool | None = None
     init_frames: int | None = None
     hand: str = "right"
+    max_side: int | None = DEFAULT_MAX_SIDE
 
 
 @dataclass
@@ -259,13 +263,21 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
                                             job.hfov),))
     rig.check_images(first)
     frames = _prepend(first, frames)
+    work = working_rig(rig, job.max_side)
+    if work is not rig:
+        say(f"tracking at {work[0].width}x{work[0].height} (images {rig[0].width}x"
+            f"{rig[0].height}, --max-size {job.max_side}); outputs in the images' pixels")
+        frames = (resize_images(images, work) for images in frames)
+        rig = work
     if job.hand == "left":
         rig = mirrored_rig(rig)
         frames = (mirror_images(images) for images in frames)
     model = source.model
     auto = source.initial is None
     initialiser = None
-    start_note: dict[str, object] = {"init": "auto" if auto else "given"}
+    start_note: dict[str, object] = {"init": "auto" if auto else "given", "hand": job.hand}
+    if rig.real_sizes is not None:
+        start_note["working_size"] = [rig[0].width, rig[0].height]
     if auto or job.recover:
         from digiteyes.detect.initialiser import AutoInitialiser
 

@@ -47,7 +47,8 @@ def mirrored_camera(camera: Camera) -> Camera:
 
 def mirrored_rig(rig: Rig) -> Rig:
     """Every camera mirrored (:func:`mirrored_camera`); ``mirrored`` toggled."""
-    return Rig(tuple(mirrored_camera(c) for c in rig), mirrored=not rig.mirrored)
+    return Rig(tuple(mirrored_camera(c) for c in rig), mirrored=not rig.mirrored,
+               real_sizes=rig.real_sizes)
 
 
 def rig_for_hand(rig: Rig, hand: str) -> Rig:

@@ -41,10 +41,15 @@ class Rig:
     flipped left to right (a left hand tracked by a right-hand model,
     :mod:`digiteyes.camera.mirror`); outputs in image and camera coordinates are turned
     back to the real images.
+
+    ``real_sizes``: ``(width, height)`` per camera of the real images when the cameras see
+    them resized to a working size (:mod:`digiteyes.camera.working_size`); None when they
+    see the real images. :meth:`real_pixels` maps pixels back in both cases.
     """
 
     cameras: tuple[Camera, ...]
     mirrored: bool = False
+    real_sizes: tuple[tuple[int, int], ...] | None = None
 
     def __post_init__(self) -> None:
         if not self.cameras:
@@ -61,6 +66,20 @@ class Rig:
 
     def __getitem__(self, index: int) -> Camera:
         return self.cameras[index]
+
+    def real_pixels(self, uv: np.ndarray, index: int) -> np.ndarray:
+        """Pixels (..., 2) of camera ``index``'s images, in the real images: unflipped for
+        a mirrored rig, then scaled back from the working size (pixel centres at
+        integers, so ``u_real = (u + 1/2) W_real / W - 1/2``)."""
+        camera = self.cameras[index]
+        out = np.array(uv, dtype=float)
+        if self.mirrored:
+            out[..., 0] = camera.width - 1 - out[..., 0]
+        if self.real_sizes is not None:
+            width, height = self.real_sizes[index]
+            out[..., 0] = (out[..., 0] + 0.5) * (width / camera.width) - 0.5
+            out[..., 1] = (out[..., 1] + 0.5) * (height / camera.height) - 0.5
+        return out
 
     @property
     def names(self) -> list[str]:

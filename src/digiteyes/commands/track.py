@@ -11,6 +11,7 @@ import click
 
 from digiteyes.camera.default import DEFAULT_HFOV_DEG
 from digiteyes.camera.mirror import HANDS
+from digiteyes.camera.working_size import DEFAULT_MAX_SIDE
 from digiteyes.detect.pose import DETECTORS
 from digiteyes.filters import OneEuroOptions
 from digiteyes.io.frame_sinks import parse_stream_target
@@ -150,6 +151,10 @@ def print_run(run: TrackingRun, err: bool = False) -> None:
 @click.option("--hand", type=click.Choice(HANDS), default="right", show_default=True,
               help="The hand in the images; a left hand is tracked as the right hand of the "
                    "mirror image (outputs in the real images).")
+@click.option("--max-size", "max_side", type=click.IntRange(min=64),
+              default=DEFAULT_MAX_SIDE, show_default=True,
+              help="Track images whose longer side exceeds this many pixels resized to it "
+                   "(outputs stay in the images' pixels).")
 @click.option("--init-frames", type=click.IntRange(min=1), default=None,
               help="Frames --init auto may search for the hand (default: until it shows).")
 @click.option("--recover/--no-recover", default=None,
@@ -202,7 +207,8 @@ def print_run(run: TrackingRun, err: bool = False) -> None:
               help="Refuse videos of different lengths instead of tracking the shortest.")
 def track(inputs: tuple[str, ...], model_name: str | None, rig_path: str | None,
           init_path: str | None, output: str, camera: int | None, show: bool,
-          stream: str | None, detector: str, hand: str, init_frames: int | None,
+          stream: str | None, detector: str, hand: str, max_side: int,
+          init_frames: int | None,
           recover: bool | None, hfov: float,
           tracker_name: str, option_pairs: tuple[str, ...], iterations: int, window: float,
           links: str, robust: str | None, prediction: str, shading: bool,
@@ -219,7 +225,7 @@ def track(inputs: tuple[str, ...], model_name: str | None, rig_path: str | None,
         tracker_name=tracker_name, options=tuple(parse_tracker_options(option_pairs).items()),
         strict=strict, smooth=smoothing_options(smooth, min_cutoff, beta), camera=camera,
         show=show, stream=stream, detector=detector, hfov=hfov, recover=recover,
-        init_frames=init_frames, hand=hand)
+        init_frames=init_frames, hand=hand, max_side=max_side)
     # the default tracker compiles the demo's kernels (its silhouette check draws with the
     # renderer's); other trackers may compile any
     if cold_kernels(only=DEMO_KERNELS if tracker_name == DEFAULT_TRACKER else None):

@@ -25,7 +25,7 @@ from typing import Protocol, TextIO
 import numpy as np
 
 from digiteyes.camera import Rig
-from digiteyes.camera.mirror import unmirror_pixels, unmirror_points
+from digiteyes.camera.mirror import unmirror_points
 from digiteyes.errors import DatasetError
 from digiteyes.filters import OneEuroFilter, OneEuroOptions
 from digiteyes.kinematics import KinematicModel, forward_kinematics
@@ -46,14 +46,15 @@ class TrackResult(Protocol):
 def camera_keypoints(model: KinematicModel, rig: Rig, q: np.ndarray
                      ) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
     """Names, pixels (n_cameras, K, 2) and camera-frame points (n_cameras, K, 3), mm, of
-    the model keypoints of state ``q`` in every camera of ``rig``; for a mirrored rig
-    (a left hand, :mod:`digiteyes.camera.mirror`) in the real images and camera frames."""
+    the model keypoints of state ``q`` in every camera of ``rig``, in the real images and
+    camera frames (:meth:`~digiteyes.camera.Rig.real_pixels`; a mirrored rig's points
+    reflected back, :mod:`digiteyes.camera.mirror`)."""
     names, world = keypoints(model, forward_kinematics(model, np.asarray(q, dtype=float)))
     world = world[0]
     uv = np.stack([cam.project(world) for cam in rig])
     xyz = np.stack([cam.to_camera(world) for cam in rig])
+    uv = np.stack([rig.real_pixels(p, c) for c, p in enumerate(uv)])
     if rig.mirrored:
-        uv = np.stack([unmirror_pixels(p, cam.width) for p, cam in zip(uv, rig, strict=True)])
         xyz = unmirror_points(xyz)
     return names, uv, xyz
 

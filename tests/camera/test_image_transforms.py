@@ -1,5 +1,6 @@
-"""Left hands through the mirror image: a mirrored camera sees the reflected world in the
-flipped image, checked against OpenCV's projection; mirroring twice is the identity."""
+"""Rigs for transformed images: a mirrored camera sees the reflected world in the flipped
+image (checked against OpenCV's projection; mirroring twice is the identity), a resized
+camera sees the resized image, and real_pixels maps both back."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from digiteyes.camera.mirror import (
     unmirror_pixels,
     unmirror_points,
 )
+from digiteyes.camera.working_size import resize_images, working_rig
 
 
 def a_camera(dist=(0.0, 0.0, 0.0, 0.0, 0.0)) -> Camera:
@@ -65,3 +67,32 @@ def test_mirroring_twice_gives_the_rig_back():
     assert rig_for_hand(rig, "right") is rig and rig_for_hand(rig, "left").mirrored
     with pytest.raises(ValueError, match="hand must be one of"):
         rig_for_hand(rig, "both")
+
+
+def test_a_resized_camera_sees_the_resized_image_and_real_pixels_map_back():
+    """Pixel centres at integers: a point's column u becomes s (u + 1/2) - 1/2 in an image
+    resized by s; the rig's real_pixels undoes it, also after a mirror."""
+    camera = a_camera((-0.21, 0.08, 0.0012, -0.0017, -0.02))
+    world = points()
+    real_uv = camera.project(world)
+    work = working_rig(Rig((camera,)), max_side=480)
+    assert (work[0].width, work[0].height) == (480, 360) and work.real_sizes == ((640, 480),)
+    np.testing.assert_allclose(work[0].project(world), (real_uv + 0.5) * 0.75 - 0.5,
+                               atol=1e-9)
+    np.testing.assert_allclose(work.real_pixels(work[0].project(world), 0), real_uv,
+                               atol=1e-9)
+    both = mirrored_rig(work)
+    reflected = world * [-1.0, 1.0, 1.0]
+    np.testing.assert_allclose(both.real_pixels(both[0].project(reflected), 0), real_uv,
+                               atol=1e-9)
+    assert working_rig(Rig((camera,)), max_side=640) == Rig((camera,))  # nothing to do
+    # OpenCV's resize puts an image's content where the resized camera projects it
+    image = np.zeros((480, 640), np.float32)
+    image[200:204, 300:304] = 1.0  # a block centred on (301.5, 201.5)
+    small = resize_images([image], work)[0]
+    v, u = np.unravel_index(np.argmax(small), small.shape)
+    weights = small[v - 2:v + 3, u - 2:u + 3]
+    grid_v, grid_u = np.mgrid[v - 2:v + 3, u - 2:u + 3]
+    centre = np.array([(grid_u * weights).sum(), (grid_v * weights).sum()]) / weights.sum()
+    np.testing.assert_allclose(centre, (np.array([301.5, 201.5]) + 0.5) * 0.75 - 0.5,
+                               atol=0.05)
