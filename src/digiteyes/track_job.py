@@ -60,6 +60,10 @@ if TYPE_CHECKING:
 
 AUTO = "auto"
 """``init_path`` value that starts from a detection and model fit (``--init auto``)."""
+AUTO_TRACKER = "auto"
+"""``tracker_name`` value that lets :func:`resolve_tracker` choose."""
+FOOTAGE_TRACKER = "keypoints"
+"""The tracker ``auto`` chooses for footage when a learned detector is installed."""
 DEFAULT_MODEL = "hand"
 """Model of videos and cameras when none is named."""
 
@@ -103,7 +107,8 @@ class TrackJob:
     fps : overlay video and smoothing frame rate (None: the dataset's or the first video's,
         else :data:`DEFAULT_FPS`).
     overlay : write the overlay video; progress : show a progress bar.
-    tracker_name : a registered tracker; options : ``(key, value)`` pairs of its options
+    tracker_name : a registered tracker, or ``"auto"`` (:func:`resolve_tracker`);
+        options : ``(key, value)`` pairs of its options
         (on top of the flags for the feature tracker).
     strict : refuse videos of different lengths.
     smooth : One Euro settings of the smoothed outputs (None: none written).
@@ -136,7 +141,7 @@ class TrackJob:
     fps: float | None = None
     overlay: bool = True
     progress: bool = True
-    tracker_name: str = DEFAULT_TRACKER
+    tracker_name: str = AUTO_TRACKER
     options: tuple[tuple[str, object], ...] = ()
     strict: bool = False
     smooth: OneEuroOptions | None = None
@@ -163,6 +168,7 @@ class _Source:
     rate: float
     total: int | None
     lengths: tuple[int, str | None] | None = None
+    footage: bool = True
 
 
 def _open_source(job: TrackJob) -> _Source:
@@ -187,7 +193,7 @@ def _open_source(job: TrackJob) -> _Source:
         else:
             initial = State(model, dataset.initial_state).q
         return _Source(iter(dataset), model, rig, initial, job.fps or dataset.fps,
-                       dataset.n_frames)
+                       dataset.n_frames, footage=False)
     if any(Path(p).is_dir() for p in inputs):
         raise DatasetError("give one dataset folder, or one video file per camera")
     lengths = check_lengths(list(inputs), job.strict)
@@ -230,9 +236,27 @@ def _with_files(job: TrackJob, frames: Iterator[list[np.ndarray]], total: int | 
     return _Source(frames, model, rig, initial, job.fps or rate, total)
 
 
-def _tracker_options(job: TrackJob, model: KinematicModel) -> dict[str, object]:
+def resolve_tracker(name: str, footage: bool, detector: str) -> str:
+    """The tracker a job runs: ``name`` itself unless it is ``"auto"``; then the keypoint
+    tracker for footage (videos, cameras) when its detector is a learned one (MediaPipe
+    installed and ``detector`` not ``"classic"``), else the DigitEyes feature tracker
+    (datasets, which are rendered or recorded for the papers' trackers, and machines
+    without the MediaPipe extra). Why: on the real video the feature tracker is more
+    than half a palm length off MediaPipe's keypoints in 92 % of frames and flags 7,
+    the keypoint tracker in none (docs/tracker.md, "Keypoint tracker")."""
+    if name != AUTO_TRACKER:
+        return name
+    from digiteyes.detect.mediapipe_detector import mediapipe_available
+
+    learned = detector != "classic" and mediapipe_available()
+    return FOOTAGE_TRACKER if footage and learned else DEFAULT_TRACKER
+
+
+def _tracker_options(job: TrackJob, model: KinematicModel, name: str) -> dict[str, object]:
     options = dict(job.options)
-    if job.tracker_name == DEFAULT_TRACKER:
+    if name == FOOTAGE_TRACKER:
+        options.setdefault("detector", job.detector)
+    if name == DEFAULT_TRACKER:
         flags = tracker_options(job.iterations, job.window, job.links, model, job.robust,
                                 job.prediction, job.shading)
         options = {**vars(flags), **options}
@@ -300,14 +324,18 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
         initial = np.asarray(source.initial)
     first_index = int(start_note.get("first_frame", 0))
     recover = initialiser if (job.recover if job.recover is not None else auto) else None
-    tracker = create_tracker(job.tracker_name, model, rig, **_tracker_options(job, model))
+    name = resolve_tracker(job.tracker_name, source.footage, job.detector)
+    if name != job.tracker_name:
+        say(f"tracker: {name} (--tracker auto, for {'footage' if source.footage else 'a dataset'}"
+            f"{' with a learned detector' if name == FOOTAGE_TRACKER else ''})")
+    tracker = create_tracker(name, model, rig, **_tracker_options(job, model, name))
     out = Path(job.output)
     out.mkdir(parents=True, exist_ok=True)
     sinks = _open_sinks(job, model, rig, out, source.rate, say)
     try:
         run = run_tracker(tracker, model, rig, frames, initial, out, fps=source.rate,
                           total=total, overlay=job.overlay, progress=job.progress,
-                          tracker_name=job.tracker_name, recover=recover, sinks=sinks,
+                          tracker_name=name, recover=recover, sinks=sinks,
                           first_index=first_index)
     finally:
         for sink in sinks:

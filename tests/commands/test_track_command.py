@@ -103,8 +103,9 @@ def test_track_videos_matches_tracking_the_dataset(whole_hand, tmp_path):
         videos.append(str(path))
     State(seq.model, seq.initial_state).save_json(tmp_path / "init.json")
     out = tmp_path / "video-out"
-    assert main(["track", *videos, "--model", str(whole_hand / "model.dh"),
-                 "--rig", str(whole_hand / "rig.json"), "--init", str(tmp_path / "init.json"),
+    assert main(["track", *videos, "--tracker", "features", "--model",
+                 str(whole_hand / "model.dh"), "--rig", str(whole_hand / "rig.json"),
+                 "--init", str(tmp_path / "init.json"),
                  "-o", str(out), "--quiet", "--no-overlay"]) == 0
     from_video = read_state_log(out / "states.csv", seq.model).states
     reference = tmp_path / "ref"

@@ -16,7 +16,7 @@ from digiteyes.detect.pose import DETECTORS
 from digiteyes.filters import OneEuroOptions
 from digiteyes.io.frame_sinks import parse_stream_target
 from digiteyes.pipeline import TrackingRun
-from digiteyes.track_job import TrackJob, run_track_job, tracker_options
+from digiteyes.track_job import AUTO_TRACKER, TrackJob, run_track_job, tracker_options
 from digiteyes.trackers import DEFAULT_TRACKER, tracker_entry, tracker_names
 from digiteyes.warmup import COMPILE_MESSAGE, DEMO_KERNELS, cold_kernels
 
@@ -54,8 +54,9 @@ def parse_tracker_options(pairs: tuple[str, ...]) -> dict[str, object]:
 
 def tracker_help() -> str:
     """The ``--tracker`` help: every registered name with its one line."""
-    return "Tracker to run: " + "; ".join(
-        f"{name} ({tracker_entry(name).help})" for name in tracker_names()) + "."
+    return ("Tracker to run: auto (keypoints for videos and cameras when the MediaPipe "
+            f"extra is installed, else {DEFAULT_TRACKER}); " + "; ".join(
+                f"{name} ({tracker_entry(name).help})" for name in tracker_names()) + ".")
 
 
 class TrackerChoice(click.Choice):
@@ -67,7 +68,7 @@ class TrackerChoice(click.Choice):
 
     @property
     def choices(self) -> tuple[str, ...]:
-        return tracker_names()
+        return (AUTO_TRACKER, *tracker_names())
 
     @choices.setter
     def choices(self, value) -> None:
@@ -163,7 +164,7 @@ def print_run(run: TrackingRun, err: bool = False) -> None:
               default=DEFAULT_HFOV_DEG, show_default=True,
               help="Horizontal field of view (deg) of the default camera (no --rig).")
 @click.option("--tracker", "tracker_name", cls=TrackerOption, type=TrackerChoice(),
-              default=DEFAULT_TRACKER, show_default=True)
+              default=AUTO_TRACKER, show_default=True)
 @click.option("--option", "option_pairs", multiple=True, metavar="KEY=VALUE",
               help="A field of the tracker's options (repeatable), e.g. "
                    "--option iterations_per_frame=3; a dotted key sets a field of nested "
@@ -228,7 +229,8 @@ def track(inputs: tuple[str, ...], model_name: str | None, rig_path: str | None,
         init_frames=init_frames, hand=hand, max_side=max_side)
     # the default tracker compiles the demo's kernels (its silhouette check draws with the
     # renderer's); other trackers may compile any
-    if cold_kernels(only=DEMO_KERNELS if tracker_name == DEFAULT_TRACKER else None):
+    if cold_kernels(only=DEMO_KERNELS if tracker_name in (DEFAULT_TRACKER, AUTO_TRACKER)
+                    else None):
         click.echo(COMPILE_MESSAGE, err=err)
     run = run_track_job(job, echo=lambda line: click.echo(line, err=err))
     print_run(run, err=err)

@@ -26,6 +26,11 @@ from digiteyes.trackers.feature_tracker import (
     all_features,
     thesis_whole_hand_links,
 )
+from digiteyes.trackers.keypoint_tracker import (
+    KeypointDetails,
+    KeypointTracker,
+    KeypointTrackerOptions,
+)
 from digiteyes.trackers.layered_templates import (
     LayeredFeatureTracker,
     LayeredTemplateOptions,
@@ -62,11 +67,15 @@ register_tracker("condensation", CondensationTracker, CondensationOptions,
                  "baseline (Huang Sec. 6): CONDENSATION in the PCA space, 3000 samples")
 register_tracker("random-search", RandomSearchTracker, RandomSearchOptions,
                  "baseline (Huang Sec. 6): random search in the PCA space, 5000 samples")
+register_tracker("keypoints", KeypointTracker, KeypointTrackerOptions,
+                 "ours: the model fitted every frame to a learned detector's keypoints "
+                 "(MediaPipe when installed), from the previous estimate")
 
 __all__ = [
     "DEFAULT_TRACKER", "THESIS_EXCLUDED_LINKS", "CondensationOptions", "CondensationTracker",
     "DivideConquerDetails", "DivideConquerOptions", "DivideConquerTracker", "FeatureDetails",
-    "FeatureTracker", "FeatureTrackerOptions", "LayeredFeatureTracker", "LayeredTemplateOptions",
+    "FeatureTracker", "FeatureTrackerOptions", "KeypointDetails", "KeypointTracker",
+    "KeypointTrackerOptions", "LayeredFeatureTracker", "LayeredTemplateOptions",
     "LayeredTemplateTracker", "RandomSearchOptions", "RandomSearchTracker",
     "StateParameterisation", "StatePredictor", "TemplateDetails", "TrackResult", "Tracker",
     "TrackerEntry", "TrackerError", "all_features", "create_tracker", "register_tracker",
