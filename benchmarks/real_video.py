@@ -45,11 +45,12 @@ import sys  # noqa: E402
 import tempfile  # noqa: E402
 from pathlib import Path  # noqa: E402
 
+import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from digiteyes.benchmarks._machine import machine_info  # noqa: E402
 from digiteyes.camera.default import DEFAULT_HFOV_DEG, default_camera  # noqa: E402
-from digiteyes.detect.hand21 import model_anchors  # noqa: E402
+from digiteyes.detect.hand21 import BONES, model_anchors  # noqa: E402
 from digiteyes.detect.mediapipe_detector import (  # noqa: E402
     MediaPipeDetector,
     mediapipe_available,
@@ -69,6 +70,8 @@ TRACKERS = ("features", "keypoints")
 """The trackers measured: the DigitEyes feature tracker and the keypoint tracker."""
 IMAGE_STEP = 3
 """Every how many frames the image gap is measured."""
+PICTURE_FRAMES = (30, 120, 450)
+"""Frames of the picture (``--picture``)."""
 DIGITS = [[1, 2, 3, 4], [5, 6, 7, 8], [9, 10, 11, 12], [13, 14, 15, 16], [17, 18, 19, 20]]
 """The 21 keypoints of each digit (thumb to little finger)."""
 
@@ -118,6 +121,43 @@ def static_detections(video: Path, step: int, frames: int | None) -> dict[int, n
     return out
 
 
+def write_picture(video: Path, model, logs: dict, path: Path) -> None:
+    """Frames :data:`PICTURE_FRAMES` (columns) with each tracker's hand (rows): the
+    model's 21 keypoints joined along the bones, red, and MediaPipe's on the frame alone,
+    green."""
+    rows, points = model_anchors(model)
+    camera = default_camera(1280, 720, DEFAULT_HFOV_DEG)
+    detector = MediaPipeDetector(max_hands=1, static_image_mode=True)
+    images = {}
+    with VideoReader(video) as reader:
+        for i, image in enumerate(reader):
+            if i in PICTURE_FRAMES:
+                images[i] = image
+            if i >= max(PICTURE_FRAMES):
+                break
+    grid = []
+    for name, (first, log) in logs.items():
+        tiles = []
+        for i in PICTURE_FRAMES:
+            tile = images[i].copy()
+            found = detector.detect(tile)
+            tracked = camera.project(forward_kinematics(model, log.states[i - first]).points(
+                rows, points))
+            for pts, colour in ((found[0].keypoints if found else None, (0, 200, 0)),
+                                (tracked, (230, 0, 0))):
+                for a, b in () if pts is None else BONES:
+                    cv2.line(tile, tuple(np.int32(pts[a])), tuple(np.int32(pts[b])), colour, 3,
+                             cv2.LINE_AA)
+            tile = tile[40:620, 380:1080]
+            cv2.putText(tile, f"{name}, frame {i}", (12, 40), cv2.FONT_HERSHEY_SIMPLEX, 1.0,
+                        (0, 0, 0), 2, cv2.LINE_AA)
+            tiles.append(cv2.resize(tile, (350, 290), interpolation=cv2.INTER_AREA))
+        grid.append(np.hstack(tiles))
+    detector.close()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(path), cv2.cvtColor(np.vstack(grid), cv2.COLOR_RGB2BGR))
+
+
 def measure(data: Path, frames: int | None, detector: str, tracker: str,
             out_dir: Path) -> dict:
     """One tracker's run on the real video (module docstring)."""
@@ -157,6 +197,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--trackers", default=",".join(TRACKERS),
                         help="comma-separated registered trackers (default: %(default)s)")
     parser.add_argument("--json", type=Path, default=RESULTS / "real_video.json")
+    parser.add_argument("--picture", type=Path, default=None,
+                        help="also draw each tracker's hand on frames "
+                             f"{', '.join(map(str, PICTURE_FRAMES))} into this PNG")
     args = parser.parse_args(argv)
     if not (args.data / VIDEO).is_file() or not (args.data / STORED).is_file():
         print(f"real_video: no {VIDEO} or {STORED} under {args.data}; skipped")
@@ -178,6 +221,11 @@ def main(argv: list[str] | None = None) -> int:
                 "frames": int(image.size), "median": float(np.median(image)),
                 "p90": float(np.percentile(image, 90)),
                 "share_above_half": float(np.mean(image > 0.5))}
+        if args.picture is not None:
+            logs = {row["tracker"]: (row["first_frame"], read_state_log(
+                Path(tmp) / row["tracker"] / "states.csv", model)) for row in rows}
+            write_picture(args.data / VIDEO, model, logs, args.picture)
+            print(f"wrote {args.picture}")
     result = {"benchmark": "real_video", "machine": machine, "video": str(VIDEO),
               "camera": f"default, {DEFAULT_HFOV_DEG:g} deg horizontal",
               "frames_limit": args.frames, "video_frames": video_frames,

@@ -14,14 +14,19 @@ import numpy as np
 import pytest
 
 from digiteyes import forward_kinematics
-from digiteyes.camera import save_rig
+from digiteyes.camera import Rig, save_rig
 from digiteyes.camera.mirror import mirrored_rig
 from digiteyes.cli import main
+from digiteyes.detect.mediapipe_detector import mediapipe_available
 from digiteyes.io import VideoReader, VideoWriter, open_sequence, read_state_log
 from digiteyes.io.video import CaptureReader, open_capture_frames
 from digiteyes.kinematics.anatomy import FINGERS
 from digiteyes.kinematics.keypoints import keypoints
 from digiteyes.pipeline import run_tracker
+from digiteyes.synth.options import RenderOptions
+from digiteyes.synth.scenarios import build_scenario
+from digiteyes.synth.views import render_views
+from digiteyes.track_job import resolve_tracker
 from digiteyes.trackers import TrackResult
 
 
@@ -412,3 +417,47 @@ def test_recovery_keeps_the_track_when_the_redetection_explains_less(webcam, tmp
     assert run.reinitialised_frames == ([2] if accepted else [])
     log = read_state_log(tmp_path / "r" / "states.csv", seq.model)
     assert np.allclose(log.states[2], fresh) == accepted
+
+
+@pytest.mark.parametrize(("footage", "detector", "available", "expected"), [
+    (True, "auto", True, "keypoints"),
+    (True, "mediapipe-lite", True, "keypoints"),
+    (True, "classic", True, "features"),
+    (True, "auto", False, "features"),
+    (False, "auto", True, "features"),
+])
+def test_the_auto_tracker_is_the_keypoint_tracker_for_footage_with_a_learned_detector(
+        monkeypatch, footage, detector, available, expected):
+    import digiteyes.detect.mediapipe_detector as mediapipe_detector
+
+    monkeypatch.setattr(mediapipe_detector, "mediapipe_available", lambda: available)
+    assert resolve_tracker("auto", footage, detector) == expected
+    assert resolve_tracker("templates", footage, detector) == "templates"
+
+
+@pytest.mark.skipif(not mediapipe_available(), reason="optional extra digiteyes[mediapipe]")
+def test_a_colour_video_of_the_flesh_hand_is_tracked_by_the_keypoint_tracker(tmp_path, capsys):
+    """``track VIDEO --init auto`` with the extra: the keypoint tracker, on the hand."""
+    scenario = build_scenario("desk-2cam", seed=0, n_frames=6)
+    camera = scenario.rig[0]
+    views = [render_views(scenario.model, q, [camera], RenderOptions(appearance="flesh",
+                                                                    color=True), rng=k)[0]
+             for k, q in enumerate(scenario.states)]
+    video = tmp_path / "flesh.mkv"
+    with VideoWriter(video, 10.0) as writer:
+        for view in views:
+            writer.write(view.image)
+    save_rig(Rig((camera,)), tmp_path / "rig.json")
+    out = tmp_path / "out"
+    assert main(["track", str(video), "--rig", str(tmp_path / "rig.json"), "--init", "auto",
+                 "-o", str(out), "--quiet"]) == 0
+    assert "tracker: keypoints" in capsys.readouterr().out
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["tracker"] == "keypoints" and summary["lost_frames"] == 0
+    with open(out / "keypoints.csv", newline="", encoding="utf-8") as handle:
+        rows = list(csv.DictReader(handle))
+    errors = [np.linalg.norm(np.subtract(
+        [float(row[f"{camera.name}.{f}.tip.u_px"]), float(row[f"{camera.name}.{f}.tip.v_px"])],
+        views[k].keypoints_2d[views[k].keypoint_names.index(f"{f}.tip")]))
+        for k, row in enumerate(rows) for f in FINGERS]
+    assert np.median(errors) < 12.0

@@ -243,7 +243,7 @@ def resolve_tracker(name: str, footage: bool, detector: str) -> str:
     (datasets, which are rendered or recorded for the papers' trackers, and machines
     without the MediaPipe extra). Why: on the real video the feature tracker is more
     than half a palm length off MediaPipe's keypoints in 92 % of frames and flags 7,
-    the keypoint tracker in none (docs/tracker.md, "Keypoint tracker")."""
+    the keypoint tracker in none (docs/keypoint-tracker.md)."""
     if name != AUTO_TRACKER:
         return name
     from digiteyes.detect.mediapipe_detector import mediapipe_available

@@ -2,8 +2,8 @@
 
 Neither seed has it: both track from image measurements of their own (edges, templates,
 edge likelihoods) and leave the start to the user. On real footage that is where they
-fail: on the real video (a right hand before a grey wall, docs/tracker.md "Keypoint
-tracker") the feature tracker, started from a detection that puts every keypoint within
+fail: on the real video (a right hand before a grey wall, docs/keypoint-tracker.md) the
+feature tracker, started from a detection that puts every keypoint within
 0.04 palm lengths of MediaPipe's, is 0.24 palm lengths off after three frames and 0.75
 after ten, and is flagged lost in 7 of 621 frames while most frames are wrong.
 

@@ -16,15 +16,20 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from typing import Any
 
+import cv2
 import numpy as np
 
 from digiteyes.camera import Camera, Rig
 from digiteyes.camera.mirror import mirror_images
+from digiteyes.detect.hand21 import BONES
 from digiteyes.kinematics import KinematicModel
-from digiteyes.trackers import FeatureDetails, TemplateDetails, TrackResult
+from digiteyes.trackers import FeatureDetails, KeypointDetails, TemplateDetails, TrackResult
 from digiteyes.viz.model_view import draw_wireframe
 from digiteyes.viz.overlay import draw_features, to_rgb
 from digiteyes.viz.templates import draw_templates
+
+DETECTION_RGB = (255, 220, 0)
+"""Colour of a detector's keypoints in the overlay."""
 
 DetailsDrawer = Callable[[np.ndarray, int, Camera, TrackResult, KinematicModel], np.ndarray]
 """``draw(image, camera_index, camera, result, model) -> (H, W, 3) RGB uint8``: one
@@ -98,6 +103,24 @@ def _draw_template_details(image: np.ndarray, camera_index: int, camera: Camera,
 
 
 register_overlay(TemplateDetails, _draw_template_details)
+
+
+def _draw_keypoint_details(image: np.ndarray, camera_index: int, camera: Camera,
+                           result: TrackResult, model: KinematicModel) -> np.ndarray:
+    """The fitted model's wireframe and the detector's 21 keypoints (yellow dots, joined
+    along the hand's bones)."""
+    panel = draw_wireframe(model, result.state, camera, to_rgb(image))
+    candidate = result.details.candidates[camera_index]
+    if candidate is not None:
+        points = np.round(candidate.keypoints).astype(np.int32)
+        for a, b in BONES:
+            cv2.line(panel, tuple(points[a]), tuple(points[b]), DETECTION_RGB, 1, cv2.LINE_AA)
+        for point in points:
+            cv2.circle(panel, tuple(point), 3, DETECTION_RGB, -1, cv2.LINE_AA)
+    return panel
+
+
+register_overlay(KeypointDetails, _draw_keypoint_details)
 
 
 def _register_tracker_drawers() -> None:
