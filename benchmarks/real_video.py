@@ -20,12 +20,14 @@ limited to one thread before anything is imported). Figures per tracker:
 * agreement with the stored MediaPipe estimate (``mediapipe_joints_right.pkl``, machine
   output in a wrist-centred frame, *not truth*): mean distance of the 21 keypoints after a
   similarity alignment, mm (median and 90th percentile over frames);
-* the image gap: on every :data:`IMAGE_STEP`-th frame, MediaPipe run on the frame alone
+* the image gap: on every :data:`IMAGE_STEP`-th frame from frame 1 (not the frames the
+  detection check looks at), MediaPipe run on the frame alone
   (still-image mode, after the timed runs) and the tracked hand projected; per frame the
   worst digit's mean keypoint distance in palm lengths (wrist to middle MCP). MediaPipe is
   not truth, and the keypoint tracker follows the same network (in video mode), so its
-  gap is small by construction; for the feature tracker, which never sees MediaPipe
-  between re-detections, the gap says whether the track stays on the hand.
+  gap is small by construction; for the feature tracker, which sees MediaPipe only in its
+  checks (every third frame, ``track --check-every``) and re-detections, the gap says
+  whether the track stays on the hand between them.
 
 Results go to ``benchmarks/results/real_video.json``. Without the data the script says so
 and exits with status 0.
@@ -59,19 +61,26 @@ from digiteyes.io import VideoReader, read_state_log  # noqa: E402
 from digiteyes.io.video_lengths import count_frames  # noqa: E402
 from digiteyes.kinematics import forward_kinematics, load_model  # noqa: E402
 from digiteyes.kinematics.procrustes import kabsch  # noqa: E402
-from digiteyes.track_job import AUTO, TrackJob, run_track_job  # noqa: E402
+from digiteyes.track_job import (  # noqa: E402
+    AUTO,
+    DEFAULT_CHECK_EVERY,
+    TrackJob,
+    run_track_job,
+)
 
 DEFAULT_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 RESULTS = Path(__file__).resolve().parent / "results"
 VIDEO = Path("real_video") / "human_hand_video.mp4"
 STORED = Path("real_video") / "mediapipe_joints_right.pkl"
 TARGET_FPS = 60.0
-TRACKERS = ("features", "keypoints")
-"""The trackers measured: the DigitEyes feature tracker and the keypoint tracker."""
+TRACKERS = ("features:0", "features", "keypoints")
+"""The runs: the DigitEyes feature tracker without and with the detection check every
+third frame (``NAME:N`` sets ``--check-every N``; the default otherwise), and the keypoint
+tracker."""
 IMAGE_STEP = 3
-"""Every how many frames the image gap is measured."""
-PICTURE_FRAMES = (30, 120, 450)
-"""Frames of the picture (``--picture``)."""
+"""Every how many frames the image gap is measured (frames 1, 4, 7, ...)."""
+PICTURE_FRAMES = (31, 121, 451)
+"""Frames of the picture (``--picture``; none a frame the detection check looks at)."""
 DIGITS = [[1, 2, 3, 4], [5, 6, 7, 8], [9, 10, 11, 12], [13, 14, 15, 16], [17, 18, 19, 20]]
 """The 21 keypoints of each digit (thumb to little finger)."""
 
@@ -107,7 +116,8 @@ def image_gaps(model, states: np.ndarray, first: int, detections: dict[int, np.n
 
 
 def static_detections(video: Path, step: int, frames: int | None) -> dict[int, np.ndarray]:
-    """MediaPipe in still-image mode (each frame alone) on every ``step``-th frame: the 21
+    """MediaPipe in still-image mode (each frame alone) on frames 1, 1 + ``step``, ...
+    (not the frames the detection check of ``track`` looks at, 0, ``step``, ...): the 21
     keypoints (px) of the frames where it finds a hand."""
     out = {}
     detector = MediaPipeDetector(max_hands=1, static_image_mode=True)
@@ -115,10 +125,18 @@ def static_detections(video: Path, step: int, frames: int | None) -> dict[int, n
         for i, image in enumerate(reader):
             if frames is not None and i >= frames:
                 break
-            if i % step == 0 and (found := detector.detect(image)):
+            if i % step == 1 and (found := detector.detect(image)):
                 out[i] = found[0].keypoints
     detector.close()
     return out
+
+
+def _label(row: dict) -> str:
+    """A run's name in the table and the picture."""
+    check = row["detection_check"]
+    if row["tracker"] == "keypoints":
+        return "keypoints"
+    return f"{row['tracker']}, " + (f"check every {check['every']}" if check else "no check")
 
 
 def write_picture(video: Path, model, logs: dict, path: Path) -> None:
@@ -158,12 +176,15 @@ def write_picture(video: Path, model, logs: dict, path: Path) -> None:
     cv2.imwrite(str(path), cv2.cvtColor(np.vstack(grid), cv2.COLOR_RGB2BGR))
 
 
-def measure(data: Path, frames: int | None, detector: str, tracker: str,
+def measure(data: Path, frames: int | None, detector: str, run_name: str,
             out_dir: Path) -> dict:
-    """One tracker's run on the real video (module docstring)."""
+    """One run on the real video (module docstring); ``run_name`` is a tracker's name,
+    with ``:N`` for a check every N frames (0: none)."""
     video = data / VIDEO
+    tracker, _, every = run_name.partition(":")
     job = TrackJob((str(video),), str(out_dir), "hand", init_path=AUTO, max_frames=frames,
-                   overlay=False, progress=False, detector=detector, tracker_name=tracker)
+                   overlay=False, progress=False, detector=detector, tracker_name=tracker,
+                   check_every=int(every) if every else DEFAULT_CHECK_EVERY)
     run = run_track_job(job)
     summary = json.loads((out_dir / "summary.json").read_text(encoding="utf-8"))
     model = load_model("hand")
@@ -175,7 +196,8 @@ def measure(data: Path, frames: int | None, detector: str, tracker: str,
     gaps = [shape_gap_mm(ours[i], stored[start + i]) for i in range(len(log))
             if start + i < len(stored) and np.abs(stored[start + i]).sum() > 0]
     row = {
-        "tracker": tracker, "detector": summary["start"]["detector"],
+        "run": run_name, "tracker": tracker, "detector": summary["start"]["detector"],
+        "detection_check": summary.get("detection_check"),
         "frames_tracked": run.n_frames, "first_frame": start,
         "frames_without_state": video_frames - run.n_frames,
         "lost_frames": run.n_lost, "re_detections": len(run.reinitialised_frames),
@@ -214,7 +236,7 @@ def main(argv: list[str] | None = None) -> int:
         detections = (static_detections(args.data / VIDEO, IMAGE_STEP, args.frames)
                       if mediapipe_available() else {})
         for row in rows if detections else ():
-            log = read_state_log(Path(tmp) / row["tracker"] / "states.csv", model)
+            log = read_state_log(Path(tmp) / row["run"] / "states.csv", model)
             image = image_gaps(model, log.states, row["first_frame"], detections,
                                default_camera(1280, 720, DEFAULT_HFOV_DEG))
             row["image_gap_palm_lengths"] = {
@@ -222,8 +244,8 @@ def main(argv: list[str] | None = None) -> int:
                 "p90": float(np.percentile(image, 90)),
                 "share_above_half": float(np.mean(image > 0.5))}
         if args.picture is not None:
-            logs = {row["tracker"]: (row["first_frame"], read_state_log(
-                Path(tmp) / row["tracker"] / "states.csv", model)) for row in rows}
+            logs = {_label(row): (row["first_frame"], read_state_log(
+                Path(tmp) / row["run"] / "states.csv", model)) for row in rows}
             write_picture(args.data / VIDEO, model, logs, args.picture)
             print(f"wrote {args.picture}")
     result = {"benchmark": "real_video", "machine": machine, "video": str(VIDEO),
@@ -231,12 +253,12 @@ def main(argv: list[str] | None = None) -> int:
               "frames_limit": args.frames, "video_frames": video_frames,
               "target_fps": TARGET_FPS, "image_gap_reference":
                   f"MediaPipe on single frames (still-image mode), every {IMAGE_STEP}th "
-                  "frame; machine output, not truth", "trackers": rows}
+                  "frame from frame 1; machine output, not truth", "trackers": rows}
     args.json.parent.mkdir(parents=True, exist_ok=True)
     args.json.write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
     for row in rows:
         gap, image = row["shape_gap_to_stored_mediapipe_mm"], row.get("image_gap_palm_lengths")
-        print(f"real video, {row['tracker']}: {row['frames_tracked']}/{video_frames} frames "
+        print(f"real video, {_label(row)}: {row['frames_tracked']}/{video_frames} frames "
               f"tracked from frame {row['first_frame']} ({row['detector']}), "
               f"{row['frames_without_state']} without a state, {row['lost_frames']} lost, "
               f"{row['re_detections']} re-detections; {row['loop_fps']:.1f} frames/s end to "

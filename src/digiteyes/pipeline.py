@@ -67,6 +67,9 @@ look at (about 2.5 KB and 5 ms per 640x480 frame, where the near-lossless CRF 12
 dataset videos at the medium preset took 60 KB and 45 ms)."""
 
 Recover = Callable[[list[np.ndarray]], "np.ndarray | None"]
+Check = Callable[[int, Sequence[np.ndarray], np.ndarray], "str | None"]
+"""``check(index, images, state)``: why the estimate of frame ``index`` is off (a loss
+reason), or None (e.g. :class:`digiteyes.detect.check.DetectionCheck`)."""
 """A function from one frame's images (rig order) to a fresh state, or None when it finds
 no hand: the re-initialisation after a lost frame."""
 
@@ -218,6 +221,7 @@ def run_tracker(
     recover: Recover | None = None,
     sinks: Sequence[FrameSink] = (),
     first_index: int = 0,
+    check: Check | None = None,
 ) -> TrackingRun:
     """Track ``frames`` (one list of images per time step, rig order) from
     ``initial_state`` with any :class:`~digiteyes.trackers.Tracker` and write the outputs
@@ -226,7 +230,9 @@ def run_tracker(
     frame, untimed, and is reset (:func:`digiteyes.trackers.warm_up`): compiling the
     kernels on a first run stays out of the figures. ``recover`` and ``sinks``: see the
     module docstring. ``first_index`` numbers the first frame in every output (the input's
-    own number of that frame, e.g. where an automatic start found the hand)."""
+    own number of that frame, e.g. where an automatic start found the hand). ``check``
+    judges each frame the tracker did not flag; a reason it gives marks the frame lost
+    (with that reason), and the recovery follows as for the tracker's own losses."""
     out = Path(out_dir)
     (out / "views").mkdir(parents=True, exist_ok=True)
     stages = tuple(tracker.stages)
@@ -251,6 +257,10 @@ def run_tracker(
             for index, images, result, seconds in step_frames(tracker, bar, initial_state,
                                                                  first_index):
                 start = time.perf_counter()
+                if check is not None and not result.lost:
+                    reason = check(index, images, result.state)
+                    if reason:
+                        result = replace(result, lost=True, loss_reason=reason)
                 fresh = recovered_state(tracker, images, result, recover)
                 if fresh is not None:
                     result = replace(result, state=fresh)

@@ -30,7 +30,7 @@ from digiteyes.camera import Rig, load_rig
 from digiteyes.camera.default import DEFAULT_HFOV_DEG, default_camera
 from digiteyes.camera.mirror import mirror_images, mirrored_rig
 from digiteyes.camera.working_size import DEFAULT_MAX_SIDE, resize_images, working_rig
-from digiteyes.errors import CameraError, DatasetError
+from digiteyes.errors import CameraError, DatasetError, DigitEyesError
 from digiteyes.features import FeatureOptions
 from digiteyes.filters import OneEuroOptions
 from digiteyes.io import open_sequence, open_video_frames
@@ -56,12 +56,15 @@ from digiteyes.trackers import (
 )
 
 if TYPE_CHECKING:
+    from digiteyes.detect.check import DetectionCheck
     from digiteyes.detect.initialiser import AutoInitialiser
 
 AUTO = "auto"
 """``init_path`` value that starts from a detection and model fit (``--init auto``)."""
 AUTO_TRACKER = "auto"
 """``tracker_name`` value that lets :func:`resolve_tracker` choose."""
+DEFAULT_CHECK_EVERY = 3
+"""Frames between the detector's checks of a track on footage (``--check-every``)."""
 FOOTAGE_TRACKER = "keypoints"
 """The tracker ``auto`` chooses for footage when a learned detector is installed."""
 DEFAULT_MODEL = "hand"
@@ -122,6 +125,9 @@ class TrackJob:
         tracked as the right hand of the mirror image (:mod:`digiteyes.camera.mirror`).
     max_side : images whose longer side exceeds this (px) are tracked resized to it
         (:mod:`digiteyes.camera.working_size`; None: never).
+    check_every : with a learned detector on footage and a tracker other than the keypoint
+        tracker, check the track against the detector every this many frames
+        (:class:`~digiteyes.detect.check.DetectionCheck`; 0: never).
     init_frames : frames the automatic start may search for the hand before giving up
         (None: the whole input; a live camera waits until the hand shows).
     """
@@ -154,6 +160,7 @@ class TrackJob:
     init_frames: int | None = None
     hand: str = "right"
     max_side: int | None = DEFAULT_MAX_SIDE
+    check_every: int = DEFAULT_CHECK_EVERY
 
 
 @dataclass
@@ -242,7 +249,7 @@ def resolve_tracker(name: str, footage: bool, detector: str) -> str:
     installed and ``detector`` not ``"classic"``), else the DigitEyes feature tracker
     (datasets, which are rendered or recorded for the papers' trackers, and machines
     without the MediaPipe extra). Why: on the real video the feature tracker is more
-    than half a palm length off MediaPipe's keypoints in 92 % of frames and flags 7,
+    than half a palm length off MediaPipe's keypoints in 93 % of frames and flags 7,
     the keypoint tracker in none (docs/keypoint-tracker.md)."""
     if name != AUTO_TRACKER:
         return name
@@ -329,6 +336,7 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
         say(f"tracker: {name} (--tracker auto, for {'footage' if source.footage else 'a dataset'}"
             f"{' with a learned detector' if name == FOOTAGE_TRACKER else ''})")
     tracker = create_tracker(name, model, rig, **_tracker_options(job, model, name))
+    check = _detection_check(job, source.footage, name, model, rig)
     out = Path(job.output)
     out.mkdir(parents=True, exist_ok=True)
     sinks = _open_sinks(job, model, rig, out, source.rate, say)
@@ -336,12 +344,12 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
         run = run_tracker(tracker, model, rig, frames, initial, out, fps=source.rate,
                           total=total, overlay=job.overlay, progress=job.progress,
                           tracker_name=name, recover=recover, sinks=sinks,
-                          first_index=first_index)
+                          first_index=first_index, check=check)
     finally:
         for sink in sinks:
             sink.close()
     run.files["keypoints"] = out / KEYPOINTS_FILE
-    _record_start(run, start_note, initialiser, job.smooth, source.rate)
+    _record_start(run, start_note, initialiser, job.smooth, source.rate, check)
     if source.lengths is not None and not run.interrupted and job.max_frames is None:
         record_missing(run.files["summary"], source.lengths[0], first_index + run.n_frames,
                        source.lengths[1])
@@ -401,6 +409,23 @@ def _open_sinks(job: TrackJob, model: KinematicModel, rig: Rig, out: Path, fps: 
     return sinks
 
 
+def _detection_check(job: TrackJob, footage: bool, name: str, model: KinematicModel,
+                     rig: Rig) -> DetectionCheck | None:
+    """The detector's check of the track (:mod:`digiteyes.detect.check`): on footage,
+    with a learned detector, for every tracker but the keypoint tracker (which follows
+    the detector anyway) and every model with the 21 hand keypoints."""
+    from digiteyes.detect.check import DetectionCheck
+    from digiteyes.detect.mediapipe_detector import mediapipe_available
+
+    if (not footage or job.check_every <= 0 or name == FOOTAGE_TRACKER
+            or job.detector == "classic" or not mediapipe_available()):
+        return None
+    try:
+        return DetectionCheck(model, rig, job.detector, job.check_every)
+    except DigitEyesError:  # a model without the 21 hand keypoints (another object)
+        return None
+
+
 def _sides_seen(initialiser: AutoInitialiser, rig: Rig) -> set[str]:
     """The sides of the hand (``"right"``/``"left"``, in the real images) the detectors of
     the last detection reported (a mirrored rig's images show the other side)."""
@@ -415,15 +440,18 @@ def _prepend(first: list[np.ndarray], frames: Iterator) -> Iterator[list[np.ndar
 
 
 def _record_start(run: TrackingRun, note: dict[str, object], initialiser,
-                  smooth: OneEuroOptions | None, fps: float) -> None:
-    """Add how the run started, the detector's work and, with ``smooth``, the settings of
-    the smoothed outputs to ``summary.json``."""
+                  smooth: OneEuroOptions | None, fps: float,
+                  check: DetectionCheck | None = None) -> None:
+    """Add how the run started, the detector's work, the detector's checks and, with
+    ``smooth``, the settings of the smoothed outputs to ``summary.json``."""
     path = run.files["summary"]
     summary = read_json_object(path, DatasetError, "summary file")
     if initialiser is not None:
         note.update(detections_tried=initialiser.calls, detections_found=initialiser.found,
                     detection_seconds=initialiser.seconds)
     summary["start"] = note
+    if check is not None:
+        summary["detection_check"] = check.to_json()
     if smooth is not None:
         summary["smoothing"] = {"filter": "One Euro, one cutoff (docs/output.md)",
                                 "fps": fps, **vars(smooth)}

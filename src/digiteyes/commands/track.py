@@ -16,7 +16,13 @@ from digiteyes.detect.pose import DETECTORS
 from digiteyes.filters import OneEuroOptions
 from digiteyes.io.frame_sinks import parse_stream_target
 from digiteyes.pipeline import TrackingRun
-from digiteyes.track_job import AUTO_TRACKER, TrackJob, run_track_job, tracker_options
+from digiteyes.track_job import (
+    AUTO_TRACKER,
+    DEFAULT_CHECK_EVERY,
+    TrackJob,
+    run_track_job,
+    tracker_options,
+)
 from digiteyes.trackers import DEFAULT_TRACKER, tracker_entry, tracker_names
 from digiteyes.warmup import COMPILE_MESSAGE, DEMO_KERNELS, cold_kernels
 
@@ -156,6 +162,11 @@ def print_run(run: TrackingRun, err: bool = False) -> None:
               default=DEFAULT_MAX_SIDE, show_default=True,
               help="Track images whose longer side exceeds this many pixels resized to it "
                    "(outputs stay in the images' pixels).")
+@click.option("--check-every", type=click.IntRange(min=0), default=DEFAULT_CHECK_EVERY,
+              show_default=True,
+              help="On footage with MediaPipe: check the track against its keypoints every "
+                   "N frames and treat a track off the hand as lost (0: never; not for "
+                   "the keypoints tracker, which follows them anyway).")
 @click.option("--init-frames", type=click.IntRange(min=1), default=None,
               help="Frames --init auto may search for the hand (default: until it shows).")
 @click.option("--recover/--no-recover", default=None,
@@ -208,7 +219,7 @@ def print_run(run: TrackingRun, err: bool = False) -> None:
               help="Refuse videos of different lengths instead of tracking the shortest.")
 def track(inputs: tuple[str, ...], model_name: str | None, rig_path: str | None,
           init_path: str | None, output: str, camera: int | None, show: bool,
-          stream: str | None, detector: str, hand: str, max_side: int,
+          stream: str | None, detector: str, hand: str, max_side: int, check_every: int,
           init_frames: int | None,
           recover: bool | None, hfov: float,
           tracker_name: str, option_pairs: tuple[str, ...], iterations: int, window: float,
@@ -226,7 +237,7 @@ def track(inputs: tuple[str, ...], model_name: str | None, rig_path: str | None,
         tracker_name=tracker_name, options=tuple(parse_tracker_options(option_pairs).items()),
         strict=strict, smooth=smoothing_options(smooth, min_cutoff, beta), camera=camera,
         show=show, stream=stream, detector=detector, hfov=hfov, recover=recover,
-        init_frames=init_frames, hand=hand, max_side=max_side)
+        init_frames=init_frames, hand=hand, max_side=max_side, check_every=check_every)
     # the default tracker compiles the demo's kernels (its silhouette check draws with the
     # renderer's); other trackers may compile any
     if cold_kernels(only=DEMO_KERNELS if tracker_name in (DEFAULT_TRACKER, AUTO_TRACKER)
