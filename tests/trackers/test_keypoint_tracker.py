@@ -84,3 +84,23 @@ def test_with_mediapipe_on_rendered_colour_images_of_the_flesh_hand():
     assert not any(r.lost for r in results)
     errors = tip_errors(scenario.model, [r.state for r in results], scenario.states)
     assert np.median(errors) < 12.0, errors  # 6-8 mm when written
+
+
+def test_a_detection_that_would_throw_the_hand_across_the_room_is_refused():
+    """A detector labelling a far, smaller 'hand' in one frame: the fit that explains it
+    puts the hand half a metre away; it is refused, the state held, the frame lost."""
+    scenario = build_scenario("desk-2cam", seed=1, n_frames=4)
+    model, rig = scenario.model, scenario.rig
+    far = scenario.states.copy()
+    far[2, 4:7] = far[2, 4:7] + 600.0 * np.array([0.0, 0.6, 0.8])  # palm moved 600 mm
+    tracker = create_tracker("keypoints", model, rig, detector="classic",
+                             silhouette_check=False)
+    tracker.reset(scenario.initial_state)
+    tracker._detectors = [TruthDetector(model, far, noise_px=0.0, seed=c)
+                          for c in range(len(rig))]
+    blank = [np.zeros((c.height, c.width), np.uint8) for c in rig]
+    results = [tracker.step(blank) for _ in range(4)]
+    assert not results[1].lost and not results[3].lost
+    assert results[2].lost and "near the last estimate" in results[2].loss_reason
+    np.testing.assert_array_equal(results[2].state, results[1].state)
+    assert tip_errors(model, [results[3].state], scenario.states[3:4])[0] < 2.5

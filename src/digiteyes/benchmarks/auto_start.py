@@ -6,7 +6,7 @@ independent flesh hand; MediaPipe alone and ``auto`` (MediaPipe, else the classi
 detector), when MediaPipe is installed, on colour images of the flesh hand, which it
 recognises as a hand)
 the frames are rendered once (black cloth, the tracker benchmark's noise) and tracked
-twice by the feature tracker with the settings of ``digiteyes track``, both with the
+twice by the variant's tracker with the settings of ``digiteyes track``, both with the
 recovery of ``--init auto`` (re-detection after a lost frame), so that the two runs differ
 only in their start:
 
@@ -43,20 +43,22 @@ from digiteyes.kinematics.keypoints import keypoints
 from digiteyes.pipeline import recovered_state, step_frames
 from digiteyes.synth.scenarios import build_scenario
 from digiteyes.track_job import tracker_options
-from digiteyes.trackers import FeatureTracker
+from digiteyes.trackers import DEFAULT_TRACKER, FeatureTracker, Tracker, create_tracker
 
 SETUPS = ("desk-2cam", "webcam-1cam")
 SEEDS = (0, 1, 2)
 """Scenario and render seeds: each gives other motion, noise and start."""
 SETTLE_FRAMES = 10
 """The issue's budget: frames after which the automatic start must match the true one."""
-VARIANTS = (("classic", "model"), ("classic", "flesh"), ("mediapipe", "flesh"),
-            ("auto", "flesh"))
-"""(detector, appearance): grey images for the classic detector (our drawing and, beside
-it, the independent flesh hand), colour for MediaPipe (which does not take our capsule
-drawing for a hand) and for ``auto``, what ``--init auto`` uses by default (MediaPipe,
-and the classic detector where MediaPipe finds no hand:
-:class:`~digiteyes.detect.fallback.FallbackDetector`)."""
+VARIANTS = (("classic", "model", "features"), ("classic", "flesh", "features"),
+            ("mediapipe", "flesh", "features"), ("auto", "flesh", "features"),
+            ("auto", "flesh", "keypoints"))
+"""(detector, appearance, tracker): grey images for the classic detector (our drawing and,
+beside it, the independent flesh hand), colour for MediaPipe (which does not take our
+capsule drawing for a hand) and for ``auto``, what ``--init auto`` uses by default
+(MediaPipe, and the classic detector where MediaPipe finds no hand:
+:class:`~digiteyes.detect.fallback.FallbackDetector`); the feature tracker, and the
+keypoint tracker that ``track --tracker auto`` runs on footage with MediaPipe."""
 TOLERANCE_MM = 1.0
 """Mean keypoint error the automatic run may exceed the run from truth by, mm."""
 
@@ -70,7 +72,7 @@ def keypoint_error_mm(model, states: np.ndarray, truth, first: int = 0) -> np.nd
     return np.linalg.norm(points - true, axis=2).mean(axis=1)
 
 
-def track_states(tracker: FeatureTracker, frames, start: np.ndarray,
+def track_states(tracker: Tracker, frames, start: np.ndarray,
                  recover: AutoInitialiser | None = None) -> tuple[np.ndarray, list[int], float]:
     """States per frame, the frames re-initialised, and the seconds spent (tracking plus
     recovery), with the recovery of :func:`digiteyes.pipeline.run_tracker`."""
@@ -87,16 +89,25 @@ def track_states(tracker: FeatureTracker, frames, start: np.ndarray,
     return np.array(states), fresh_frames, seconds
 
 
+def make_tracker(name: str, model, rig, detector: str) -> Tracker:
+    """The tracker of a variant with the settings of ``digiteyes track``."""
+    if name == DEFAULT_TRACKER:
+        return FeatureTracker(model, rig, tracker_options(5, 20.0, "default", model, None,
+                                                          "none"))
+    return create_tracker(name, model, rig, detector=detector)
+
+
 def setup_entry(name: str, n_frames: int, detector: str = "classic",
-                appearance: str = "model", seed: int = SEEDS[0]) -> dict[str, Any]:
+                appearance: str = "model", seed: int = SEEDS[0],
+                tracker: str = DEFAULT_TRACKER) -> dict[str, Any]:
     """Both runs on one setup with one variant and seed (see the module docstring)."""
     scenario = build_scenario(name, seed=seed, n_frames=n_frames)
     sequence = render_sequence(scenario, seed=seed, appearance=appearance,
                                color=detector in ("mediapipe", "auto"))
     model, rig = scenario.model, sequence.rig
-    options = tracker_options(5, 20.0, "default", model, None, "none")
     entry: dict[str, Any] = {"setup": name, "detector": detector, "appearance": appearance,
-                             "seed": seed, "frames": n_frames, "cameras": len(rig)}
+                             "tracker": tracker, "seed": seed, "frames": n_frames,
+                             "cameras": len(rig)}
     initialiser = AutoInitialiser(model, rig, detector)
     started = time.perf_counter()
     try:
@@ -105,9 +116,9 @@ def setup_entry(name: str, n_frames: int, detector: str = "classic",
         return entry | {"started": False, "why": str(error), "meets_target": False}
     start_s = time.perf_counter() - started
     truth_states, truth_fresh, truth_s = track_states(
-        FeatureTracker(model, rig, options), sequence.images[skipped:],
+        make_tracker(tracker, model, rig, detector), sequence.images[skipped:],
         scenario.states[skipped], AutoInitialiser(model, rig, detector))
-    auto_states, fresh, auto_s = track_states(FeatureTracker(model, rig, options),
+    auto_states, fresh, auto_s = track_states(make_tracker(tracker, model, rig, detector),
                                               list(rest), start, initialiser)
     err_truth = keypoint_error_mm(model, truth_states, sequence.truth, skipped)
     err_auto = keypoint_error_mm(model, auto_states, sequence.truth, skipped)
@@ -132,8 +143,8 @@ def setup_entry(name: str, n_frames: int, detector: str = "classic",
     }
 
 
-def variants() -> list[tuple[str, str]]:
-    """(detector, appearance) pairs measured: :data:`VARIANTS`, those with MediaPipe
+def variants() -> list[tuple[str, str, str]]:
+    """(detector, appearance, tracker) measured: :data:`VARIANTS`, those with MediaPipe
     (``mediapipe``, ``auto``) when it is installed."""
     return [v for v in VARIANTS if v[0] == "classic" or mediapipe_available()]
 
@@ -146,6 +157,7 @@ def summarise(entries: list[dict[str, Any]]) -> dict[str, Any]:
     started = [e for e in entries if e["started"]]
     summary: dict[str, Any] = {"setup": first["setup"], "detector": first["detector"],
                                "appearance": first["appearance"],
+                               "tracker": first.get("tracker", DEFAULT_TRACKER),
                                "seeds": [e["seed"] for e in entries],
                                "started": len(started)}
     if not started:
@@ -165,8 +177,9 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
     started = time.perf_counter()
     n_frames = 16 if quick else 40
     seeds = SEEDS[:1] if quick else SEEDS
-    entries = [[setup_entry(name, n_frames, detector, appearance, seed) for seed in seeds]
-               for name in SETUPS for detector, appearance in variants()]
+    entries = [[setup_entry(name, n_frames, detector, appearance, seed, tracker)
+                for seed in seeds]
+               for name in SETUPS for detector, appearance, tracker in variants()]
     result = {"benchmark": "auto-start", "quick": quick, "machine": machine_info(),
               "settings": {"seeds": list(seeds), "frames": n_frames, "variants": variants(),
                            "tolerance_mm": TOLERANCE_MM, "settle_frames": SETTLE_FRAMES,
@@ -184,7 +197,8 @@ def format_table(result: dict[str, Any]) -> str:
              f"{result['settings']['frames']} frames per setup, detector + model fit, recovery "
              f"in both runs; target: mean error from frame {SETTLE_FRAMES} on within "
              f"{TOLERANCE_MM:g} mm of the true start's (means over seeds)", "",
-             f"{'setup':<12} {'detector / images':<22} {'seed':>4} {'err f0':>7} {'true>=10':>9}"
+             f"{'setup':<12} {'detector / images [/ tracker]':<32} {'seed':>4} {'err f0':>7}"
+             f" {'true>=10':>9}"
              f" {'auto>=10':>9} {'match at':>9} {'re-init':>8}"]
     for e in result["setups"]:
         head = _head(e, f"{e['seed']:>4}")
@@ -195,7 +209,8 @@ def format_table(result: dict[str, Any]) -> str:
         lines.append(f"{head} {e['error_first_frame_auto_mm']:>7.1f}{_means(e)}"
                      f" {'never' if match is None else match:>9}"
                      f" {len(e['reinitialised_frames']):>8}")
-    lines += ["", f"{'setup':<12} {'detector / images':<22} {'started':>8} {'true>=10':>9}"
+    lines += ["", f"{'setup':<12} {'detector / images [/ tracker]':<32} {'started':>8}"
+              f" {'true>=10':>9}"
               f" {'auto>=10':>9} {'re-init':>8}  target"]
     for s in result["summary"]:
         head = _head(s, f"{s['started']:>4}/{len(s['seeds']):<3}")
@@ -208,7 +223,10 @@ def format_table(result: dict[str, Any]) -> str:
 
 def _head(entry: dict[str, Any], third: str) -> str:
     """A row's first columns: setup, detector / images, then ``third``."""
-    return f"{entry['setup']:<12} {entry['detector'] + ' / ' + entry['appearance']:<22} {third}"
+    label = f"{entry['detector']} / {entry['appearance']}"
+    if entry.get("tracker", DEFAULT_TRACKER) != DEFAULT_TRACKER:
+        label += f" / {entry['tracker']}"
+    return f"{entry['setup']:<12} {label:<32} {third}"
 
 
 def _means(entry: dict[str, Any]) -> str:

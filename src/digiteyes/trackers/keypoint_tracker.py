@@ -35,6 +35,7 @@ import numpy as np
 from digiteyes.camera import Rig
 from digiteyes.detect.candidate import HandCandidate
 from digiteyes.detect.hand21 import model_anchors
+from digiteyes.detect.hand_size import model_hand_length
 from digiteyes.detect.model_fit import FitOptions, KeypointObservation, PoseFit, fit_keypoints
 from digiteyes.detect.pose import make_detector
 from digiteyes.errors import DigitEyesError, StateError
@@ -44,6 +45,9 @@ from digiteyes.kinematics.state import validate_state
 from digiteyes.trackers.base import TrackResult
 from digiteyes.trackers.loss_hold import LossHold, LossHoldOptions
 from digiteyes.trackers.silhouette_loss import SilhouetteLoss, SilhouetteLossOptions
+
+JUMP_FRAMES = 4
+"""The frames without a fit that widen the jump bound of ``max_jump`` at most."""
 
 
 @dataclass(frozen=True)
@@ -61,6 +65,12 @@ class KeypointTrackerOptions(SilhouetteLossOptions, LossHoldOptions):
     max_error_px : a fit explains the keypoints when at least ``min_explained`` of them
         reproject within this distance (px).
     min_explained : that fraction.
+    max_jump : a fit whose keypoints' centroid moves more than this many hand lengths
+        (wrist to middle fingertip) per frame since the last fit taken (counting at most
+        :data:`JUMP_FRAMES` frames) is refused: a hand does not cross half a metre
+        between frames, a detector that labels part of the hand (or something else)
+        makes the fit do so. A hand that comes back far from where it was lost is taken
+        up by the run loop's re-detection, which restarts the tracker.
     """
 
     detector: str = "auto"
@@ -69,6 +79,7 @@ class KeypointTrackerOptions(SilhouetteLossOptions, LossHoldOptions):
     iterations: int = 10
     max_error_px: float = 25.0
     min_explained: float = 0.5
+    max_jump: float = 0.5
 
 
 @dataclass
@@ -91,7 +102,9 @@ class KeypointTracker:
         self.model = model
         self.rig = rig
         self.options = options or KeypointTrackerOptions()
-        model_anchors(model)  # the model must have the 21 keypoints; raises otherwise
+        self._anchors = model_anchors(model)  # raises unless the model has the 21 keypoints
+        self._hand_length = model_hand_length(model)
+        self._since_fit = 1
         self._fit_options = FitOptions(sigma_px=self.options.sigma_px,
                                        sigma_joint_deg=self.options.sigma_joint_deg,
                                        fit_scale=False, iterations=self.options.iterations)
@@ -113,6 +126,7 @@ class KeypointTracker:
         self.silhouette_loss.reset()
         self.loss_hold.reset()
         self._frame_index = 0
+        self._since_fit = 1
 
     def restart(self, state: np.ndarray) -> None:
         """Continue from ``state`` after a re-detection: the detectors keep following and
@@ -123,6 +137,7 @@ class KeypointTracker:
         self.silhouette_loss.reset()
         self.silhouette_loss.foreground = foreground
         self.loss_hold.reset()
+        self._since_fit = 1
 
     def step(self, frames: Sequence[np.ndarray]) -> TrackResult:
         """Detect the hand in every camera and fit the model to its keypoints."""
@@ -144,9 +159,12 @@ class KeypointTracker:
         predicted = self.state
         reprojection = np.full((len(self.rig), 21), np.nan)
         if fit is None:
-            reason = "no hand detected" if not observations else "no fit explains the keypoints"
+            reason = ("no hand detected" if not observations else
+                      "no fit explains the keypoints near the last estimate")
             lost, rms = True, float("nan")
+            self._since_fit += 1
         else:
+            self._since_fit = 1
             self.state = np.array(fit.q, dtype=float)
             seen = [c is not None for c in candidates]
             reprojection[seen] = fit.reprojection_px
@@ -174,7 +192,7 @@ class KeypointTracker:
         """Of the hands a camera found, the one nearest the current estimate's keypoints."""
         if len(found) <= 1:
             return found[0] if found else None
-        rows, points = model_anchors(self.model)
+        rows, points = self._anchors
         here = camera.project(forward_kinematics(self.model, self.state).points(rows, points))
         return min(found, key=lambda c: float(np.mean(np.linalg.norm(c.keypoints - here,
                                                                       axis=1))))
@@ -190,12 +208,21 @@ class KeypointTracker:
             except DigitEyesError:
                 continue
             fits.append(fit)
-            if self._explains(fit):
+            if self._explains(fit) and self._near(fit):
                 break
         iterations = sum(f.iterations for f in fits)
-        good = [f for f in fits if self._explains(f)]
+        good = [f for f in fits if self._explains(f) and self._near(f)]
         best = min(good, key=lambda f: float(np.nanmedian(f.reprojection_px)), default=None)
         return best, iterations
+
+    def _near(self, fit: PoseFit) -> bool:
+        """Whether ``fit`` keeps the hand within ``max_jump`` hand lengths per frame since
+        the last fit taken (keypoints' centroid, mm)."""
+        rows, points = self._anchors
+        here = forward_kinematics(self.model, self.state).points(rows, points).mean(axis=0)
+        jump = float(np.linalg.norm(fit.keypoints_world.mean(axis=0) - here))
+        frames = min(self._since_fit, JUMP_FRAMES)
+        return jump <= self.options.max_jump * self._hand_length * frames
 
     def _explains(self, fit: PoseFit) -> bool:
         errors = fit.reprojection_px[np.isfinite(fit.reprojection_px)]
