@@ -243,20 +243,36 @@ def _with_files(job: TrackJob, frames: Iterator[list[np.ndarray]], total: int | 
     return _Source(frames, model, rig, initial, job.fps or rate, total)
 
 
-def resolve_tracker(name: str, footage: bool, detector: str) -> str:
+def resolve_tracker(name: str, footage: bool, detector: str,
+                    model: KinematicModel | None = None) -> str:
     """The tracker a job runs: ``name`` itself unless it is ``"auto"``; then the keypoint
-    tracker for footage (videos, cameras) when its detector is a learned one (MediaPipe
-    installed and ``detector`` not ``"classic"``), else the DigitEyes feature tracker
-    (datasets, which are rendered or recorded for the papers' trackers, and machines
-    without the MediaPipe extra). Why: on the real video the feature tracker is more
-    than half a palm length off MediaPipe's keypoints in 93 % of frames and flags 7,
-    the keypoint tracker in none (docs/keypoint-tracker.md)."""
+    tracker for footage (videos, cameras) of a hand model with the 21 hand keypoints
+    (``model``; None: assume so) when its detector is a learned one (MediaPipe installed
+    and ``detector`` not ``"classic"``), else the DigitEyes feature tracker (datasets,
+    which are rendered or recorded for the papers' trackers, models of other objects or
+    of part of a hand such as ``mouse-hand``, and machines without the MediaPipe extra).
+    Why: on the real video the feature tracker is more than half a palm length off
+    MediaPipe's keypoints in 93 % of frames and flags 7, the keypoint tracker in none
+    (docs/keypoint-tracker.md)."""
     if name != AUTO_TRACKER:
         return name
     from digiteyes.detect.mediapipe_detector import mediapipe_available
 
     learned = detector != "classic" and mediapipe_available()
-    return FOOTAGE_TRACKER if footage and learned else DEFAULT_TRACKER
+    return (FOOTAGE_TRACKER if footage and learned and (model is None or has_hand21(model))
+            else DEFAULT_TRACKER)
+
+
+def has_hand21(model: KinematicModel) -> bool:
+    """Whether ``model`` has the 21 hand keypoints (:func:`~digiteyes.detect.hand21.
+    model_anchors`): a full hand, not ``mouse-hand`` or ``two-finger``."""
+    from digiteyes.detect.hand21 import model_anchors
+
+    try:
+        model_anchors(model)
+    except DigitEyesError:
+        return False
+    return True
 
 
 def _tracker_options(job: TrackJob, model: KinematicModel, name: str) -> dict[str, object]:
@@ -331,7 +347,7 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
         initial = np.asarray(source.initial)
     first_index = int(start_note.get("first_frame", 0))
     recover = initialiser if (job.recover if job.recover is not None else auto) else None
-    name = resolve_tracker(job.tracker_name, source.footage, job.detector)
+    name = resolve_tracker(job.tracker_name, source.footage, job.detector, model)
     if name != job.tracker_name:
         say(f"tracker: {name} (--tracker auto, for {'footage' if source.footage else 'a dataset'}"
             f"{' with a learned detector' if name == FOOTAGE_TRACKER else ''})")
@@ -420,10 +436,9 @@ def _detection_check(job: TrackJob, footage: bool, name: str, model: KinematicMo
     if (not footage or job.check_every <= 0 or name == FOOTAGE_TRACKER
             or job.detector == "classic" or not mediapipe_available()):
         return None
-    try:
-        return DetectionCheck(model, rig, job.detector, job.check_every)
-    except DigitEyesError:  # a model without the 21 hand keypoints (another object)
+    if not has_hand21(model):  # another object, or part of a hand
         return None
+    return DetectionCheck(model, rig, job.detector, job.check_every)
 
 
 def _sides_seen(initialiser: AutoInitialiser, rig: Rig) -> set[str]:
