@@ -461,3 +461,17 @@ def test_a_colour_video_of_the_flesh_hand_is_tracked_by_the_keypoint_tracker(tmp
         views[k].keypoints_2d[views[k].keypoint_names.index(f"{f}.tip")]))
         for k, row in enumerate(rows) for f in FINGERS]
     assert np.median(errors) < 12.0
+
+
+@pytest.mark.skipif(not mediapipe_available(), reason="optional extra digiteyes[mediapipe]")
+def test_auto_takes_the_keypoint_tracker_only_for_datasets_the_detector_sees(tmp_path, capsys):
+    """A rendered flesh hand: MediaPipe finds it where the dataset starts, so the keypoint
+    tracker; our capsule drawing: it does not, so the feature tracker."""
+    for appearance, expected in (("flesh", "keypoints"), ("model", "features")):
+        data = tmp_path / appearance
+        assert main(["render", "desk-2cam", "-o", str(data), "--frames", "2",
+                     "--appearance", appearance]) == 0
+        out = tmp_path / f"{appearance}-track"
+        assert main(["track", str(data), "-o", str(out), "--quiet", "--no-overlay"]) == 0
+        assert f"tracker: {expected}" in capsys.readouterr().out
+        assert json.loads((out / "summary.json").read_text())["tracker"] == expected

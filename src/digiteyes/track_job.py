@@ -244,23 +244,30 @@ def _with_files(job: TrackJob, frames: Iterator[list[np.ndarray]], total: int | 
 
 
 def resolve_tracker(name: str, footage: bool, detector: str,
-                    model: KinematicModel | None = None) -> str:
-    """The tracker a job runs: ``name`` itself unless it is ``"auto"``; then the keypoint
-    tracker for footage (videos, cameras) of a hand model with the 21 hand keypoints
-    (``model``; None: assume so) when its detector is a learned one (MediaPipe installed
-    and ``detector`` not ``"classic"``), else the DigitEyes feature tracker (datasets,
-    which are rendered or recorded for the papers' trackers, models of other objects or
-    of part of a hand such as ``mouse-hand``, and machines without the MediaPipe extra).
-    Why: on the real video the feature tracker is more than half a palm length off
-    MediaPipe's keypoints in 93 % of frames and flags 7, the keypoint tracker in none
-    (docs/keypoint-tracker.md)."""
+                    model: KinematicModel | None = None,
+                    detector_agrees: Callable[[], bool] | None = None) -> str:
+    """The tracker a job runs: ``name`` itself unless it is ``"auto"``. Then the keypoint
+    tracker for a hand model with the 21 hand keypoints (``model``; None: assume so) when
+    its detector is a learned one (MediaPipe installed and ``detector`` not
+    ``"classic"``) and either the input is footage (videos, cameras) or, for a dataset,
+    ``detector_agrees()`` says that the detector finds the dataset's hand where its
+    initial state puts it (images a detector does not take for a hand, such as our own
+    capsule drawing, keep the feature tracker). Otherwise the DigitEyes feature tracker
+    (models of other objects or of part of a hand such as ``mouse-hand``, machines
+    without the MediaPipe extra). Why: on the real video the feature tracker is more than
+    half a palm length off MediaPipe's keypoints in 93 % of frames and flags 7, the
+    keypoint tracker in none; on the flesh hand's renders its mean error over the
+    accuracy table is 24.5 mm against 42.4 (docs/keypoint-tracker.md)."""
     if name != AUTO_TRACKER:
         return name
     from digiteyes.detect.mediapipe_detector import mediapipe_available
 
     learned = detector != "classic" and mediapipe_available()
-    return (FOOTAGE_TRACKER if footage and learned and (model is None or has_hand21(model))
-            else DEFAULT_TRACKER)
+    if not learned or (model is not None and not has_hand21(model)):
+        return DEFAULT_TRACKER
+    if footage or (detector_agrees is not None and detector_agrees()):
+        return FOOTAGE_TRACKER
+    return DEFAULT_TRACKER
 
 
 def has_hand21(model: KinematicModel) -> bool:
@@ -347,10 +354,17 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
         initial = np.asarray(source.initial)
     first_index = int(start_note.get("first_frame", 0))
     recover = initialiser if (job.recover if job.recover is not None else auto) else None
-    name = resolve_tracker(job.tracker_name, source.footage, job.detector, model)
+    first_seen = next(frames)
+    frames = _prepend(first_seen, frames)
+    name = resolve_tracker(job.tracker_name, source.footage, job.detector, model,
+                           lambda: _detector_agrees(model, rig, job.detector, first_seen,
+                                                    initial))
     if name != job.tracker_name:
-        say(f"tracker: {name} (--tracker auto, for {'footage' if source.footage else 'a dataset'}"
-            f"{' with a learned detector' if name == FOOTAGE_TRACKER else ''})")
+        why = ("footage with a learned detector" if source.footage and name == FOOTAGE_TRACKER
+               else "a dataset whose hand the detector finds where its start is"
+               if name == FOOTAGE_TRACKER else
+               "a dataset" if not source.footage else "no learned detector or hand model")
+        say(f"tracker: {name} (--tracker auto: {why})")
     tracker = create_tracker(name, model, rig, **_tracker_options(job, model, name))
     check = _detection_check(job, source.footage, name, model, rig)
     out = Path(job.output)
@@ -423,6 +437,21 @@ def _open_sinks(job: TrackJob, model: KinematicModel, rig: Rig, out: Path, fps: 
             sink.close()
         raise
     return sinks
+
+
+AGREEMENT_PALM_LENGTHS = 0.25
+"""A dataset's hand is the detector's when no digit of the initial state is farther than
+this (palm lengths) from the detection on the first frame (:func:`_detector_agrees`)."""
+
+
+def _detector_agrees(model: KinematicModel, rig: Rig, detector: str,
+                     images: list[np.ndarray], state: np.ndarray) -> bool:
+    """Whether the detector finds the hand of ``images`` (a dataset's first frame) within
+    :data:`AGREEMENT_PALM_LENGTHS` of ``state`` in every digit."""
+    from digiteyes.detect.check import DetectionCheck
+
+    worst = DetectionCheck(model, rig, detector).worst_digit(images, state)
+    return worst is not None and worst[0] <= AGREEMENT_PALM_LENGTHS
 
 
 def _detection_check(job: TrackJob, footage: bool, name: str, model: KinematicModel,

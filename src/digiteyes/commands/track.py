@@ -60,8 +60,9 @@ def parse_tracker_options(pairs: tuple[str, ...]) -> dict[str, object]:
 
 def tracker_help() -> str:
     """The ``--tracker`` help: every registered name with its one line."""
-    return ("Tracker to run: auto (keypoints for videos and cameras when the MediaPipe "
-            f"extra is installed, else {DEFAULT_TRACKER}); " + "; ".join(
+    return ("Tracker to run: auto (keypoints for videos and cameras, and for datasets "
+            "whose hand MediaPipe finds at their start, when the MediaPipe extra is "
+            f"installed; else {DEFAULT_TRACKER}); " + "; ".join(
                 f"{name} ({tracker_entry(name).help})" for name in tracker_names()) + ".")
 
 

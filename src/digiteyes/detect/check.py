@@ -67,12 +67,24 @@ class DetectionCheck:
         is not one to check."""
         if index % self.every:
             return None
-        started = time.perf_counter()
         self.checks += 1
+        worst = self.worst_digit(images, state)
+        if worst is None or worst[0] <= self.max_gap:
+            return None
+        self.disagreements += 1
+        return (f"the detector sees the {worst[1]} {worst[0]:.2f} palm lengths from the "
+                "track")
+
+    def worst_digit(self, images: Sequence[np.ndarray], state: np.ndarray
+                    ) -> tuple[float, str] | None:
+        """The largest gap (palm lengths) of a digit between ``state`` (n_q,) and the
+        detections in ``images``, over the cameras that see a hand, and that digit; None
+        when no camera sees one."""
+        started = time.perf_counter()
         rows, points = self._anchors
         world = forward_kinematics(self.model, np.asarray(state, dtype=float)).points(rows,
                                                                                      points)
-        worst: tuple[float, str] = (0.0, "")
+        worst: tuple[float, str] | None = None
         for detector, image, camera in zip(self._detectors, images, self.rig, strict=True):
             found = detector.detect(image, camera)
             if not found:
@@ -83,13 +95,10 @@ class DetectionCheck:
                 continue
             gap = np.linalg.norm(camera.project(world) - detected, axis=1) / palm
             for digit, keys in DIGIT_KEYPOINTS.items():
-                worst = max(worst, (float(gap[keys].mean()), digit))
+                here = (float(gap[keys].mean()), digit)
+                worst = here if worst is None else max(worst, here)
         self.seconds += time.perf_counter() - started
-        if worst[0] <= self.max_gap:
-            return None
-        self.disagreements += 1
-        return (f"the detector sees the {worst[1]} {worst[0]:.2f} palm lengths from the "
-                "track")
+        return worst
 
     def to_json(self) -> dict:
         """What ``summary.json`` records of the check."""
