@@ -18,6 +18,7 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 import numpy as np
 
 from digiteyes.camera import Rig
+from digiteyes.errors import StateError
 from digiteyes.kinematics import KinematicModel
 
 
@@ -95,6 +96,19 @@ class Tracker(Protocol):
     def step(self, frames: Sequence[np.ndarray]) -> TrackResult:
         """Estimate the state for the next set of frames."""
         ...
+
+
+def start_step(tracker: Tracker, frames: Sequence[np.ndarray]) -> tuple[float, dict[str, float]]:
+    """The common start of a least-squares tracker's ``step``: raises
+    :class:`~digiteyes.errors.StateError` before :meth:`Tracker.reset` (no ``state``) and
+    :class:`~digiteyes.errors.CameraError` when ``frames`` do not fit the rig; returns
+    the step's start time (``time.perf_counter``) and its timings, every stage and
+    ``"total"`` at 0 s."""
+    if getattr(tracker, "state", None) is None:
+        raise StateError("the tracker has no state: call reset(initial_state) first")
+    started = time.perf_counter()
+    tracker.rig.check_images(frames)
+    return started, dict.fromkeys((*tracker.stages, "total"), 0.0)
 
 
 def residual_unit(tracker: Tracker) -> str:

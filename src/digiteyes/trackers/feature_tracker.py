@@ -63,7 +63,7 @@ from digiteyes.solvers import (
 )
 from digiteyes.solvers.options import DAMPINGS, Damping
 from digiteyes.solvers.robust import ROBUST_LOSSES, RobustLoss
-from digiteyes.trackers.base import TrackResult
+from digiteyes.trackers.base import TrackResult, start_step
 from digiteyes.trackers.finger_search import FingerRecovery, FingerSearchOptions
 from digiteyes.trackers.loss_hold import LOCAL_HOLD_FRAMES, LossHold, LossHoldOptions
 from digiteyes.trackers.parameterisation import StateParameterisation
@@ -529,11 +529,7 @@ class FeatureTracker:
         Raises :class:`~digiteyes.errors.CameraError` when the frames do not fit the rig
         and :class:`~digiteyes.errors.StateError` before :meth:`reset`.
         """
-        if self.state is None:
-            raise StateError("the tracker has no state: call reset(initial_state) first")
-        start_total = time.perf_counter()
-        self.rig.check_images(frames)
-        timings = dict.fromkeys((*self.stages, "total"), 0.0)
+        start_total, timings = start_step(self, frames)
         start = time.perf_counter()
         predicted = self.predictor.predict()
         timings["prediction"] = time.perf_counter() - start

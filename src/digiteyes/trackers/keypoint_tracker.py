@@ -38,11 +38,11 @@ from digiteyes.detect.hand21 import model_anchors
 from digiteyes.detect.hand_size import model_hand_length
 from digiteyes.detect.model_fit import FitOptions, KeypointObservation, PoseFit, fit_keypoints
 from digiteyes.detect.pose import make_detector
-from digiteyes.errors import DigitEyesError, StateError
+from digiteyes.errors import DigitEyesError
 from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import KinematicModel, forward_kinematics
 from digiteyes.kinematics.state import validate_state
-from digiteyes.trackers.base import TrackResult
+from digiteyes.trackers.base import TrackResult, start_step
 from digiteyes.trackers.loss_hold import LossHold, LossHoldOptions
 from digiteyes.trackers.silhouette_loss import SilhouetteLoss, SilhouetteLossOptions
 
@@ -141,11 +141,7 @@ class KeypointTracker:
 
     def step(self, frames: Sequence[np.ndarray]) -> TrackResult:
         """Detect the hand in every camera and fit the model to its keypoints."""
-        if self.state is None:
-            raise StateError("the tracker has no state: call reset(initial_state) first")
-        start_total = time.perf_counter()
-        self.rig.check_images(frames)
-        timings = dict.fromkeys((*self.stages, "total"), 0.0)
+        start_total, timings = start_step(self, frames)
         start = time.perf_counter()
         candidates = [self._nearest(detector.detect(image, camera), camera)
                       for detector, image, camera in zip(self._detectors, frames, self.rig,

@@ -69,7 +69,7 @@ from digiteyes.templates.layered import (
     evaluate_layered,
     refresh_templates,
 )
-from digiteyes.trackers.base import TrackResult
+from digiteyes.trackers.base import TrackResult, start_step
 from digiteyes.trackers.finger_search import FingerRecovery, FingerSearchOptions
 from digiteyes.trackers.loss_hold import LOCAL_HOLD_FRAMES, LossHold, LossHoldOptions
 from digiteyes.trackers.parameterisation import StateParameterisation
@@ -302,11 +302,7 @@ class LayeredTemplateTracker:
     # ------------------------------------------------------------------ per frame
     def step(self, frames: Sequence[np.ndarray]) -> TrackResult:
         """Estimate the state for one set of frames (one image per camera)."""
-        if self.state is None:
-            raise StateError("the tracker has no state: call reset(initial_state) first")
-        start_total = time.perf_counter()
-        self.rig.check_images(frames)
-        timings = dict.fromkeys((*self.stages, "total"), 0.0)
+        start_total, timings = start_step(self, frames)
         tic = time.perf_counter()
         predicted = self.predictor.predict()
         timings["prediction"] = time.perf_counter() - tic
