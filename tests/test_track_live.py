@@ -475,3 +475,35 @@ def test_auto_takes_the_keypoint_tracker_only_for_datasets_the_detector_sees(tmp
         assert main(["track", str(data), "-o", str(out), "--quiet", "--no-overlay"]) == 0
         assert f"tracker: {expected}" in capsys.readouterr().out
         assert json.loads((out / "summary.json").read_text())["tracker"] == expected
+
+
+@pytest.mark.skipif(not mediapipe_available(), reason="optional extra digiteyes[mediapipe]")
+def test_hand_auto_tracks_a_left_hand_video_as_the_mirror_image(tmp_path, capsys):
+    """The flesh hand's colour video flipped shows a left hand: with the default --hand
+    auto MediaPipe says so at the start, the run mirrors itself, and the keypoints land
+    on the left hand in the real images."""
+    scenario = build_scenario("desk-2cam", seed=0, n_frames=5)
+    camera = scenario.rig[0]
+    views = [render_views(scenario.model, q, [camera], RenderOptions(appearance="flesh",
+                                                                    color=True), rng=k)[0]
+             for k, q in enumerate(scenario.states)]
+    video = tmp_path / "left.mkv"
+    with VideoWriter(video, 10.0) as writer:
+        for view in views:
+            writer.write(view.image[:, ::-1])
+    save_rig(mirrored_rig(Rig((camera,))), tmp_path / "rig.json")
+    out = tmp_path / "out"
+    assert main(["track", str(video), "--rig", str(tmp_path / "rig.json"), "--init", "auto",
+                 "-o", str(out), "--quiet", "--no-overlay"]) == 0
+    assert "--hand auto: the detector sees a left hand" in capsys.readouterr().out
+    assert json.loads((out / "summary.json").read_text())["start"]["hand"] == "left"
+    with open(out / "keypoints.csv", newline="", encoding="utf-8") as handle:
+        rows = list(csv.DictReader(handle))
+    errors = []
+    for k, row in enumerate(rows):
+        for f in FINGERS:
+            u, v = views[k].keypoints_2d[views[k].keypoint_names.index(f"{f}.tip")]
+            tracked = [float(row[f"{camera.name}.{f}.tip.u_px"]),
+                       float(row[f"{camera.name}.{f}.tip.v_px"])]
+            errors.append(np.linalg.norm(np.subtract(tracked, [camera.width - 1 - u, v])))
+    assert np.median(errors) < 12.0

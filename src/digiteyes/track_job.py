@@ -61,6 +61,8 @@ if TYPE_CHECKING:
 
 AUTO = "auto"
 """``init_path`` value that starts from a detection and model fit (``--init auto``)."""
+AUTO_HAND = "auto"
+"""``hand`` value that takes the side the detector reports at the automatic start."""
 AUTO_TRACKER = "auto"
 """``tracker_name`` value that lets :func:`resolve_tracker` choose."""
 DEFAULT_CHECK_EVERY = 3
@@ -121,8 +123,10 @@ class TrackJob:
     detector : detector of the automatic start and the recovery (``auto``, ``mediapipe``,
         ``classic``); hfov : field of view of the default camera (deg).
     recover : re-detect after lost frames (None: exactly when ``init_path`` is ``auto``).
-    hand : ``"right"`` or ``"left"``: the side of the hand in the images; a left hand is
-        tracked as the right hand of the mirror image (:mod:`digiteyes.camera.mirror`).
+    hand : ``"right"``, ``"left"`` or ``"auto"``: the side of the hand in the images; a
+        left hand is tracked as the right hand of the mirror image
+        (:mod:`digiteyes.camera.mirror`); ``"auto"`` takes the side the detector reports
+        at the automatic start (right with a given start or a detector that cannot tell).
     max_side : images whose longer side exceeds this (px) are tracked resized to it
         (:mod:`digiteyes.camera.working_size`; None: never).
     check_every : with a learned detector on footage and a tracker other than the keypoint
@@ -158,7 +162,7 @@ class TrackJob:
     hfov: float = DEFAULT_HFOV_DEG
     recover: bool | None = None
     init_frames: int | None = None
-    hand: str = "right"
+    hand: str = AUTO_HAND
     max_side: int | None = DEFAULT_MAX_SIDE
     check_every: int = DEFAULT_CHECK_EVERY
 
@@ -323,13 +327,14 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
             f"{rig[0].height}, --max-size {job.max_side}); outputs in the images' pixels")
         frames = (resize_images(images, work) for images in frames)
         rig = work
-    if job.hand == "left":
+    if job.hand == "left":  # "auto" decides at the automatic start
         rig = mirrored_rig(rig)
         frames = (mirror_images(images) for images in frames)
     model = source.model
     auto = source.initial is None
     initialiser = None
-    start_note: dict[str, object] = {"init": "auto" if auto else "given", "hand": job.hand}
+    start_note: dict[str, object] = {"init": "auto" if auto else "given",
+                                     "hand": "left" if rig.mirrored else "right"}
     if rig.real_sizes is not None:
         start_note["working_size"] = [rig[0].width, rig[0].height]
     if auto or job.recover:
@@ -347,9 +352,15 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
         say(f"--init auto: hand found in frame {skipped} "
             f"({', '.join(start_note['found_by'])} + model fit)")
         seen = _sides_seen(initialiser, rig)
-        if seen and job.hand not in seen:
+        if job.hand == AUTO_HAND and seen == {"left"}:
+            initialiser, rig, frames, initial = _as_left_hand(initialiser, rig, frames,
+                                                              initial)
+            say("--hand auto: the detector sees a left hand; tracking it as the right hand "
+                "of the mirror image (outputs in the real images)")
+        elif job.hand != AUTO_HAND and seen and job.hand not in seen:
             say(f"warning: the detector sees a {' and a '.join(sorted(seen))} hand, the run "
                 f"tracks a {job.hand} hand (--hand {sorted(seen)[0]} if that is the one)")
+        start_note["hand"] = "left" if rig.mirrored else "right"
     else:
         initial = np.asarray(source.initial)
     first_index = int(start_note.get("first_frame", 0))
@@ -468,6 +479,23 @@ def _detection_check(job: TrackJob, footage: bool, name: str, model: KinematicMo
     if not has_hand21(model):  # another object, or part of a hand
         return None
     return DetectionCheck(model, rig, job.detector, job.check_every)
+
+
+def _as_left_hand(initialiser: AutoInitialiser, rig: Rig, frames: Iterator[list[np.ndarray]],
+                  state: np.ndarray) -> tuple[AutoInitialiser, Rig, Iterator, np.ndarray]:
+    """Switch a started run to the mirror image (``--hand auto`` and a left hand): the
+    mirrored rig, the mirrored frames, an initialiser for them and the state fitted to the
+    mirrored start frame (``state`` kept if that fit fails)."""
+    from digiteyes.detect.initialiser import AutoInitialiser
+
+    mirrored = mirrored_rig(rig)
+    first = next(frames)
+    fresh = AutoInitialiser(initialiser.model, mirrored, initialiser.detector)
+    fitted = fresh(mirror_images(first))
+    if fitted is None:
+        return initialiser, rig, _prepend(first, frames), state
+    flipped = (mirror_images(images) for images in frames)
+    return fresh, mirrored, _prepend(mirror_images(first), flipped), fitted
 
 
 def _sides_seen(initialiser: AutoInitialiser, rig: Rig) -> set[str]:

@@ -208,3 +208,27 @@ def test_calibrate_hand_with_the_classic_detector_keeps_one_scale(tmp_path, caps
     assert scale == pytest.approx(1.0, abs=0.15)  # the classic detector: 0.88 here
     np.testing.assert_allclose(model_lengths(load_model(out)), scale * model_lengths(hand),
                                rtol=2e-3)
+
+
+@pytest.mark.skipif(not mediapipe_available(), reason="optional extra digiteyes[mediapipe]")
+def test_pose_hand_auto_takes_the_side_mediapipe_reports(tmp_path):
+    """The flesh hand's render and its mirror image: with the default --hand auto, the
+    first is fitted as a right hand and the second as a left one, the same hand mirrored."""
+    scenario = build_scenario("desk-2cam", seed=0, n_frames=1)
+    camera = scenario.rig[0]
+    view = render_views(scenario.model, scenario.states[0], [camera],
+                        RenderOptions(appearance="flesh", color=True), rng=0)[0]
+    for name, image in (("right.png", view.image), ("left.png", view.image[:, ::-1])):
+        cv2.imwrite(str(tmp_path / name), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
+    save_rig(Rig((camera,)), tmp_path / "rig.json")
+    save_rig(mirrored_rig(Rig((camera,))), tmp_path / "mirrored.json")
+    assert main(["pose", str(tmp_path / "right.png"), "--rig", str(tmp_path / "rig.json"),
+                 "-o", str(tmp_path / "r")]) == 0
+    assert main(["pose", str(tmp_path / "left.png"), "--rig", str(tmp_path / "mirrored.json"),
+                 "-o", str(tmp_path / "l")]) == 0
+    right = json.loads((tmp_path / "r" / "right.json").read_text())
+    left = json.loads((tmp_path / "l" / "left.json").read_text())
+    assert (right["hand_side"], left["hand_side"]) == ("right", "left")
+    r = np.array(list(right["hand"]["keypoints_camera_mm"][camera.name].values()))
+    l_ = np.array(list(left["hand"]["keypoints_camera_mm"][camera.name].values()))
+    assert np.linalg.norm(r - l_ * [-1.0, 1.0, 1.0], axis=1).mean() < 10.0

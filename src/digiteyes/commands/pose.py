@@ -28,9 +28,11 @@ from digiteyes.detect.pose import DETECTORS
               help="Assumed hand size relative to the model (sets depth with one camera).")
 @click.option("--hfov", type=click.FloatRange(10, 170), default=60.0, show_default=True,
               help="Horizontal field of view (deg) of the default camera (no --rig).")
-@click.option("--hand", type=click.Choice(HANDS), default="right", show_default=True,
+@click.option("--hand", type=click.Choice(("auto", *HANDS)), default="auto",
+              show_default=True,
               help="The hand in the images; a left hand is fitted as the right hand of the "
-                   "mirror image (outputs in the real images).")
+                   "mirror image (outputs in the real images); auto: the side the detector "
+                   "reports (right when it cannot tell).")
 def pose(images: tuple[Path, ...], output: Path, rig: Path | None, detector: str,
          model_name: str, hand_scale: float, hfov: float, hand: str) -> None:
     """Detect the hand in each image and fit the model: 3D keypoints in the camera frame
@@ -39,7 +41,7 @@ def pose(images: tuple[Path, ...], output: Path, rig: Path | None, detector: str
 
     from digiteyes.camera import Rig, load_rig
     from digiteyes.camera.default import default_camera
-    from digiteyes.camera.mirror import mirror_images, rig_for_hand
+    from digiteyes.camera.mirror import mirror_images, mirrored_rig, rig_for_hand
     from digiteyes.detect.model_fit import FitOptions
     from digiteyes.detect.pose import (
         estimate_pose,
@@ -70,11 +72,14 @@ def pose(images: tuple[Path, ...], output: Path, rig: Path | None, detector: str
             if bgr is None:
                 raise DigitEyesError(f"{path}: not an image OpenCV can read")
             frames.append(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
-        cams = rig_for_hand(the_rig or Rig((default_camera(frames[0].shape[1],
-                                                          frames[0].shape[0], hfov),)), hand)
-        if cams.mirrored:
-            frames = mirror_images(frames)
-        result = estimate_pose(frames, cams, det, model, options)
+        real = the_rig or Rig((default_camera(frames[0].shape[1], frames[0].shape[0], hfov),))
+        cams = rig_for_hand(real, "right" if hand == "auto" else hand)
+        result = estimate_pose(mirror_images(frames) if cams.mirrored else frames, cams, det,
+                               model, options)
+        sides = {c.handedness for c in result.candidates if c is not None and c.handedness}
+        if hand == "auto" and sides == {"left"}:
+            cams = mirrored_rig(real)
+            result = estimate_pose(mirror_images(frames), cams, det, model, options)
         stem = paths[0].stem
         write_pose_json(pose_to_json(result, cams, [str(p) for p in paths]),
                         output / f"{stem}.json")

@@ -17,6 +17,7 @@ from digiteyes.filters import OneEuroOptions
 from digiteyes.io.frame_sinks import parse_stream_target
 from digiteyes.pipeline import TrackingRun
 from digiteyes.track_job import (
+    AUTO_HAND,
     AUTO_TRACKER,
     DEFAULT_CHECK_EVERY,
     TrackJob,
@@ -156,9 +157,11 @@ def print_run(run: TrackingRun, err: bool = False) -> None:
               default="auto", show_default=True,
               help="Detector of --init auto and of the recovery after loss (auto = MediaPipe "
                    "when installed, the classic detector where it finds no hand).")
-@click.option("--hand", type=click.Choice(HANDS), default="right", show_default=True,
+@click.option("--hand", type=click.Choice((AUTO_HAND, *HANDS)), default=AUTO_HAND,
+              show_default=True,
               help="The hand in the images; a left hand is tracked as the right hand of the "
-                   "mirror image (outputs in the real images).")
+                   "mirror image (outputs in the real images); auto: the side the detector "
+                   "reports at --init auto (right with a given start).")
 @click.option("--max-size", "max_side", type=click.IntRange(min=64),
               default=DEFAULT_MAX_SIDE, show_default=True,
               help="Track images whose longer side exceeds this many pixels resized to it "
