@@ -321,15 +321,7 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
                                             job.hfov),))
     rig.check_images(first)
     frames = _prepend(first, frames)
-    work = working_rig(rig, job.max_side)
-    if work is not rig:
-        say(f"tracking at {work[0].width}x{work[0].height} (images {rig[0].width}x"
-            f"{rig[0].height}, --max-size {job.max_side}); outputs in the images' pixels")
-        frames = (resize_images(images, work) for images in frames)
-        rig = work
-    if job.hand == "left":  # "auto" decides at the automatic start
-        rig = mirrored_rig(rig)
-        frames = (mirror_images(images) for images in frames)
+    rig, frames = _transformed_input(job, rig, frames, say)
     model = source.model
     auto = source.initial is None
     initialiser = None
@@ -371,11 +363,7 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
                            lambda: _detector_agrees(model, rig, job.detector, first_seen,
                                                     initial))
     if name != job.tracker_name:
-        why = ("footage with a learned detector" if source.footage and name == FOOTAGE_TRACKER
-               else "a dataset whose hand the detector finds where its start is"
-               if name == FOOTAGE_TRACKER else
-               "a dataset" if not source.footage else "no learned detector or hand model")
-        say(f"tracker: {name} (--tracker auto: {why})")
+        say(f"tracker: {name} (--tracker auto: {_why_tracker(name, source.footage)})")
     tracker = create_tracker(name, model, rig, **_tracker_options(job, model, name))
     check = _detection_check(job, source.footage, name, model, rig)
     out = Path(job.output)
@@ -399,6 +387,31 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
 
     run.files["report"] = write_report_page(out)
     return run
+
+
+def _transformed_input(job: TrackJob, rig: Rig, frames: Iterator[list[np.ndarray]],
+                       say: Callable[[str], None]) -> tuple[Rig, Iterator[list[np.ndarray]]]:
+    """The rig and frames the tracker sees: resized to the working size
+    (:mod:`digiteyes.camera.working_size`), then mirrored for ``--hand left``
+    (:mod:`digiteyes.camera.mirror`; ``auto`` decides at the automatic start)."""
+    work = working_rig(rig, job.max_side)
+    if work is not rig:
+        say(f"tracking at {work[0].width}x{work[0].height} (images {rig[0].width}x"
+            f"{rig[0].height}, --max-size {job.max_side}); outputs in the images' pixels")
+        frames = (resize_images(images, work) for images in frames)
+        rig = work
+    if job.hand == "left":
+        rig = mirrored_rig(rig)
+        frames = (mirror_images(images) for images in frames)
+    return rig, frames
+
+
+def _why_tracker(name: str, footage: bool) -> str:
+    """Why ``--tracker auto`` chose ``name`` (:func:`resolve_tracker`), for the log."""
+    if name == FOOTAGE_TRACKER:
+        return ("footage with a learned detector" if footage else
+                "a dataset whose hand the detector finds where its start is")
+    return "a dataset" if not footage else "no learned detector or hand model"
 
 
 def _search_start(initialiser: AutoInitialiser, frames: Iterator[list[np.ndarray]],
