@@ -104,3 +104,11 @@ def test_a_detection_that_would_throw_the_hand_across_the_room_is_refused():
     assert results[2].lost and "near the last estimate" in results[2].loss_reason
     np.testing.assert_array_equal(results[2].state, results[1].state)
     assert tip_errors(model, [results[3].state], scenario.states[3:4])[0] < 2.5
+
+
+def test_bad_options_are_named():
+    scenario = build_scenario("desk-2cam", seed=0, n_frames=1)
+    for key, value in (("max_jump", -1.0), ("iterations", 0), ("min_explained", 1.5),
+                       ("detector", "sonar")):
+        with pytest.raises(ValueError, match=key):
+            create_tracker("keypoints", scenario.model, scenario.rig, **{key: value})

@@ -5,7 +5,7 @@ edge likelihoods) and leave the start to the user. On real footage that is where
 fail: on the real video (a right hand before a grey wall, docs/keypoint-tracker.md) the
 feature tracker, started from a detection that puts every keypoint within
 0.04 palm lengths of MediaPipe's, is 0.24 palm lengths off after three frames and 0.75
-after ten, and is flagged lost in 7 of 621 frames while most frames are wrong.
+after nine, and is flagged lost in 7 of 621 frames while most frames are wrong.
 
 This tracker leaves the image to a detector (:func:`~digiteyes.detect.pose.make_detector`
 in video mode: MediaPipe follows its landmarks from frame to frame, one detector per
@@ -15,8 +15,10 @@ cameras in one estimate. Per frame the 21 keypoints of every camera that sees th
 are fitted (:func:`~digiteyes.detect.model_fit.fit_keypoints`, robust Gauss-Newton with
 the joint prior) starting from the previous estimate, which keeps each finger's bend
 towards or away from the camera where one view cannot tell; when that fit does not
-explain the keypoints, a fit from scratch is tried. A frame in which no camera finds a
-hand, or no fit explains the keypoints, holds the previous state and is flagged lost.
+explain the keypoints, a fit from scratch is tried; a fit that moves the hand farther
+than a hand could move (``max_jump``) is refused. A frame in which no camera finds a hand,
+or no fit explains the keypoints near the last estimate, holds the previous state and is
+flagged lost.
 A fit that explains the keypoints can still be wrong (a detector that takes a hand-like
 drawing or a back-lit hand for a hand labels its joints anyway), so the shared silhouette
 rule (:mod:`digiteyes.trackers.silhouette_loss`, plain backdrops) judges every frame as
@@ -37,7 +39,7 @@ from digiteyes.detect.candidate import HandCandidate
 from digiteyes.detect.hand21 import model_anchors
 from digiteyes.detect.hand_size import model_hand_length
 from digiteyes.detect.model_fit import FitOptions, KeypointObservation, PoseFit, fit_keypoints
-from digiteyes.detect.pose import make_detector
+from digiteyes.detect.pose import DETECTORS, make_detector
 from digiteyes.errors import DigitEyesError
 from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import KinematicModel, forward_kinematics
@@ -80,6 +82,20 @@ class KeypointTrackerOptions(SilhouetteLossOptions, LossHoldOptions):
     max_error_px: float = 25.0
     min_explained: float = 0.5
     max_jump: float = 0.5
+
+    def __post_init__(self) -> None:
+        for name in ("sigma_px", "sigma_joint_deg", "max_error_px", "max_jump"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | float) or not value > 0:
+                raise ValueError(f"{name} must be a positive number, got {value!r}")
+        if isinstance(self.iterations, bool) or not isinstance(self.iterations, int) \
+                or self.iterations < 1:
+            raise ValueError(f"iterations must be a positive integer, got {self.iterations!r}")
+        if not 0 < self.min_explained <= 1:
+            raise ValueError(f"min_explained must lie in (0, 1], got {self.min_explained!r}")
+        if self.detector not in DETECTORS:
+            raise ValueError(f"detector must be one of {', '.join(DETECTORS)}, got "
+                             f"{self.detector!r}")
 
 
 @dataclass
