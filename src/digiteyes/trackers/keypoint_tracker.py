@@ -34,7 +34,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from digiteyes.camera import Rig
+from digiteyes.camera import Camera, Rig
 from digiteyes.detect.candidate import HandCandidate
 from digiteyes.detect.hand21 import model_anchors
 from digiteyes.detect.hand_size import model_hand_length
@@ -200,7 +200,7 @@ class KeypointTracker:
         timings["total"] = time.perf_counter() - start_total
         return self.loss_hold.apply(result)
 
-    def _nearest(self, found: list[HandCandidate], camera) -> HandCandidate | None:
+    def _nearest(self, found: list[HandCandidate], camera: Camera) -> HandCandidate | None:
         """Of the hands a camera found, the one nearest the current estimate's keypoints."""
         if len(found) <= 1:
             return found[0] if found else None
