@@ -164,3 +164,43 @@ def test_3d_fit_ignores_missing_points(hand, posed):
     fit = fit_keypoints(hand, target_3d=given)
     assert fit.scale == pytest.approx(1.05, abs=0.01)
     assert np.linalg.norm(fit.keypoints_world - truth, axis=1).max() < 3.0
+
+
+def test_the_motion_prior_is_the_step_from_the_start_with_its_jacobian(hand, camera, posed):
+    """At the start the prior's residual is zero; away from it, it is the tangent step
+    over the sigmas (mm for the palm's position, rad for angles), and its Jacobian is the
+    finite-difference one where the step is small (the rotation's is exact to first
+    order)."""
+    q0 = posed(hand, 1)
+    obs = [KeypointObservation(camera, camera.project(true_points(hand, q0)))]
+    options = FitOptions(motion_sigma=(20.0, 10.0))
+    problem = KeypointFitProblem(hand, obs, None, options, False, motion_from=q0)
+    plain = KeypointFitProblem(hand, obs, None, FitOptions(), False)
+    n_plain = plain.residuals(np.append(q0, 1.0), False)[0].size
+    r0, _ = problem.residuals(np.append(q0, 1.0), False)
+    prior = r0[42 + 21:42 + 21 + hand.n_v]
+    assert r0.size == n_plain + hand.n_v and np.allclose(prior, 0.0)
+    dv = np.zeros(hand.n_v)
+    dv[3:6] = (10.0, -20.0, 40.0)  # the palm moved (mm)
+    dv[7] = np.radians(5.0)  # a joint bent 5 degrees
+    x = np.append(integrate(hand, q0, dv), 1.0)
+    r, J = problem.residuals(x, True)
+    prior = r[42 + 21:42 + 21 + hand.n_v]
+    np.testing.assert_allclose(prior[3:6], np.array([10.0, -20.0, 40.0]) / 20.0, atol=1e-9)
+    assert prior[7] == pytest.approx(0.5)
+    eps = 1e-6
+    rows = slice(42 + 21, 42 + 21 + hand.n_v)
+    for i in range(hand.n_v):
+        step = np.zeros(problem.n_v)
+        step[i] = eps
+        fd = (problem.residuals(problem.retract(x, step), False)[0][rows]
+              - problem.residuals(problem.retract(x, -step), False)[0][rows]) / (2 * eps)
+        np.testing.assert_allclose(J[rows, i], fd, atol=2e-3 * np.abs(fd).max() + 1e-9)
+    # it holds the fit near the start: keypoints of a hand 60 mm farther away
+    far = q0.copy()
+    far[6] += 60.0
+    moved = [KeypointObservation(camera, camera.project(true_points(hand, far)))]
+    free = fit_keypoints(hand, moved, options=FitOptions(fit_scale=False), q0=q0)
+    held = fit_keypoints(hand, moved, options=FitOptions(fit_scale=False,
+                                                         motion_sigma=(1.0, 1.0)), q0=q0)
+    assert abs(free.q[6] - far[6]) < 5.0 and abs(held.q[6] - q0[6]) < abs(free.q[6] - q0[6])

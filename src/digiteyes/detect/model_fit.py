@@ -54,6 +54,7 @@ from digiteyes.errors import DigitEyesError
 from digiteyes.kinematics import (
     KinematicModel,
     clip_to_limits,
+    difference,
     forward_kinematics,
     integrate,
     point_jacobian,
@@ -87,6 +88,10 @@ class FitOptions:
     fit_scale : ``None`` fits the scale exactly when it is observable (3D targets or two
         or more cameras); True or False forces it.
     iterations : Levenberg-Marquardt iterations at most in the refinement.
+    motion_sigma : with a start state ``q0``, a prior on the step from it: ``(mm, deg)``,
+        the expected change of the palm's position (mm) and of every angle, the palm's
+        rotation included (deg), e.g. per frame of a track (the stabilisation of
+        Rehg's eq. 2.22 as a prior); None (default): no such prior.
     """
 
     sigma_px: float = 4.0
@@ -97,6 +102,7 @@ class FitOptions:
     sigma_scale: float = 0.15
     fit_scale: bool | None = None
     iterations: int = 10
+    motion_sigma: tuple[float, float] | None = None
 
 
 @dataclass
@@ -169,7 +175,8 @@ class KeypointFitProblem:
     def __init__(self, model: KinematicModel, observations: Sequence[KeypointObservation],
                  target_3d: np.ndarray | None, options: FitOptions, fit_scale: bool,
                  prior_mean: np.ndarray | None = None,
-                 target_weights: np.ndarray | None = None) -> None:
+                 target_weights: np.ndarray | None = None,
+                 motion_from: np.ndarray | None = None) -> None:
         self.model = model
         self.observations = list(observations)
         self.target_3d = None if target_3d is None else np.asarray(target_3d, dtype=float)
@@ -190,6 +197,10 @@ class KeypointFitProblem:
         self._weights = [np.sqrt(np.clip(o.confidence, 0.0, 1.0)) / options.sigma_px
                          for o in self.observations]
         self._shapes = [self._shape_target(o) for o in self.observations]
+        self.motion_from = None
+        if motion_from is not None and options.motion_sigma is not None:
+            self.motion_from = np.asarray(motion_from, dtype=float)
+            self._motion_weights = 1.0 / _motion_sigmas(model, *options.motion_sigma)
 
     def _shape_target(self, obs: KeypointObservation) -> np.ndarray | None:
         """The detector's shape of ``obs`` about its centroid, brought to the size of the
@@ -245,6 +256,14 @@ class KeypointFitProblem:
             block = np.zeros((len(self.angle_states), n + 1))
             block[np.arange(len(self.angle_states)), self.angle_columns] = 1.0 / sigma_joint
             jac.append(block)
+        if self.motion_from is not None:
+            # the step from the start, in tangent coordinates; its Jacobian with respect to
+            # a step is the identity up to the rotation's second-order terms
+            parts.append(difference(self.model, self.motion_from, q) * self._motion_weights)
+            if jacobian:
+                block = np.zeros((n, n + 1))
+                block[np.arange(n), np.arange(n)] = self._motion_weights
+                jac.append(block)
         parts.append(np.array([(s - self.options.scale) / self.options.sigma_scale]))
         if jacobian:
             row = np.zeros((1, n + 1))
@@ -275,6 +294,16 @@ class KeypointFitProblem:
 
     def project(self, x: np.ndarray) -> np.ndarray:
         return np.append(clip_to_limits(self.model, x[:-1]), min(max(x[-1], 0.5), 2.0))
+
+
+def _motion_sigmas(model: KinematicModel, sigma_mm: float, sigma_deg: float) -> np.ndarray:
+    """Per tangent component of ``model`` (n_v,): ``sigma_mm`` for the base translation,
+    ``sigma_deg`` (in radians) for the base rotation and every angle."""
+    sigmas = np.full(model.n_v, np.radians(sigma_deg))
+    for spec in model.spec.states:
+        if spec.kind == "trans":
+            sigmas[model.q_to_v[spec.index]] = sigma_mm
+    return sigmas
 
 
 def palm_points(model: KinematicModel, q: np.ndarray | None = None) -> np.ndarray:
@@ -405,7 +434,8 @@ def fit_keypoints(model: KinematicModel, observations: Sequence[KeypointObservat
     fit_scale = options.fit_scale
     if fit_scale is None:
         fit_scale = target_3d is not None or len(observations) >= 2
-    problem = KeypointFitProblem(model, observations, target_3d, options, fit_scale)
+    problem = KeypointFitProblem(model, observations, target_3d, options, fit_scale,
+                                 motion_from=q0)
     if q0 is not None:
         starts = [np.asarray(q0, dtype=float)]
     elif target_3d is not None:

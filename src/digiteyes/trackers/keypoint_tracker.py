@@ -67,6 +67,11 @@ class KeypointTrackerOptions(SilhouetteLossOptions, LossHoldOptions):
     max_error_px : a fit explains the keypoints when at least ``min_explained`` of them
         reproject within this distance (px).
     min_explained : that fraction.
+    motion_sigma_mm, motion_sigma_deg : opt-in: the fit from the previous estimate is
+        held to it by a prior on the change per frame, the palm's position (mm) and every
+        angle, the palm's rotation included (deg). It steadies the depth one camera sees
+        poorly, but lets a wrong detection drag the hand past ``max_jump`` a step at a
+        time (docs/keypoint-tracker.md); None (default) for either: no prior.
     max_jump : a fit whose keypoints' centroid moves more than this many hand lengths
         (wrist to middle fingertip) per frame since the last fit taken (counting at most
         :data:`JUMP_FRAMES` frames) is refused: a hand does not cross half a metre
@@ -82,6 +87,8 @@ class KeypointTrackerOptions(SilhouetteLossOptions, LossHoldOptions):
     max_error_px: float = 25.0
     min_explained: float = 0.5
     max_jump: float = 0.5
+    motion_sigma_mm: float | None = None
+    motion_sigma_deg: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("sigma_px", "sigma_joint_deg", "max_error_px", "max_jump"):
@@ -93,6 +100,11 @@ class KeypointTrackerOptions(SilhouetteLossOptions, LossHoldOptions):
             raise ValueError(f"iterations must be a positive integer, got {self.iterations!r}")
         if not 0 < self.min_explained <= 1:
             raise ValueError(f"min_explained must lie in (0, 1], got {self.min_explained!r}")
+        for name in ("motion_sigma_mm", "motion_sigma_deg"):
+            value = getattr(self, name)
+            if value is not None and (isinstance(value, bool)
+                                      or not isinstance(value, int | float) or not value > 0):
+                raise ValueError(f"{name} must be a positive number or None, got {value!r}")
         if self.detector not in DETECTORS:
             raise ValueError(f"detector must be one of {', '.join(DETECTORS)}, got "
                              f"{self.detector!r}")
@@ -121,9 +133,12 @@ class KeypointTracker:
         self._anchors = model_anchors(model)  # raises unless the model has the 21 keypoints
         self._hand_length = model_hand_length(model)
         self._since_fit = 1
-        self._fit_options = FitOptions(sigma_px=self.options.sigma_px,
-                                       sigma_joint_deg=self.options.sigma_joint_deg,
-                                       fit_scale=False, iterations=self.options.iterations)
+        opts = self.options
+        motion = (None if opts.motion_sigma_mm is None or opts.motion_sigma_deg is None
+                  else (float(opts.motion_sigma_mm), float(opts.motion_sigma_deg)))
+        self._fit_options = FitOptions(sigma_px=opts.sigma_px,
+                                       sigma_joint_deg=opts.sigma_joint_deg, fit_scale=False,
+                                       iterations=opts.iterations, motion_sigma=motion)
         self._detectors: list = []
         self.silhouette_loss = SilhouetteLoss.from_options(model, rig, self.options)
         self.loss_hold = LossHold(self.options.hold_lost_frames)
