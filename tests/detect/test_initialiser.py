@@ -117,3 +117,16 @@ def test_auto_starts_where_mediapipe_sees_no_hand():
     _, true = keypoints(scenario.model, forward_kinematics(scenario.model,
                                                            scenario.states[:1]))
     assert np.linalg.norm(start - true, axis=2).mean() < 20.0
+
+
+def test_detections_no_pose_explains_are_reported_not_raised(hand, camera):
+    """``pose`` on a batch goes on past an image whose detection the model cannot fit:
+    the result has no fit and says why, and its JSON record carries the reason."""
+    from digiteyes.detect.pose import estimate_pose, pose_to_json
+
+    result = estimate_pose([np.zeros((480, 640), np.uint8)], Rig((camera,)),
+                           FixedDetector(np.full((21, 2), 320.0)), hand)
+    assert result.fit is None and result.candidates[0] is not None
+    assert "palm pose" in result.fit_failure
+    record = pose_to_json(result, Rig((camera,)), ["x.png"])
+    assert record["hand"] is None and record["fit_failure"] == result.fit_failure

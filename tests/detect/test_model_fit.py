@@ -204,3 +204,25 @@ def test_the_motion_prior_is_the_step_from_the_start_with_its_jacobian(hand, cam
     held = fit_keypoints(hand, moved, options=FitOptions(fit_scale=False,
                                                          motion_sigma=(1.0, 1.0)), q0=q0)
     assert abs(free.q[6] - far[6]) < 5.0 and abs(held.q[6] - q0[6]) < abs(free.q[6] - q0[6])
+
+
+def test_a_palm_ippe_puts_behind_the_camera_is_placed_by_sqpnp(hand, camera, posed,
+                                                                monkeypatch):
+    """When both planar (IPPE) solutions lie behind the camera, as for palms seen nearly
+    edge-on on FreiHAND images, the start comes from the general PnP solver, in front of
+    the camera and on the keypoints, instead of the fit failing."""
+    import cv2
+
+    from digiteyes.detect import model_fit
+
+    q = posed(hand, 0)
+    obs = KeypointObservation(camera, camera.project(true_points(hand, q)))
+    behind = (2, [np.zeros((3, 1))] * 2, [np.array([[0.0], [0.0], [-300.0]])] * 2, None)
+    monkeypatch.setattr(model_fit.cv2, "solvePnPGeneric", lambda *a, **k: behind)
+    starts = model_fit.starts_from_image(hand, obs, 1.0)
+    assert len(starts) == 1
+    palm = camera.to_camera(true_points(hand, starts[0]))[list(model_fit.PLANAR_PALM)]
+    assert (palm[:, 2] > 0).all()
+    uv = camera.project(true_points(hand, starts[0]))[list(model_fit.PLANAR_PALM)]
+    assert np.linalg.norm(uv - obs.keypoints[list(model_fit.PLANAR_PALM)], axis=1).mean() < 15
+    assert cv2.solvePnP is model_fit.cv2.solvePnP  # the fallback itself is not patched

@@ -87,7 +87,8 @@ def pose(images: tuple[Path, ...], output: Path, rig: Path | None, detector: str
         found += result.fit is not None
         ms = 1000 * sum(result.seconds.values())
         if result.fit is None:
-            state = "no hand"
+            state = ("no hand" if result.fit_failure is None else
+                     f"a detection no hand pose explains ({result.fit_failure})")
         else:
             middle_mcp = real_keypoints(result.fit.keypoints_camera(cams[0]), cams)[9]
             state = (f"hand at {middle_mcp.round(0).tolist()} mm "

@@ -338,7 +338,10 @@ def starts_from_3d(model: KinematicModel, target: np.ndarray, scale: float) -> l
 
 def starts_from_image(model: KinematicModel, obs: KeypointObservation,
                       scale: float) -> list[np.ndarray]:
-    """Starts from the palm's planar pose in one camera (both IPPE solutions), in world."""
+    """Starts from the palm's planar pose in one camera (both IPPE solutions), in world;
+    when neither puts the palm in front of the camera (a palm seen nearly edge-on, whose
+    detected keypoints no planar palm of the model's shape matches well), the general
+    PnP solution (SQPnP) instead."""
     palm = scale * palm_points(model)[list(PLANAR_PALM)]
     image = np.asarray(obs.keypoints, dtype=float)[list(PLANAR_PALM)]
     if not np.isfinite(image).all():
@@ -351,9 +354,15 @@ def starts_from_image(model: KinematicModel, obs: KeypointObservation,
             np.asarray(cam.dist), flags=cv2.SOLVEPNP_IPPE)
     except cv2.error as exc:
         raise DigitEyesError(f"model fit: palm pose failed ({exc.err})") from None
+    poses = list(zip(rvecs[:count], tvecs[:count], strict=True))
+    if not any(np.ravel(tvec)[2] > 0 for _, tvec in poses):
+        found, rvec, tvec = cv2.solvePnP(palm.astype(np.float64), image.astype(np.float64),
+                                         np.asarray(cam.K), np.asarray(cam.dist),
+                                         flags=cv2.SOLVEPNP_SQPNP)
+        poses = [(rvec, tvec)] if found else []
     starts = []
     T_world_cam = cam.T_world_cam
-    for rvec, tvec in zip(rvecs[:count], tvecs[:count], strict=True):
+    for rvec, tvec in poses:
         T = np.eye(4)
         T[:3, :3] = cv2.Rodrigues(rvec)[0]
         T[:3, 3] = np.ravel(tvec)

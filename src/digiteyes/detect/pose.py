@@ -64,11 +64,14 @@ class PoseResult:
     candidates : per camera, the best candidate or None.
     fit : the model fit, or None.
     seconds : ``{"detect": s, "fit": s}`` wall time.
+    fit_failure : why the detections could not be fitted (None when they were, or when
+        no camera found a hand).
     """
 
     candidates: list[HandCandidate | None]
     fit: PoseFit | None
     seconds: dict[str, float]
+    fit_failure: str | None = None
 
 
 def estimate_pose(images: Sequence[np.ndarray], rig: Rig, detector: HandDetector,
@@ -84,9 +87,14 @@ def estimate_pose(images: Sequence[np.ndarray], rig: Rig, detector: HandDetector
     observations = [KeypointObservation.of(c, cam)
                     for cam, c in zip(rig, candidates, strict=True) if c is not None]
     options = FitOptions() if options is None else options
-    fit = fit_keypoints(model, observations, options=options) if observations else None
+    fit, failure = None, None
+    if observations:
+        try:
+            fit = fit_keypoints(model, observations, options=options)
+        except DigitEyesError as error:  # keypoints no pose of the hand explains
+            failure = str(error)
     return PoseResult(candidates, fit, {"detect": detected - start,
-                                        "fit": time.perf_counter() - detected})
+                                        "fit": time.perf_counter() - detected}, failure)
 
 
 def real_candidates(result: PoseResult, rig: Rig) -> list[HandCandidate | None]:
@@ -117,6 +125,7 @@ def pose_to_json(result: PoseResult, rig: Rig, sources: Sequence[str]) -> dict:
     fit = result.fit
     if fit is None:
         out["hand"] = None
+        out["fit_failure"] = result.fit_failure
         return out
 
     def named(points: np.ndarray) -> dict:
