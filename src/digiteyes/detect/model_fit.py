@@ -356,9 +356,12 @@ def starts_from_image(model: KinematicModel, obs: KeypointObservation,
         raise DigitEyesError(f"model fit: palm pose failed ({exc.err})") from None
     poses = list(zip(rvecs[:count], tvecs[:count], strict=True))
     if not any(np.ravel(tvec)[2] > 0 for _, tvec in poses):
-        found, rvec, tvec = cv2.solvePnP(palm.astype(np.float64), image.astype(np.float64),
-                                         np.asarray(cam.K), np.asarray(cam.dist),
-                                         flags=cv2.SOLVEPNP_SQPNP)
+        try:
+            found, rvec, tvec = cv2.solvePnP(palm.astype(np.float64),
+                                             image.astype(np.float64), np.asarray(cam.K),
+                                             np.asarray(cam.dist), flags=cv2.SOLVEPNP_SQPNP)
+        except cv2.error:  # degenerate keypoints (e.g. all on one pixel)
+            found = False
         poses = [(rvec, tvec)] if found else []
     starts = []
     T_world_cam = cam.T_world_cam
