@@ -435,18 +435,25 @@ def test_the_auto_tracker_is_the_keypoint_tracker_for_footage_with_a_learned_det
     assert resolve_tracker("templates", footage, detector) == "templates"
 
 
-@pytest.mark.skipif(not mediapipe_available(), reason="optional extra digiteyes[mediapipe]")
-def test_a_colour_video_of_the_flesh_hand_is_tracked_by_the_keypoint_tracker(tmp_path, capsys):
-    """``track VIDEO --init auto`` with the extra: the keypoint tracker, on the hand."""
-    scenario = build_scenario("desk-2cam", seed=0, n_frames=6)
+def flesh_video(folder, n_frames, mirrored=False):
+    """Camera 0 of the desk setup, the flesh hand's colour views (truth inside) and the
+    video of them (flipped left to right when ``mirrored``: a left hand)."""
+    scenario = build_scenario("desk-2cam", seed=0, n_frames=n_frames)
     camera = scenario.rig[0]
     views = [render_views(scenario.model, q, [camera], RenderOptions(appearance="flesh",
                                                                     color=True), rng=k)[0]
              for k, q in enumerate(scenario.states)]
-    video = tmp_path / "flesh.mkv"
+    video = folder / ("left.mkv" if mirrored else "flesh.mkv")
     with VideoWriter(video, 10.0) as writer:
         for view in views:
-            writer.write(view.image)
+            writer.write(view.image[:, ::-1] if mirrored else view.image)
+    return camera, views, video
+
+
+@pytest.mark.skipif(not mediapipe_available(), reason="optional extra digiteyes[mediapipe]")
+def test_a_colour_video_of_the_flesh_hand_is_tracked_by_the_keypoint_tracker(tmp_path, capsys):
+    """``track VIDEO --init auto`` with the extra: the keypoint tracker, on the hand."""
+    camera, views, video = flesh_video(tmp_path, 6)
     save_rig(Rig((camera,)), tmp_path / "rig.json")
     out = tmp_path / "out"
     assert main(["track", str(video), "--rig", str(tmp_path / "rig.json"), "--init", "auto",
@@ -482,15 +489,7 @@ def test_hand_auto_tracks_a_left_hand_video_as_the_mirror_image(tmp_path, capsys
     """The flesh hand's colour video flipped shows a left hand: with the default --hand
     auto MediaPipe says so at the start, the run mirrors itself, and the keypoints land
     on the left hand in the real images."""
-    scenario = build_scenario("desk-2cam", seed=0, n_frames=5)
-    camera = scenario.rig[0]
-    views = [render_views(scenario.model, q, [camera], RenderOptions(appearance="flesh",
-                                                                    color=True), rng=k)[0]
-             for k, q in enumerate(scenario.states)]
-    video = tmp_path / "left.mkv"
-    with VideoWriter(video, 10.0) as writer:
-        for view in views:
-            writer.write(view.image[:, ::-1])
+    camera, views, video = flesh_video(tmp_path, 5, mirrored=True)
     save_rig(mirrored_rig(Rig((camera,))), tmp_path / "rig.json")
     out = tmp_path / "out"
     assert main(["track", str(video), "--rig", str(tmp_path / "rig.json"), "--init", "auto",
