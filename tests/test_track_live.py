@@ -315,6 +315,13 @@ def test_the_search_for_a_hand_stops_at_init_frames(webcam, tmp_path, capsys):
     assert len(err) == 1 and "no hand found in 2 frame(s)" in err[0]
 
 
+def columns_of(path):
+    """A CSV file's numeric columns by name."""
+    with open(path, newline="", encoding="utf-8") as handle:
+        rows = list(csv.DictReader(handle))
+    return {key: np.array([float(row[key]) for row in rows]) for key in rows[0]}
+
+
 def test_a_left_hand_is_tracked_as_the_mirror_image_of_a_right_one(webcam, tmp_path, capsys):
     """The rendered right hand's images flipped, with the mirrored rig, show a left hand.
     ``--hand left`` tracks it as the right hand of their mirror image, which is the
@@ -339,12 +346,7 @@ def test_a_left_hand_is_tracked_as_the_mirror_image_of_a_right_one(webcam, tmp_p
     left = read_state_log(tmp_path / "left" / "states.csv", seq.model)
     np.testing.assert_allclose(left.states, right.states, atol=1e-9)
 
-    def columns(side):
-        with open(tmp_path / side / "keypoints.csv", newline="", encoding="utf-8") as handle:
-            rows = list(csv.DictReader(handle))
-        return {key: np.array([float(row[key]) for row in rows]) for key in rows[0]}
-
-    r, l_ = columns("right"), columns("left")
+    r, l_ = (columns_of(tmp_path / side / "keypoints.csv") for side in ("right", "left"))
     for key in r:
         if key.endswith(".u_px"):
             np.testing.assert_allclose(l_[key], width - 1 - r[key], atol=1e-6)
@@ -357,6 +359,17 @@ def test_a_left_hand_is_tracked_as_the_mirror_image_of_a_right_one(webcam, tmp_p
             VideoReader(tmp_path / "left" / "overlay.mp4") as b:
         first_right, first_left = a.read(), b.read()
     assert np.abs(first_left.astype(int) - first_right[:, ::-1].astype(int)).mean() < 2.0
+    # `export` reads the side from summary.json: the left hand's 3D keypoints, x -> -x
+    for side in ("right", "left"):
+        assert main(["export", str(tmp_path / side), "-o", str(tmp_path / f"{side}-x"),
+                     "--format", "csv"]) == 0
+    assert "a left hand" in capsys.readouterr().out
+    right_table, left_table = (columns_of(tmp_path / f"{side}-x" / "track.csv")
+                               for side in ("right", "left"))
+    np.testing.assert_allclose(left_table["index.tip_x_mm"], -right_table["index.tip_x_mm"],
+                               atol=1e-6)
+    np.testing.assert_allclose(left_table["index.tip_z_mm"], right_table["index.tip_z_mm"],
+                               atol=1e-6)
 
 
 def test_large_images_are_tracked_at_the_working_size_with_outputs_in_their_pixels(

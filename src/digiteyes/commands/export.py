@@ -34,13 +34,15 @@ def export(track_dir: Path, output: Path, formats: tuple[str, ...], model_name: 
            beta: float | None) -> None:
     from digiteyes.commands.track import smoothing_options
     from digiteyes.io.export import export_track
-    from digiteyes.io.track_extras import read_track
+    from digiteyes.io.track_extras import read_track, track_is_left_hand
     from digiteyes.kinematics import load_model
 
     options = smoothing_options(smooth, min_cutoff, beta)
     model = load_model(model_name) if model_name else None
     model, log, fps = read_track(track_dir, model, fps, options)
+    left = track_is_left_hand(track_dir if track_dir.is_dir() else track_dir.parent)
     for fmt in dict.fromkeys(formats):
-        path = export_track(model, log.frames, log.states, log.lost, fps, output, fmt)
+        path = export_track(model, log.frames, log.states, log.lost, fps, output, fmt, left)
         click.echo(f"wrote {path} ({len(log)} frames, {fps:g} frames/s"
-                   f"{', One Euro filtered' if options else ''})")
+                   f"{', One Euro filtered' if options else ''}"
+                   f"{', a left hand (the mirror image reflected back)' if left else ''})")

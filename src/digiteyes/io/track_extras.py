@@ -101,6 +101,13 @@ def track_fps(track_dir: str | Path) -> float | None:
     return float(value) if isinstance(value, int | float) and value > 0 else None
 
 
+def track_is_left_hand(track_dir: str | Path) -> bool:
+    """Whether ``summary.json`` says the run tracked a left hand (``start.hand``; its
+    states are those of the mirror image's right hand, :mod:`digiteyes.camera.mirror`)."""
+    start = _summary(track_dir).get("start")
+    return isinstance(start, dict) and start.get("hand") == "left"
+
+
 def track_residual_unit(track_dir: str | Path) -> str:
     """The unit of the state log's ``residual_rms_px`` column recorded in ``summary.json``
     (key ``residual_unit``: ``"px"``, or ``"grey level"`` for the template trackers);

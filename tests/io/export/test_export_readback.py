@@ -32,24 +32,28 @@ def track():
     return scenario.model, states
 
 
-def _fk_joint_positions(model, states):
-    skeleton = build_skeleton(model)
+def _fk_joint_positions(model, states, mirrored=False):
+    """The skeleton and the model's joint positions (T, J, 3) mm; reflected x -> -x for a
+    left hand (the mirror image's right hand, reflected back)."""
+    skeleton = build_skeleton(model, mirrored)
     kin = forward_kinematics(model, states)
-    return skeleton, kin.T_world_frame[:, list(skeleton.rows), :3, :][..., 3]
+    positions = kin.T_world_frame[:, list(skeleton.rows), :3, :][..., 3]
+    return skeleton, positions * ([-1.0, 1.0, 1.0] if mirrored else 1.0)
 
 
 def _elementary(axis: str, degrees: np.ndarray) -> np.ndarray:
     return Rotation.from_euler(axis.lower(), degrees, degrees=True).as_matrix()
 
 
-def test_bvh_forward_kinematics_matches_model(track, tmp_path):
+@pytest.mark.parametrize("mirrored", [False, True])
+def test_bvh_forward_kinematics_matches_model(track, tmp_path, mirrored):
     model, states = track
     path = export_track(model, np.arange(len(states)), states, np.zeros(len(states)), FPS,
-                        tmp_path, "bvh")
+                        tmp_path, "bvh", mirrored)
     mocap = Bvh(path.read_text())
     assert mocap.nframes == len(states)
     assert mocap.frame_time == pytest.approx(1.0 / FPS)
-    skeleton, expected = _fk_joint_positions(model, states)
+    skeleton, expected = _fk_joint_positions(model, states, mirrored)
     names = mocap.get_joints_names()
     assert names[0] == "palm" and set(names) == set(skeleton.names)
     for t in range(len(states)):
@@ -83,13 +87,14 @@ def _accessor(gltf, index: int) -> np.ndarray:
                          offset=start).reshape(accessor.count, width)
 
 
-def test_gltf_node_animation_matches_model(track, tmp_path):
+@pytest.mark.parametrize("mirrored", [False, True])
+def test_gltf_node_animation_matches_model(track, tmp_path, mirrored):
     pygltflib = pytest.importorskip("pygltflib")
     model, states = track
     path = export_track(model, np.arange(len(states)), states, np.zeros(len(states)), FPS,
-                        tmp_path, "gltf")
+                        tmp_path, "gltf", mirrored)
     gltf = pygltflib.GLTF2().load(str(path))
-    skeleton, expected = _fk_joint_positions(model, states)
+    skeleton, expected = _fk_joint_positions(model, states, mirrored)
     animation = gltf.animations[0]
     rotation = {}
     translation = {}
@@ -181,14 +186,16 @@ def _gltf_validator_folder() -> Path | None:
     return folder if root.returncode == 0 and folder.is_dir() else None
 
 
-def test_gltf_passes_the_khronos_validator(track, tmp_path):
-    """The Khronos glTF-Validator (npm ``gltf-validator``), which ``.ci/run`` installs."""
+@pytest.mark.parametrize("mirrored", [False, True])
+def test_gltf_passes_the_khronos_validator(track, tmp_path, mirrored):
+    """The Khronos glTF-Validator (npm ``gltf-validator``), which ``.ci/run`` installs; a
+    left hand's file too."""
     folder = _gltf_validator_folder()
     if folder is None:
         pytest.skip("needs node and the npm gltf-validator (npm install -g gltf-validator)")
     model, states = track
     path = export_track(model, np.arange(len(states)), states, np.zeros(len(states)), FPS,
-                        tmp_path, "gltf")
+                        tmp_path, "gltf", mirrored)
     package = json.dumps(str(folder))
     script = (f"const v = require({package});"
               "const fs = require('fs');"

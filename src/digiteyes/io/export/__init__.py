@@ -22,19 +22,21 @@ FORMATS = {"bvh": "track.bvh", "gltf": "track.glb", "csv": "track.csv",
 
 
 def export_track(model: KinematicModel, frames: np.ndarray, states: np.ndarray,
-                 lost: np.ndarray, fps: float, out_dir: str | Path, fmt: str) -> Path:
+                 lost: np.ndarray, fps: float, out_dir: str | Path, fmt: str,
+                 mirrored: bool = False) -> Path:
     """Write one export of a track (states (T, n_q) at ``fps``) into ``out_dir``; return
-    the file written (named by :data:`FORMATS`)."""
+    the file written (named by :data:`FORMATS`). ``mirrored``: the states are a left
+    hand's, tracked as the mirror image's right hand; the export shows the left hand."""
     if fmt not in FORMATS:
         raise DigitEyesError(f"unknown export format {fmt!r}; choose from {', '.join(FORMATS)}")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     path = out / FORMATS[fmt]
     if fmt == "bvh":
-        return write_bvh(path, model, states, fps)
+        return write_bvh(path, model, states, fps, mirrored)
     if fmt == "gltf":
-        return write_gltf(path, model, states, fps)
-    columns = track_table(model, frames, states, lost)
+        return write_gltf(path, model, states, fps, mirrored)
+    columns = track_table(model, frames, states, lost, mirrored)
     if fmt == "csv":
         return write_table_csv(path, columns)
     return write_table_parquet(path, columns)

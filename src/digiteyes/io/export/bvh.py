@@ -64,9 +64,11 @@ def channel_order(skeleton: Skeleton) -> list[int]:
     return order
 
 
-def write_bvh(path: str | Path, model: KinematicModel, states: np.ndarray, fps: float) -> Path:
-    """Write states (T, n_q) sampled at ``fps`` as a BVH file; return its path."""
-    skeleton = build_skeleton(model)
+def write_bvh(path: str | Path, model: KinematicModel, states: np.ndarray, fps: float,
+              mirrored: bool = False) -> Path:
+    """Write states (T, n_q) sampled at ``fps`` as a BVH file (a left hand's, reflected
+    back from the mirror image, with ``mirrored``); return its path."""
+    skeleton = build_skeleton(model, mirrored)
     root, local, _ = skeleton_motion(model, skeleton, states)
     order = channel_order(skeleton)
     n_frames = len(root)

@@ -89,10 +89,12 @@ def _bone_boxes(skeleton: Skeleton, bind_positions: np.ndarray
     return np.concatenate(vertices), np.concatenate(joints), np.concatenate(triangles)
 
 
-def write_gltf(path: str | Path, model: KinematicModel, states: np.ndarray, fps: float) -> Path:
-    """Write states (T, n_q) sampled at ``fps`` as an animated skinned skeleton (``.glb``);
-    return its path."""
-    skeleton = build_skeleton(model)
+def write_gltf(path: str | Path, model: KinematicModel, states: np.ndarray, fps: float,
+               mirrored: bool = False) -> Path:
+    """Write states (T, n_q) sampled at ``fps`` as an animated skinned skeleton (``.glb``;
+    a left hand's, reflected back from the mirror image, with ``mirrored``); return its
+    path."""
+    skeleton = build_skeleton(model, mirrored)
     root, local, positions = skeleton_motion(model, skeleton, states)
     root = root @ R_GLTF_WORLD.T
     positions = positions @ R_GLTF_WORLD.T

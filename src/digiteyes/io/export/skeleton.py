@@ -11,6 +11,11 @@ row. The joint positions are the row-frame origins (joint centres, fingertips).
 
 Rows that only carry the tracked palm edges (``edge`` links) are left out; a model with
 a prismatic state (``d`` from the state) has no constant offset and is refused.
+
+A left hand is tracked as the right hand of the mirror image (:mod:`digiteyes.camera.
+mirror`); its skeleton is that of the mirror image reflected back, ``S = diag(-1, 1,
+1)``: offsets ``S o``, world rotations ``S R S`` (so local rotations ``S L S``, still
+proper rotations) and positions ``S p``, the real hand's joints.
 """
 
 from __future__ import annotations
@@ -22,6 +27,10 @@ import numpy as np
 from digiteyes.errors import StateError
 from digiteyes.kinematics import KinematicModel, forward_kinematics
 
+MIRROR = np.array([-1.0, 1.0, 1.0])
+"""The diagonal of the reflection ``S`` that turns the mirror image's hand into the real
+left hand (x -> -x, as :func:`digiteyes.camera.mirror.unmirror_points`)."""
+
 
 @dataclass(frozen=True)
 class Skeleton:
@@ -29,13 +38,15 @@ class Skeleton:
 
     rows (J,) model rows, names (J,) unique joint names, parent (J,) index into the
     joints (-1 for the root), offsets_mm (J, 3) position of each joint in its parent
-    joint's frame (root: zeros).
+    joint's frame (root: zeros); mirrored: the skeleton of a left hand, the model's
+    reflected (module docstring).
     """
 
     rows: tuple[int, ...]
     names: tuple[str, ...]
     parent: np.ndarray
     offsets_mm: np.ndarray
+    mirrored: bool = False
 
     def __len__(self) -> int:
         return len(self.rows)
@@ -60,9 +71,9 @@ def _joint_name(model: KinematicModel, r: int) -> str:
     return f"{prefix}_frame{r}"
 
 
-def build_skeleton(model: KinematicModel) -> Skeleton:
-    """The skeleton of ``model`` (see the module docstring). Raises :class:`StateError`
-    for a model with prismatic states."""
+def build_skeleton(model: KinematicModel, mirrored: bool = False) -> Skeleton:
+    """The skeleton of ``model`` (see the module docstring), reflected for a left hand
+    with ``mirrored``. Raises :class:`StateError` for a model with prismatic states."""
     if (model.d_state >= 0).any():
         raise StateError(f"model {model.name!r} has prismatic states; the export needs "
                          "constant bone offsets")
@@ -83,7 +94,8 @@ def build_skeleton(model: KinematicModel) -> Skeleton:
         p = int(model.parent[r])
         parent.append(-1 if p < 0 else position[p])
         offsets.append((0.0, 0.0, 0.0) if p < 0 else (model.a[p], 0.0, model.d[p]))
-    return Skeleton(tuple(rows), tuple(names), np.array(parent), np.array(offsets))
+    offsets = np.array(offsets) * (MIRROR if mirrored else 1.0)
+    return Skeleton(tuple(rows), tuple(names), np.array(parent), offsets, mirrored)
 
 
 def skeleton_motion(model: KinematicModel, skeleton: Skeleton, states: np.ndarray
@@ -97,9 +109,12 @@ def skeleton_motion(model: KinematicModel, skeleton: Skeleton, states: np.ndarra
     kin = forward_kinematics(model, np.atleast_2d(np.asarray(states, dtype=float)))
     T_world = kin.T_world_shape[:, list(skeleton.rows)]
     R_world = T_world[..., :3, :3]
+    positions = T_world[..., :3, 3]
+    if skeleton.mirrored:
+        R_world = R_world * MIRROR[:, None] * MIRROR[None, :]  # S R S
+        positions = positions * MIRROR
     local = R_world.copy()
     child = np.flatnonzero(skeleton.parent >= 0)
     local[:, child] = np.einsum("tjki,tjkl->tjil", R_world[:, skeleton.parent[child]],
                                 R_world[:, child])
-    positions = T_world[..., :3, 3]
     return positions[:, 0].copy(), local, positions

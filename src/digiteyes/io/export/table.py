@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from digiteyes.camera.mirror import unmirror_points
 from digiteyes.errors import DatasetError, DigitEyesError
 from digiteyes.kinematics import KinematicModel, forward_kinematics
 from digiteyes.kinematics.joint_angles import joint_angles_deg
@@ -21,8 +22,11 @@ from digiteyes.kinematics.keypoints import keypoints
 
 
 def track_table(model: KinematicModel, frames: np.ndarray, states: np.ndarray,
-                lost: np.ndarray | None = None) -> dict[str, np.ndarray]:
-    """Named columns (each (T,)) of the table described in the module docstring."""
+                lost: np.ndarray | None = None, mirrored: bool = False
+                ) -> dict[str, np.ndarray]:
+    """Named columns (each (T,)) of the table described in the module docstring; with
+    ``mirrored`` (a left hand) the keypoints are the real hand's (x -> -x) and the state
+    columns stay the mirror image's."""
     states = np.atleast_2d(np.asarray(states, dtype=float))
     columns: dict[str, np.ndarray] = {
         "frame": np.asarray(frames, dtype=np.int64),
@@ -35,6 +39,8 @@ def track_table(model: KinematicModel, frames: np.ndarray, states: np.ndarray,
     for k, name in enumerate(names):
         columns[f"{name}_deg"] = degrees[:, k]
     names, points = keypoints(model, forward_kinematics(model, states))
+    if mirrored:
+        points = unmirror_points(points)
     for k, name in enumerate(names):
         for a, axis in enumerate("xyz"):
             columns[f"{name}_{axis}_mm"] = points[:, k, a]
