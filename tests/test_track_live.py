@@ -10,6 +10,7 @@ import threading
 import time
 from collections.abc import Sequence
 
+import cv2
 import numpy as np
 import pytest
 
@@ -359,6 +360,11 @@ def test_a_left_hand_is_tracked_as_the_mirror_image_of_a_right_one(webcam, tmp_p
             VideoReader(tmp_path / "left" / "overlay.mp4") as b:
         first_right, first_left = a.read(), b.read()
     assert np.abs(first_left.astype(int) - first_right[:, ::-1].astype(int)).mean() < 2.0
+    # the 3D views show the left hand: the right run's picture flipped
+    for name in sorted(p.name for p in (tmp_path / "right" / "views").glob("*.png")):
+        right_view, left_view = (cv2.imread(str(tmp_path / side / "views" / name))
+                                 for side in ("right", "left"))
+        np.testing.assert_array_equal(left_view, right_view[:, ::-1])
     # `export` reads the side from summary.json: the left hand's 3D keypoints, x -> -x
     for side in ("right", "left"):
         assert main(["export", str(tmp_path / side), "-o", str(tmp_path / f"{side}-x"),

@@ -276,7 +276,7 @@ def run_tracker(
                 if video is not None:
                     video.write(overlay_image(images, result, rig, model))
                 if views_every and index % views_every == views_every - 1:
-                    _write_view(model, result.state, out, index, view, run)
+                    _write_view(model, result.state, out, index, view, run, rig.mirrored)
                 bar.set_postfix(rms=f"{result.residual_rms_px:.2f} {run.residual_unit}",
                                 lost=run.n_lost)
     except KeyboardInterrupt:
@@ -294,7 +294,7 @@ def run_tracker(
     if states:
         last = first_index + run.n_frames - 1
         if not (views_every and last % views_every == views_every - 1):
-            _write_view(model, states[-1], out, last, view, run)
+            _write_view(model, states[-1], out, last, view, run, rig.mirrored)
         run.files.update(write_trajectory_plots(model, np.array(states), out))
     run.wall_seconds = time.perf_counter() - started
     summary = out / "summary.json"
@@ -318,7 +318,7 @@ def _account(run: TrackingRun, result: TrackResult, index: int, seconds: float) 
 
 
 def _write_view(model: KinematicModel, q: np.ndarray, out: Path, index: int, view: str,
-                run: TrackingRun) -> None:
+                run: TrackingRun, mirrored: bool = False) -> None:
     path = write_model_png(model, q, out / "views" / f"estimate-{index:06d}.png", view=view,
-                           width=480, height=360)
+                           width=480, height=360, mirrored=mirrored)
     run.files[f"view-{index:06d}"] = path

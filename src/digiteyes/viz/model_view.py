@@ -102,8 +102,11 @@ def view_camera(model: KinematicModel, q: np.ndarray, view: str = "front", *,
 
 def write_model_png(model: KinematicModel, q: np.ndarray, path: str | Path, *,
                     view: str = "front", style: str = "shaded", width: int = 640,
-                    height: int = 480) -> Path:
+                    height: int = 480, mirrored: bool = False) -> Path:
     """Draw the model at state ``q`` from ``view`` and write it as a PNG; returns the path.
+    ``mirrored``: ``q`` is the mirror image's right hand of a tracked left hand
+    (:mod:`digiteyes.camera.mirror`); the picture is flipped left to right, which shows
+    the left hand (seen from the reflected viewpoint).
 
     Raises :class:`ViewError` for a bad view or style,
     :class:`~digiteyes.errors.StateError` for a bad state and
@@ -124,7 +127,7 @@ def write_model_png(model: KinematicModel, q: np.ndarray, path: str | Path, *,
         image = draw_wireframe(model, q, cam)
     from digiteyes.io.safe_paths import write_png
 
-    return write_png(path, image)
+    return write_png(path, np.ascontiguousarray(image[:, ::-1]) if mirrored else image)
 
 
 def draw_wireframe(model: KinematicModel, q: np.ndarray, cam: Camera,
