@@ -525,3 +525,31 @@ def test_hand_auto_tracks_a_left_hand_video_as_the_mirror_image(tmp_path, capsys
                        float(row[f"{camera.name}.{f}.tip.v_px"])]
             errors.append(np.linalg.norm(np.subtract(tracked, [camera.width - 1 - u, v])))
     assert np.median(errors) < 12.0
+
+
+def test_a_folder_of_images_is_tracked_like_a_video(webcam, tmp_path, capsys):
+    """Numbered frames in a folder (natural order: frame_2 before frame_10), read as
+    footage; a folder with neither images nor sequence.json is a one-line error."""
+    seq = open_sequence(webcam)
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    images = [frame[0] for frame in seq]
+    for k, image in enumerate(images):  # written out of order, numbered without padding
+        cv2.imwrite(str(folder / f"frame_{k * 5}.png"), image)
+    out = tmp_path / "out"
+    assert main(["track", str(folder), "--init", "auto", "--detector", "classic",
+                 "--fps", "10", "-o", str(out), "--quiet", "--no-overlay"]) == 0
+    with open(out / "keypoints.csv", newline="", encoding="utf-8") as handle:
+        rows = list(csv.DictReader(handle))
+    assert [int(r["frame"]) for r in rows] == list(range(len(images)))
+    truth = seq.truth
+    for k, row in enumerate(rows):  # frame k is image k: the order was kept
+        u, v = truth.keypoints_2d[k, 0, truth.keypoint_names.index("index.tip")]
+        assert np.hypot(float(row["camera.index.tip.u_px"]) - u,
+                        float(row["camera.index.tip.v_px"]) - v) < 15.0
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    (empty / "notes.txt").write_text("no images here")
+    capsys.readouterr()
+    assert main(["track", str(empty), "--init", "auto", "-o", str(tmp_path / "o")]) == 2
+    assert "sequence.json" in capsys.readouterr().err

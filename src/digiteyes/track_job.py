@@ -35,6 +35,7 @@ from digiteyes.features import FeatureOptions
 from digiteyes.filters import OneEuroOptions
 from digiteyes.io import open_sequence, open_video_frames
 from digiteyes.io.frame_sinks import KEYPOINTS_FILE, JsonLinesStream, KeypointLog
+from digiteyes.io.image_folder import is_image_folder, open_image_folder_frames
 from digiteyes.io.safe_paths import atomic_write_json
 from digiteyes.io.track_extras import write_track_extras
 from digiteyes.io.video import (
@@ -192,7 +193,11 @@ def _open_source(job: TrackJob) -> _Source:
         return _with_files(job, frames, None, frames.fps or DEFAULT_CAMERA_FPS, auto,
                            live=True)
     if not inputs:
-        raise DatasetError("nothing to track: give a dataset folder, videos or --camera")
+        raise DatasetError("nothing to track: give a dataset folder, videos, folders of "
+                           "images or --camera")
+    if all(Path(p).is_dir() for p in inputs) and (
+            len(inputs) > 1 or is_image_folder(inputs[0])):
+        return _image_folders(job, auto)
     if len(inputs) == 1 and Path(inputs[0]).is_dir():
         dataset = open_sequence(inputs[0])
         model = load_model(job.model_name) if job.model_name else dataset.model
@@ -206,11 +211,29 @@ def _open_source(job: TrackJob) -> _Source:
         return _Source(iter(dataset), model, rig, initial, job.fps or dataset.fps,
                        dataset.n_frames, footage=False)
     if any(Path(p).is_dir() for p in inputs):
-        raise DatasetError("give one dataset folder, or one video file per camera")
+        raise DatasetError("give one dataset folder, one video file per camera or one "
+                           "folder of images per camera")
     lengths = check_lengths(list(inputs), job.strict)
     source = _with_files(job, open_video_frames(list(inputs)), None,
                          video_rate(list(inputs)), auto, live=False)
     source.lengths = lengths
+    return source
+
+
+def _image_folders(job: TrackJob, auto: bool) -> _Source:
+    """Folders of still images, one per camera (:mod:`digiteyes.io.image_folder`), at
+    ``--fps`` (default :data:`DEFAULT_FPS`: images carry no frame rate)."""
+    frames, counts = open_image_folder_frames(list(job.inputs))
+    if len(set(counts)) > 1:
+        listing = ", ".join(f"{p}: {n}" for p, n in zip(job.inputs, counts, strict=True))
+        message = (f"the folders hold different numbers of images ({listing}); only the "
+                   f"first {min(counts)} can be tracked with every camera")
+        if job.strict:
+            raise DatasetError(f"{message} (--strict)")
+        print(f"digiteyes track: warning: {message}", file=sys.stderr)
+    source = _with_files(job, frames, min(counts), job.fps or DEFAULT_FPS, auto,
+                         live=False)
+    source.lengths = (max(counts), None)
     return source
 
 

@@ -30,12 +30,14 @@ from digiteyes.warmup import COMPILE_MESSAGE, DEMO_KERNELS, cold_kernels
 __all__ = ["parse_tracker_options", "print_run", "smoothing_options", "track",
            "tracker_options"]
 
-HELP = """Track INPUT with a registered tracker (--tracker; default: the DigitEyes feature
-tracker, thesis Sec. 4.3).
+HELP = """Track INPUT with a registered tracker (--tracker; default auto: the keypoint
+tracker on footage when MediaPipe is installed, else the DigitEyes feature tracker,
+thesis Sec. 4.3; docs/keypoint-tracker.md).
 
 INPUT is a dataset folder (see docs/dataset.md; its model, rig and initial state are used
-unless overridden), one video file per camera of the rig, in rig order, or nothing with
---camera N (a live camera). Videos and cameras use --model (default: hand), --rig (default:
+unless overridden), one video file per camera of the rig, in rig order, one folder of
+numbered images per camera (frames at --fps), or nothing with --camera N (a live camera).
+Videos, images and cameras use --model (default: hand), --rig (default:
 one camera of --hfov field of view) and --init FILE or --init auto (detect the hand and fit
 the model; lost frames are then re-detected). Writes states.csv, keypoints.csv,
 joint_angles.csv, overlay.mp4, views/, trajectory plots, summary.json and report.html into
