@@ -399,13 +399,23 @@ def test_large_images_are_tracked_at_the_working_size_with_outputs_in_their_pixe
         assert reader.read().shape[:2] == (360, 480)  # drawn at the working size
 
 
-def test_video_without_any_start_is_one_line_error(webcam, tmp_path, capsys):
+def test_a_video_without_init_starts_from_its_images(webcam, tmp_path, capsys):
+    """No --init for footage means --init auto; a video without a hand is then a
+    one-line error that says what to give."""
     video = tmp_path / "clip.mkv"
+    first = next(iter(open_sequence(webcam)))[0]
     with VideoWriter(video, 10.0) as writer:
-        writer.write(next(iter(open_sequence(webcam)))[0])
-    assert main(["track", str(video), "-o", str(tmp_path / "o")]) == 2
+        writer.write(first)
+    assert main(["track", str(video), "--detector", "classic", "-o", str(tmp_path / "o"),
+                 "--quiet", "--no-overlay"]) == 0
+    assert "--init auto: hand found in frame 0" in capsys.readouterr().out
+    blank = tmp_path / "blank.mkv"
+    with VideoWriter(blank, 10.0) as writer:
+        writer.write(np.zeros_like(first))
+    assert main(["track", str(blank), "--detector", "classic", "-o",
+                 str(tmp_path / "b"), "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "--init auto" in err[0]
+    assert len(err) == 1 and "no hand found" in err[0] and "--init FILE" in err[0]
 
 
 class _Mismatch:

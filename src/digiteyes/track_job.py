@@ -106,7 +106,8 @@ class TrackJob:
     model_name, rig_path : override the dataset's model and rig; for videos and cameras
         the model defaults to :data:`DEFAULT_MODEL` and the rig to one
         :func:`~digiteyes.camera.default.default_camera` of field of view ``hfov``.
-    init_path : a state JSON, :data:`AUTO` (detect and fit), or None (the dataset's).
+    init_path : a state JSON, :data:`AUTO` (detect and fit), or None (the dataset's;
+        for footage, :data:`AUTO`).
     iterations, window, links, robust, prediction, shading : the feature tracker's flags
         (:func:`tracker_options`).
     max_frames : track at most this many frames (None: all).
@@ -262,10 +263,9 @@ def _with_files(job: TrackJob, frames: Iterator[list[np.ndarray]], total: int | 
     if rig is not None and len(rig) != n_sources:
         raise CameraError(f"the rig has {len(rig)} camera(s) ({', '.join(rig.names)}) but "
                           f"{n_sources} {'camera' if live else 'video(s)'} were given")
-    if not auto and not job.init_path:
-        what = "a camera" if live else job.inputs[0]
-        raise DatasetError(f"{what}: tracking videos or cameras needs --init FILE or "
-                           "--init auto")
+    # footage without --init starts from the images (--init auto); before 27 Nov it was
+    # an error, and a new user's first command failed
+    auto = auto or not job.init_path
     initial = None if auto else State.load_json(model, job.init_path).q
     return _Source(frames, model, rig, initial, job.fps or rate, total)
 

@@ -38,10 +38,10 @@ INPUT is a dataset folder (see docs/dataset.md; its model, rig and initial state
 unless overridden), one video file per camera of the rig, in rig order, one folder of
 numbered images per camera (frames at --fps), or nothing with --camera N (a live camera).
 Videos, images and cameras use --model (default: hand), --rig (default:
-one camera of --hfov field of view) and --init FILE or --init auto (detect the hand and fit
-the model; lost frames are then re-detected). Writes states.csv, keypoints.csv,
-joint_angles.csv, overlay.mp4, views/, trajectory plots, summary.json and report.html into
-OUT. Ctrl-C keeps every frame tracked so far.
+one camera of --hfov field of view) and --init FILE or --init auto (the default for them:
+detect the hand and fit the model; lost frames are then re-detected). Writes states.csv,
+keypoints.csv, joint_angles.csv, overlay.mp4, views/, trajectory plots, summary.json and
+report.html into OUT. Ctrl-C keeps every frame tracked so far.
 """
 
 
@@ -146,7 +146,7 @@ def print_run(run: TrackingRun, err: bool = False) -> None:
                    "camera of --hfov).")
 @click.option("--init", "init_path", metavar="FILE|auto",
               help="Initial state JSON, or 'auto' to detect the hand and fit the model "
-                   "(default: the dataset's).")
+                   "(default: the dataset's; auto for videos, images and cameras).")
 @click.option("-o", "--output", required=True, type=click.Path(file_okay=False),
               help="Output folder.")
 @click.option("--camera", type=click.IntRange(min=0), default=None,
