@@ -52,6 +52,7 @@ import numpy as np  # noqa: E402
 
 from digiteyes.benchmarks._machine import machine_info  # noqa: E402
 from digiteyes.camera.default import DEFAULT_HFOV_DEG, default_camera  # noqa: E402
+from digiteyes.detect.check import worst_digit_gap  # noqa: E402
 from digiteyes.detect.hand21 import BONES, model_anchors  # noqa: E402
 from digiteyes.detect.mediapipe_detector import (  # noqa: E402
     MediaPipeDetector,
@@ -81,8 +82,6 @@ IMAGE_STEP = 3
 """Every how many frames the image gap is measured (frames 1, 4, 7, ...)."""
 PICTURE_FRAMES = (31, 121, 451)
 """Frames of the picture (``--picture``; none a frame the detection check looks at)."""
-DIGITS = [[1, 2, 3, 4], [5, 6, 7, 8], [9, 10, 11, 12], [13, 14, 15, 16], [17, 18, 19, 20]]
-"""The 21 keypoints of each digit (thumb to little finger)."""
 
 
 def hand21_world(model, states: np.ndarray) -> np.ndarray:
@@ -109,9 +108,7 @@ def image_gaps(model, states: np.ndarray, first: int, detections: dict[int, np.n
         if found is None:
             continue
         uv = camera.project(forward_kinematics(model, q).points(rows, points))
-        palm = np.linalg.norm(found[0] - found[9])
-        d = np.linalg.norm(uv - found, axis=1) / palm
-        gaps.append(max(d[digit].mean() for digit in DIGITS))
+        gaps.append(worst_digit_gap(uv, found)[0])
     return np.asarray(gaps)
 
 

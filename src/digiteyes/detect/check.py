@@ -22,13 +22,23 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from digiteyes.camera import Rig
-from digiteyes.detect.hand21 import model_anchors
+from digiteyes.detect.hand21 import DIGITS, model_anchors
 from digiteyes.detect.pose import make_detector
 from digiteyes.kinematics import KinematicModel, forward_kinematics
 
-DIGIT_KEYPOINTS = {"thumb": [1, 2, 3, 4], "index": [5, 6, 7, 8], "middle": [9, 10, 11, 12],
-                   "ring": [13, 14, 15, 16], "little": [17, 18, 19, 20]}
+DIGIT_KEYPOINTS = {digit: [1 + 4 * d + k for k in range(4)] for d, digit in enumerate(DIGITS)}
 """Each digit's four keypoints of :data:`~digiteyes.detect.hand21.HAND21_NAMES`."""
+
+
+def worst_digit_gap(tracked: np.ndarray, detected: np.ndarray) -> tuple[float, str] | None:
+    """The digit whose four keypoints lie farthest from the detected ones on average, and
+    that distance in palm lengths (the detection's wrist to middle MCP): tracked and
+    detected (21, 2) px of one image. None for a detection without a palm length."""
+    palm = float(np.linalg.norm(detected[0] - detected[9]))
+    if not palm > 0:
+        return None
+    gap = np.linalg.norm(tracked - detected, axis=1) / palm
+    return max((float(gap[keys].mean()), digit) for digit, keys in DIGIT_KEYPOINTS.items())
 
 
 @dataclass
@@ -87,15 +97,8 @@ class DetectionCheck:
         worst: tuple[float, str] | None = None
         for detector, image, camera in zip(self._detectors, images, self.rig, strict=True):
             found = detector.detect(image, camera)
-            if not found:
-                continue
-            detected = found[0].keypoints
-            palm = float(np.linalg.norm(detected[0] - detected[9]))
-            if palm <= 0:
-                continue
-            gap = np.linalg.norm(camera.project(world) - detected, axis=1) / palm
-            for digit, keys in DIGIT_KEYPOINTS.items():
-                here = (float(gap[keys].mean()), digit)
+            here = worst_digit_gap(camera.project(world), found[0].keypoints) if found else None
+            if here is not None:
                 worst = here if worst is None else max(worst, here)
         self.seconds += time.perf_counter() - started
         return worst
