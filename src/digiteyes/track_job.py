@@ -225,16 +225,10 @@ def _image_folders(job: TrackJob, auto: bool) -> _Source:
     """Folders of still images, one per camera (:mod:`digiteyes.io.image_folder`), at
     ``--fps`` (default :data:`DEFAULT_FPS`: images carry no frame rate)."""
     frames, counts = open_image_folder_frames(list(job.inputs))
-    if len(set(counts)) > 1:
-        listing = ", ".join(f"{p}: {n}" for p, n in zip(job.inputs, counts, strict=True))
-        message = (f"the folders hold different numbers of images ({listing}); only the "
-                   f"first {min(counts)} can be tracked with every camera")
-        if job.strict:
-            raise DatasetError(f"{message} (--strict)")
-        print(f"digiteyes track: warning: {message}", file=sys.stderr)
+    lengths = check_lengths(list(job.inputs), job.strict, counts)
     source = _with_files(job, frames, min(counts), job.fps or DEFAULT_FPS, auto,
                          live=False)
-    source.lengths = (max(counts), None)
+    source.lengths = lengths
     return source
 
 

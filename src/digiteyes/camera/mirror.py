@@ -24,12 +24,16 @@ from collections.abc import Sequence
 import numpy as np
 
 from digiteyes.camera.camera import Camera
+from digiteyes.camera.reflection import REFLECTION, unmirror_pixels, unmirror_points
 from digiteyes.camera.rig import Rig
+
+__all__ = ["HANDS", "REFLECTION", "mirror_images", "mirrored_camera", "mirrored_rig",
+           "rig_for_hand", "unmirror_pixels", "unmirror_points"]
 
 HANDS = ("right", "left")
 """Values of ``--hand``: the side of the hand in the images."""
 
-_S4 = np.diag([-1.0, 1.0, 1.0, 1.0])
+_S4 = np.diag([*REFLECTION, 1.0])
 
 
 def mirrored_camera(camera: Camera) -> Camera:
@@ -61,18 +65,3 @@ def rig_for_hand(rig: Rig, hand: str) -> Rig:
 def mirror_images(images: Sequence[np.ndarray]) -> list[np.ndarray]:
     """Each image flipped left to right (a contiguous copy)."""
     return [np.ascontiguousarray(np.asarray(image)[:, ::-1]) for image in images]
-
-
-def unmirror_pixels(uv: np.ndarray, width: int) -> np.ndarray:
-    """Pixel positions (..., 2) in a flipped image of ``width`` px, in the original image."""
-    out = np.array(uv, dtype=float)
-    out[..., 0] = width - 1 - out[..., 0]
-    return out
-
-
-def unmirror_points(xyz: np.ndarray) -> np.ndarray:
-    """Points (..., 3) of the reflected scene (any camera's frame or the world), in the
-    real one: ``x`` changes sign."""
-    out = np.array(xyz, dtype=float)
-    out[..., 0] = -out[..., 0]
-    return out

@@ -29,6 +29,7 @@ import cv2
 import numpy as np
 
 from digiteyes.camera.camera import Camera
+from digiteyes.camera.reflection import unmirror_pixels
 from digiteyes.errors import CameraError
 from digiteyes.jsonfile import read_json_object
 
@@ -74,7 +75,7 @@ class Rig:
         camera = self.cameras[index]
         out = np.array(uv, dtype=float)
         if self.mirrored:
-            out[..., 0] = camera.width - 1 - out[..., 0]
+            out = unmirror_pixels(out, camera.width)
         if self.real_sizes is not None:
             width, height = self.real_sizes[index]
             out[..., 0] = (out[..., 0] + 0.5) * (width / camera.width) - 0.5

@@ -8,6 +8,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from digiteyes.camera import Camera
+from digiteyes.camera.mirror import unmirror_pixels, unmirror_points
 from digiteyes.detect.hand21 import HAND21_NAMES
 
 
@@ -43,12 +44,10 @@ class HandCandidate:
     def mirrored(self, width: int) -> HandCandidate:
         """The same hand in the image flipped left to right (``width`` px): pixels, box
         and side mirrored (:mod:`digiteyes.camera.mirror`); 3D points and mask too."""
-        keypoints = np.array(self.keypoints, dtype=float)
-        keypoints[:, 0] = width - 1 - keypoints[:, 0]
+        keypoints = unmirror_pixels(self.keypoints, width)
         x0, y0, x1, y1 = self.bbox
         side = {"right": "left", "left": "right"}.get(self.handedness or "")
-        points = None if self.keypoints_3d is None else \
-            np.asarray(self.keypoints_3d, dtype=float) * [-1.0, 1.0, 1.0]
+        points = None if self.keypoints_3d is None else unmirror_points(self.keypoints_3d)
         return replace(self, keypoints=keypoints, bbox=(width - 1 - x1, y0, width - 1 - x0, y1),
                        handedness=side, keypoints_3d=points,
                        mask=None if self.mask is None else self.mask[:, ::-1].copy())

@@ -38,15 +38,17 @@ def count_frames(path: str | Path) -> int:
     return count
 
 
-def check_lengths(paths: list[str], strict: bool) -> tuple[int, str | None]:
-    """The frame count of the longest video and a warning if the videos differ in length
-    (None if they agree); with ``strict`` a difference raises :class:`DatasetError`."""
-    lengths = [count_frames(p) for p in paths]
+def check_lengths(paths: list[str], strict: bool,
+                  lengths: list[int] | None = None) -> tuple[int, str | None]:
+    """The frame count of the longest input and a warning if the inputs (videos, or
+    folders of images with their ``lengths`` given) differ in length (None if they agree);
+    with ``strict`` a difference raises :class:`DatasetError`."""
+    lengths = [count_frames(p) for p in paths] if lengths is None else list(lengths)
     longest = max(lengths)
     if min(lengths) == longest:
         return longest, None
     listing = ", ".join(f"{p}: {n}" for p, n in zip(paths, lengths, strict=True))
-    warning = (f"the videos differ in length ({listing} frames); only the first "
+    warning = (f"the inputs differ in length ({listing} frames); only the first "
                f"{min(lengths)} frames can be tracked with every camera")
     if strict:
         raise DatasetError(f"{warning} (--strict)")

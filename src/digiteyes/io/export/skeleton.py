@@ -24,12 +24,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from digiteyes.camera.mirror import REFLECTION
 from digiteyes.errors import StateError
 from digiteyes.kinematics import KinematicModel, forward_kinematics
-
-MIRROR = np.array([-1.0, 1.0, 1.0])
-"""The diagonal of the reflection ``S`` that turns the mirror image's hand into the real
-left hand (x -> -x, as :func:`digiteyes.camera.mirror.unmirror_points`)."""
 
 
 @dataclass(frozen=True)
@@ -94,7 +91,7 @@ def build_skeleton(model: KinematicModel, mirrored: bool = False) -> Skeleton:
         p = int(model.parent[r])
         parent.append(-1 if p < 0 else position[p])
         offsets.append((0.0, 0.0, 0.0) if p < 0 else (model.a[p], 0.0, model.d[p]))
-    offsets = np.array(offsets) * (MIRROR if mirrored else 1.0)
+    offsets = np.array(offsets) * (REFLECTION if mirrored else 1.0)
     return Skeleton(tuple(rows), tuple(names), np.array(parent), offsets, mirrored)
 
 
@@ -111,8 +108,8 @@ def skeleton_motion(model: KinematicModel, skeleton: Skeleton, states: np.ndarra
     R_world = T_world[..., :3, :3]
     positions = T_world[..., :3, 3]
     if skeleton.mirrored:
-        R_world = R_world * MIRROR[:, None] * MIRROR[None, :]  # S R S
-        positions = positions * MIRROR
+        R_world = R_world * REFLECTION[:, None] * REFLECTION[None, :]  # S R S
+        positions = positions * REFLECTION
     local = R_world.copy()
     child = np.flatnonzero(skeleton.parent >= 0)
     local[:, child] = np.einsum("tjki,tjkl->tjil", R_world[:, skeleton.parent[child]],
