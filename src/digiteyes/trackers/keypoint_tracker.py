@@ -225,22 +225,19 @@ class KeypointTracker:
                                                                       axis=1))))
 
     def _fit(self, observations: list[KeypointObservation]) -> tuple[PoseFit | None, int]:
-        """The fit from the previous estimate when it explains the keypoints, else the
-        better of it and a fit from scratch if that one does; (None, n) when neither
-        does. The second value counts the solver iterations."""
-        fits = []
+        """The fit from the previous estimate when it explains the keypoints near the last
+        estimate, else the fit from scratch when that one does, else None; and the solver
+        iterations spent."""
+        iterations = 0
         for q0 in (self.state, None):
             try:
                 fit = fit_keypoints(self.model, observations, options=self._fit_options, q0=q0)
             except DigitEyesError:
                 continue
-            fits.append(fit)
+            iterations += fit.iterations
             if self._explains(fit) and self._near(fit):
-                break
-        iterations = sum(f.iterations for f in fits)
-        good = [f for f in fits if self._explains(f) and self._near(f)]
-        best = min(good, key=lambda f: float(np.nanmedian(f.reprojection_px)), default=None)
-        return best, iterations
+                return fit, iterations
+        return None, iterations
 
     def _near(self, fit: PoseFit) -> bool:
         """Whether ``fit`` keeps the hand within ``max_jump`` hand lengths per frame since
