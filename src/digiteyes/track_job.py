@@ -360,7 +360,7 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
             total -= skipped
         say(f"--init auto: hand found in frame {skipped} "
             f"({', '.join(start_note['found_by'])} + model fit)")
-        seen = _sides_seen(initialiser, rig)
+        seen = initialiser.last.sides(rig.mirrored)
         if job.hand == AUTO_HAND and seen == {"left"}:
             initialiser, rig, frames, initial = _as_left_hand(initialiser, rig, frames,
                                                               initial)
@@ -526,14 +526,6 @@ def _as_left_hand(initialiser: AutoInitialiser, rig: Rig, frames: Iterator[list[
         return initialiser, rig, _prepend(first, frames), state
     flipped = (mirror_images(images) for images in frames)
     return fresh, mirrored, _prepend(mirror_images(first), flipped), fitted
-
-
-def _sides_seen(initialiser: AutoInitialiser, rig: Rig) -> set[str]:
-    """The sides of the hand (``"right"``/``"left"``, in the real images) the detectors of
-    the last detection reported (a mirrored rig's images show the other side)."""
-    flip = {"right": "left", "left": "right"}
-    return {flip[c.handedness] if rig.mirrored else c.handedness
-            for c in initialiser.last.candidates if c is not None and c.handedness in flip}
 
 
 def _prepend(first: list[np.ndarray], frames: Iterator) -> Iterator[list[np.ndarray]]:

@@ -76,8 +76,7 @@ def pose(images: tuple[Path, ...], output: Path, rig: Path | None, detector: str
         cams = rig_for_hand(real, "right" if hand == "auto" else hand)
         result = estimate_pose(mirror_images(frames) if cams.mirrored else frames, cams, det,
                                model, options)
-        sides = {c.handedness for c in result.candidates if c is not None and c.handedness}
-        if hand == "auto" and sides == {"left"}:
+        if hand == "auto" and result.sides() == {"left"}:
             cams = mirrored_rig(real)
             result = estimate_pose(mirror_images(frames), cams, det, model, options)
         stem = paths[0].stem

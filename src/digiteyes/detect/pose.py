@@ -73,6 +73,14 @@ class PoseResult:
     seconds: dict[str, float]
     fit_failure: str | None = None
 
+    def sides(self, mirrored: bool = False) -> set[str]:
+        """The sides of the hand (``"right"``, ``"left"``) the detectors reported, in the
+        real images (``mirrored``: the detections were made in flipped ones, which show
+        the other side); empty when no detector could tell."""
+        flip = {"right": "left", "left": "right"}
+        return {flip[c.handedness] if mirrored else c.handedness
+                for c in self.candidates if c is not None and c.handedness in flip}
+
 
 def estimate_pose(images: Sequence[np.ndarray], rig: Rig, detector: HandDetector,
                   model: KinematicModel, options: FitOptions | None = None) -> PoseResult:
