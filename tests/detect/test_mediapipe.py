@@ -95,3 +95,25 @@ def test_video_mode_reaches_mediapipe(monkeypatch):
         (True, 1), (False, 1), (True, 0), (False, 0)]
     assert all(k["max_hands"] == 1 for k in made)
     assert isinstance(make_detector("classic", video=True), ClassicDetector)
+
+
+@pytest.mark.skipif(not mediapipe_available(), reason="optional extra digiteyes[mediapipe]")
+def test_native_start_up_notices_stay_off_standard_error():
+    """A fresh process that builds both kinds of graph and detects shows nothing on its
+    standard error but what Python writes (MediaPipe's native notices are written by the
+    graph's threads as it starts, after its constructor has returned)."""
+    import subprocess
+    import time
+
+    script = ("import sys, time, numpy as np\n"
+              "from digiteyes.detect.mediapipe_detector import MediaPipeDetector\n"
+              "for video in (False, True):\n"
+              "    detector = MediaPipeDetector(static_image_mode=not video)\n"
+              "    time.sleep(0.3)\n"
+              "    detector.detect(np.zeros((120, 160, 3), np.uint8))\n"
+              "print('ours', file=sys.stderr)\n")
+    start = time.perf_counter()
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert run.stderr.strip() == "ours", (run.stderr, time.perf_counter() - start)

@@ -7,11 +7,23 @@ install it.
 
 MediaPipe labels handedness as seen in a mirrored selfie image; we report the anatomical
 side for an unmirrored camera image (its "Left" label is a right hand).
+
+MediaPipe's native code writes start-up notices straight to the process's standard error
+("Created TensorFlow Lite XNNPACK delegate", "Feedback manager requires a model with a
+single signature", one set per graph) where they break up the command's own output and
+progress bar. The graph's threads write them while it starts, after the constructor has
+returned, so the constructor builds the graph and runs it once on a blank image with
+those notices silenced (:func:`quiet_native_stderr`); later messages, and every Python
+error, pass as usual.
 """
 
 from __future__ import annotations
 
+import contextlib
+import os
+import sys
 import warnings
+from collections.abc import Iterator
 
 import numpy as np
 
@@ -19,9 +31,32 @@ from digiteyes.camera import Camera
 from digiteyes.detect.candidate import HandCandidate, bbox_of
 from digiteyes.errors import DigitEyesError
 
+BLANK_SIDE = 64
+"""Side (px) of the blank image a new graph runs once to start (module docstring)."""
 INSTALL_HINT = ('the MediaPipe detector needs the optional extra: pip install '
                 '"digiteyes[mediapipe]" (mediapipe==0.10.14, models included); or use '
                 '--detector classic')
+
+
+@contextlib.contextmanager
+def quiet_native_stderr() -> Iterator[None]:
+    """Send what native code writes to file descriptor 2 to the null device for the
+    duration of the block (Python's own ``sys.stderr`` is flushed first and restored
+    after, so nothing of ours is lost or reordered)."""
+    sys.stderr.flush()
+    try:
+        saved = os.dup(2)
+    except OSError:  # no standard error to redirect (a detached process)
+        yield
+        return
+    try:
+        with open(os.devnull, "wb") as null:
+            os.dup2(null.fileno(), 2)
+        yield
+    finally:
+        sys.stderr.flush()
+        os.dup2(saved, 2)
+        os.close(saved)
 
 
 def mediapipe_available() -> bool:
@@ -54,10 +89,13 @@ class MediaPipeDetector:
             import mediapipe as mp
         except ImportError as exc:
             raise DigitEyesError(f"{INSTALL_HINT} ({exc})") from None
-        self._hands = mp.solutions.hands.Hands(
-            static_image_mode=static_image_mode, max_num_hands=max_hands,
-            model_complexity=model_complexity, min_detection_confidence=min_confidence,
-            min_tracking_confidence=min_confidence)
+        with quiet_native_stderr(), warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            self._hands = mp.solutions.hands.Hands(
+                static_image_mode=static_image_mode, max_num_hands=max_hands,
+                model_complexity=model_complexity, min_detection_confidence=min_confidence,
+                min_tracking_confidence=min_confidence)
+            self._hands.process(np.zeros((BLANK_SIDE, BLANK_SIDE, 3), np.uint8))  # graph started
 
     def close(self) -> None:
         """Release MediaPipe's graph."""
