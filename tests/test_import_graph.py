@@ -31,7 +31,7 @@ LAYERS = (
     ("trackers",),
     ("apps", "viz"),
     ("evaluate",),
-    ("pipeline", "warmup", "track_job", "track_many"),
+    ("pipeline", "warmup", "track_job", "track_many", "mouse_job"),
     ("benchmarks",),
     ("commands",),
     ("cli", "_signals", "__init__", "__main__"),
@@ -41,7 +41,8 @@ of its own layer or above, never below. ``io`` reads frames and writes logs (bes
 renderer: images in); ``synth`` writes sequences through it. ``filters`` smooths state
 sequences (kinematics only) for ``io``'s track extras. ``track_job`` (one ``digiteyes
 track`` run) and ``track_many`` (many, as Ray tasks) drive the run loop beside
-``pipeline``; ``_signals`` serves ``cli`` alone."""
+``pipeline``, ``mouse_job`` the 3D mouse on footage from an automatic start;
+``_signals`` serves ``cli`` alone."""
 RANK = {name: i for i, layer in enumerate(LAYERS) for name in layer}
 
 

@@ -337,7 +337,7 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
     rig = source.rig or Rig((default_camera(first[0].shape[1], first[0].shape[0],
                                             job.hfov),))
     rig.check_images(first)
-    frames = _prepend(first, frames)
+    frames = prepend(first, frames)
     rig, frames = _transformed_input(job, rig, frames, say)
     model = source.model
     auto = source.initial is None
@@ -362,7 +362,7 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
             f"({', '.join(start_note['found_by'])} + model fit)")
         seen = initialiser.last.sides(rig.mirrored)
         if job.hand == AUTO_HAND and seen == {"left"}:
-            initialiser, rig, frames, initial = _as_left_hand(initialiser, rig, frames,
+            initialiser, rig, frames, initial = as_left_hand(initialiser, rig, frames,
                                                               initial)
             say("--hand auto: the detector sees a left hand; tracking it as the right hand "
                 "of the mirror image (outputs in the real images)")
@@ -375,7 +375,7 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
     first_index = int(start_note.get("first_frame", 0))
     recover = initialiser if (job.recover if job.recover is not None else auto) else None
     first_seen = next(frames)
-    frames = _prepend(first_seen, frames)
+    frames = prepend(first_seen, frames)
     name = resolve_tracker(job.tracker_name, source.footage, job.detector, model,
                            lambda: _detector_agrees(model, rig, job.detector, first_seen,
                                                     initial))
@@ -511,8 +511,8 @@ def _detection_check(job: TrackJob, footage: bool, name: str, model: KinematicMo
     return DetectionCheck(model, rig, job.detector, job.check_every)
 
 
-def _as_left_hand(initialiser: AutoInitialiser, rig: Rig, frames: Iterator[list[np.ndarray]],
-                  state: np.ndarray) -> tuple[AutoInitialiser, Rig, Iterator, np.ndarray]:
+def as_left_hand(initialiser: AutoInitialiser, rig: Rig, frames: Iterator[list[np.ndarray]],
+                 state: np.ndarray) -> tuple[AutoInitialiser, Rig, Iterator, np.ndarray]:
     """Switch a started run to the mirror image (``--hand auto`` and a left hand): the
     mirrored rig, the mirrored frames, an initialiser for them and the state fitted to the
     mirrored start frame (``state`` kept if that fit fails)."""
@@ -523,12 +523,13 @@ def _as_left_hand(initialiser: AutoInitialiser, rig: Rig, frames: Iterator[list[
     fresh = AutoInitialiser(initialiser.model, mirrored, initialiser.detector)
     fitted = fresh(mirror_images(first))
     if fitted is None:
-        return initialiser, rig, _prepend(first, frames), state
+        return initialiser, rig, prepend(first, frames), state
     flipped = (mirror_images(images) for images in frames)
-    return fresh, mirrored, _prepend(mirror_images(first), flipped), fitted
+    return fresh, mirrored, prepend(mirror_images(first), flipped), fitted
 
 
-def _prepend(first: list[np.ndarray], frames: Iterator) -> Iterator[list[np.ndarray]]:
+def prepend(first: list[np.ndarray], frames: Iterator) -> Iterator[list[np.ndarray]]:
+    """``first`` followed by the rest of ``frames``."""
     yield first
     yield from frames
 

@@ -23,6 +23,7 @@ EXPECTED = {  # name: (frames, fps, cameras)
     "two-finger-occlusion": (80, 15.0, 1),
     "natural": (200, 30.0, 2),
     "fast": (200, 10.0, 2),
+    "hand-mouse": (500, 10.0, 1),
 }
 
 
@@ -43,7 +44,7 @@ def joints(scenario, names):
 
 
 # ------------------------------------------------------------------ common properties
-def test_registry_lists_the_five_scenarios_and_the_setups():
+def test_registry_lists_the_six_scenarios_and_the_setups():
     from digiteyes.synth.setups import SETUP_SCENARIOS
 
     assert set(SCENARIOS) == set(EXPECTED) | set(SETUP_SCENARIOS)
@@ -352,3 +353,23 @@ def test_natural_global_rotation_is_slow(built):
     turn = 2 * np.arccos(np.clip(np.abs(np.sum(quat[1:] * quat[:-1], axis=1)), 0, 1))
     assert np.degrees(turn).max() < 1.0  # degrees per frame at 30 Hz
     assert np.degrees(2 * np.arccos(np.abs(quat @ quat[0]).min())) > 5.0  # but it turns
+
+
+def test_hand_mouse_plays_the_mouse_motion_with_the_full_hand(built):
+    """Same channels as ``mouse``: the palm mapping's pole follows the mouse's (base
+    moves and index height), and the thumb button is pressed exactly in the button event
+    of ``mouse`` (thumb spread past 12.5 degrees)."""
+    from digiteyes.apps.mouse3d import buttons_from_state, pole_from_state
+    from digiteyes.apps.palm_mouse import PalmMouse
+
+    hand, mouse = built["hand-mouse"], built["mouse"]
+    palm = PalmMouse.from_start(hand.model, hand.states[0])
+    pole, table = palm.pole(hand.states), pole_from_state(mouse.model, mouse.states)
+    # base: the palm slides by the mouse's x, y (no turn before frame 350)
+    moved = np.hypot(*(pole[:, :2] - pole[0, :2]).T)
+    assert np.abs(moved - np.hypot(*(table[:, :2] - table[0, :2]).T))[:350].max() < 1e-6
+    raised = pole[:, 2]
+    assert raised[0] == pytest.approx(0.0, abs=1e-9) and raised[40] > 30.0
+    pressed = palm.buttons(hand.states)["thumb"]
+    np.testing.assert_array_equal(pressed[:350],
+                                  buttons_from_state(mouse.model, mouse.states)["thumb"][:350])

@@ -26,6 +26,7 @@ application applies its own scale and origin to the millimetres returned here.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -103,6 +104,24 @@ def buttons_from_state(model: KinematicModel, q: np.ndarray, *,
         angles = Q[..., model.state_index(state)]
         pressed[button] = angles > threshold if Q.ndim == 2 else bool(angles > threshold)
     return pressed
+
+
+@dataclass(frozen=True)
+class TableMouse:
+    """:func:`pole_from_state` and :func:`buttons_from_state` of one model as an object,
+    the interface the mouse stream maps states through (as
+    :class:`~digiteyes.apps.palm_mouse.PalmMouse` for a full hand)."""
+
+    model: KinematicModel
+    threshold_deg: float = DEFAULT_BUTTON_THRESHOLD_DEG
+
+    def pole(self, q: np.ndarray) -> np.ndarray:
+        """:func:`pole_from_state` of ``q``."""
+        return pole_from_state(self.model, q)
+
+    def buttons(self, q: np.ndarray) -> dict[str, np.ndarray | bool]:
+        """:func:`buttons_from_state` of ``q`` at ``threshold_deg``."""
+        return buttons_from_state(self.model, q, threshold_deg=self.threshold_deg)
 
 
 def plot_mouse_pole(t: np.ndarray, pole: np.ndarray, true_pole: np.ndarray | None = None, *,

@@ -16,22 +16,28 @@ Sources (:func:`open_mouse_stream`):
 * a replay (``replay=RUN_DIR``): the ``states.csv`` that ``digiteyes track`` wrote, with its
   ``overlay.mp4`` when present, nothing tracked.
 
-The tracking itself is :class:`~digiteyes.trackers.FeatureTracker`, its overlay
-:func:`digiteyes.viz.track_overlay.overlay_image`: the same code as ``digiteyes track``.
+The tracking itself is :class:`~digiteyes.trackers.FeatureTracker` (or any tracker given
+to :func:`track_frames`), its overlay :func:`digiteyes.viz.track_overlay.overlay_image`:
+the same code as ``digiteyes track``. States become the pole and buttons through a
+*mapping* (:func:`mouse_mapping`): the thesis's table mapping for the reduced
+``mouse-hand`` model, the palm mapping (:class:`~digiteyes.apps.palm_mouse.PalmMouse`)
+for a full hand. Footage with an automatic start (a webcam and nothing else) is opened by
+:func:`digiteyes.mouse_job.open_footage_mouse`.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable, Iterator, Sequence
-from dataclasses import dataclass, replace
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from dataclasses import dataclass, field, replace
 from itertools import chain, islice
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from digiteyes.apps.mouse3d import buttons_from_state, pole_from_state
+from digiteyes.apps.mouse3d import BUTTONS, TableMouse
+from digiteyes.apps.palm_mouse import PalmMouse
 from digiteyes.camera import Rig, load_rig
 from digiteyes.errors import CameraError, DatasetError
 from digiteyes.filters import OneEuroFilter, OneEuroOptions
@@ -47,6 +53,7 @@ from digiteyes.kinematics import KinematicModel, State, load_model, resample_sta
 from digiteyes.synth import RenderOptions, render_views
 from digiteyes.synth.scenarios import build_scenario
 from digiteyes.trackers import FeatureTracker, FeatureTrackerOptions, warm_up
+from digiteyes.trackers.base import Tracker, TrackResult
 from digiteyes.viz.track_overlay import overlay_image
 
 JPEG_QUALITY = 80
@@ -70,6 +77,7 @@ class MouseFrame:
     t_frame : when the camera frame became available, Unix seconds.
     t_state : when the state (and the overlay) was ready, Unix seconds.
     overlay_jpeg : the tracked hand's overlay image as JPEG bytes, or None.
+    mapping : what turned the state into the pole and buttons (:func:`mouse_mapping`).
     """
 
     index: int
@@ -80,6 +88,7 @@ class MouseFrame:
     t_frame: float
     t_state: float
     overlay_jpeg: bytes | None = None
+    mapping: MouseMapping | None = field(default=None, repr=False, compare=False)
 
     def to_message(self) -> dict:
         """The JSON message the page receives (without the image, sent as binary)."""
@@ -111,27 +120,44 @@ def encode_jpeg(image: np.ndarray, quality: int = JPEG_QUALITY) -> bytes:
     return data.tobytes()
 
 
-def mouse_frame(model: KinematicModel, index: int, state: np.ndarray, lost: bool,
+MouseMapping = TableMouse | PalmMouse
+"""Hand state -> pole (``pole(q)``) and buttons (``buttons(q)``)."""
+
+
+def mouse_mapping(model: KinematicModel, q0: np.ndarray, *, mirrored: bool = False
+                  ) -> MouseMapping:
+    """The thesis's table mapping (:class:`~digiteyes.apps.mouse3d.TableMouse`) for a
+    model with its button states (``mouse-hand``: world = table), else the palm mapping
+    of a full hand against its start state ``q0``
+    (:meth:`~digiteyes.apps.palm_mouse.PalmMouse.from_start`; ``mirrored``: a left hand
+    tracked in the mirror image)."""
+    if all(state in model.state_names for state in BUTTONS.values()):
+        return TableMouse(model)
+    return PalmMouse.from_start(model, q0, mirrored=mirrored)
+
+
+def mouse_frame(mapping: MouseMapping, index: int, state: np.ndarray, lost: bool,
                 t_frame: float, overlay: np.ndarray | None) -> MouseFrame:
     """Map ``state`` to the pole and buttons and encode ``overlay``; stamps ``t_state``."""
-    pole = pole_from_state(model, state)
-    buttons = {k: bool(v) for k, v in buttons_from_state(model, state).items()}
+    pole = mapping.pole(state)
+    buttons = {k: bool(v) for k, v in mapping.buttons(state).items()}
     jpeg = None if overlay is None else encode_jpeg(overlay)
     return MouseFrame(index, np.asarray(state, dtype=float), pole, buttons, bool(lost),
-                      t_frame, time.time(), jpeg)
+                      t_frame, time.time(), jpeg, mapping)
 
 
 def smoothed(frames: Iterable[MouseFrame], model: KinematicModel, fps: float,
              options: OneEuroOptions | None = None) -> Iterator[MouseFrame]:
     """``frames`` with each state One Euro filtered online
     (:class:`~digiteyes.filters.OneEuroFilter`, restarting after a lost frame) and the pole
-    and buttons taken from the filtered state; ``t_state`` is stamped after the filter.
-    The overlay keeps showing the tracked (raw) hand."""
+    and buttons taken from the filtered state by the frame's own mapping; ``t_state`` is
+    stamped after the filter. The overlay keeps showing the tracked (raw) hand."""
     online = OneEuroFilter(model, fps, options)
     for frame in frames:
         state = online.follow(frame.state, frame.lost)
-        yield replace(frame, state=state, pole=pole_from_state(model, state),
-                      buttons={k: bool(v) for k, v in buttons_from_state(model, state).items()},
+        mapping = frame.mapping or mouse_mapping(model, state)
+        yield replace(frame, state=state, pole=mapping.pole(state),
+                      buttons={k: bool(v) for k, v in mapping.buttons(state).items()},
                       t_state=time.time())
 
 
@@ -141,16 +167,28 @@ def timestamped(frames: Iterable[Sequence[np.ndarray]]) -> Iterator[tuple[float,
         yield time.time(), list(images)
 
 
+Recover = Callable[[Tracker, Sequence[np.ndarray], TrackResult], "np.ndarray | None"]
+"""After each frame: the state to continue from (the tracker restarted from it) or None
+(:func:`digiteyes.pipeline.recovered_state` with a re-detection)."""
+
+
 def track_frames(model: KinematicModel, rig: Rig, frames: Iterable[tuple[float, list]],
                  initial_state: np.ndarray, options: FeatureTrackerOptions | None = None,
-                 *, overlay: bool = True) -> Iterator[MouseFrame]:
-    """Track timestamped frames (from :func:`timestamped`) with the feature tracker and
-    yield one :class:`MouseFrame` per frame.
+                 *, overlay: bool = True, tracker: Tracker | None = None,
+                 mapping: MouseMapping | None = None, recover: Recover | None = None,
+                 first_index: int = 0) -> Iterator[MouseFrame]:
+    """Track timestamped frames (from :func:`timestamped`) and yield one
+    :class:`MouseFrame` per frame.
 
-    The tracker first steps once on the first frame, untimed, and is reset
+    ``tracker``: the tracker to step (None: a feature tracker with ``options``);
+    ``mapping``: state -> pole and buttons (None: :func:`mouse_mapping` of the initial
+    state); ``recover``: see :data:`Recover` (None: no re-detection); ``first_index``:
+    the number of the first frame (frames are numbered as the input's). The tracker first
+    steps once on the first frame, untimed, and is reset
     (:func:`digiteyes.trackers.warm_up`): compiling or loading the kernels happens before
     the first frame's clock starts, so it never shows as frame-to-page latency."""
-    tracker = FeatureTracker(model, rig, options or FeatureTrackerOptions())
+    tracker = tracker or FeatureTracker(model, rig, options or FeatureTrackerOptions())
+    mapping = mapping or mouse_mapping(model, initial_state, mirrored=rig.mirrored)
     frames = iter(frames)
     first = next(frames, None)
     if first is None:
@@ -158,10 +196,12 @@ def track_frames(model: KinematicModel, rig: Rig, frames: Iterable[tuple[float, 
     warm_up(tracker, first[1], initial_state)
     tracker.reset(np.asarray(initial_state, dtype=float))
     restamped = (time.time(), first[1])
-    for index, (t_frame, images) in enumerate(chain([restamped], frames)):
+    for index, (t_frame, images) in enumerate(chain([restamped], frames), start=first_index):
         result = tracker.step(images)
+        fresh = recover(tracker, images, result) if recover is not None else None
+        state = result.state if fresh is None else fresh
         image = overlay_image(images, result, rig, model) if overlay else None
-        yield mouse_frame(model, index, result.state, result.lost, t_frame, image)
+        yield mouse_frame(mapping, index, state, result.lost, t_frame, image)
 
 
 def render_scenario_frames(name: str = "mouse", seed: int = 0, n_frames: int | None = None,
@@ -205,9 +245,12 @@ def resample_scenario(scenario, speed: float):
 def replay_frames(run_dir: str | Path, model: KinematicModel, fps: float
                   ) -> Iterator[MouseFrame]:
     """The states of a finished run (``run_dir/states.csv``) with the frames of its
-    ``overlay.mp4`` when there is one, paced at ``fps`` frames per second."""
+    ``overlay.mp4`` when there is one, paced at ``fps`` frames per second; mapped by
+    :func:`mouse_mapping` of the run's first state (a full hand's palm mapping starts
+    from it)."""
     folder = Path(run_dir)
     log = read_state_log(folder / "states.csv", model)
+    mapping = mouse_mapping(model, log.states[0]) if len(log.states) else None
     video_path = folder / "overlay.mp4"
     reader = VideoReader(video_path) if video_path.is_file() else None
     period = 1.0 / fps
@@ -218,10 +261,31 @@ def replay_frames(run_dir: str | Path, model: KinematicModel, fps: float
             if (wait := due - time.time()) > 0:
                 time.sleep(wait)
             image = reader.read() if reader is not None else None
-            yield mouse_frame(model, index, q, bool(lost), time.time(), image)
+            yield mouse_frame(mapping, index, q, bool(lost), time.time(), image)
     finally:
         if reader is not None:
             reader.close()
+
+
+REPLAY_MODELS = ("mouse-hand", "hand")
+"""The shipped models a replay's ``states.csv`` is matched against without ``--model``."""
+
+
+def replay_model(run_dir: str | Path) -> KinematicModel:
+    """The first of :data:`REPLAY_MODELS` whose states are all columns of
+    ``run_dir/states.csv`` (``mouse-hand`` when none is: reading the log then says what
+    is missing)."""
+    path = Path(run_dir) / "states.csv"
+    try:
+        with path.open(encoding="utf-8") as f:
+            header = set(f.readline().strip().split(","))
+    except OSError as exc:
+        raise DatasetError(f"{path}: cannot read the state log ({exc.strerror})") from None
+    for name in REPLAY_MODELS:
+        model = load_model(name)
+        if set(model.state_names) <= header:
+            return model
+    return load_model(REPLAY_MODELS[0])
 
 
 def paced(frames: Iterable[list[np.ndarray]], fps: float) -> Iterator[list[np.ndarray]]:
@@ -287,7 +351,7 @@ def _open_source(source: str | None = None, *, replay: str | Path | None = None,
     """
     options = FeatureTrackerOptions(iterations_per_frame=iterations)
     if replay is not None:
-        model = load_model(model_name or "mouse-hand")
+        model = load_model(model_name) if model_name else replay_model(replay)
         rate = fps or track_fps(replay) or DEFAULT_FPS
         stream = replay_frames(replay, model, rate)
         return MouseStream(model, _limit(stream, frames), rate, f"replay of {replay}", frames)

@@ -2,20 +2,27 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+from pathlib import Path
+
 import click
 
 from digiteyes.apps.mouse_server import DEFAULT_REACH_MM, DEFAULT_SPHERE, MouseServer, SceneConfig
-from digiteyes.apps.mouse_stream import MouseFrame, open_mouse_stream
+from digiteyes.apps.mouse_stream import MouseFrame, open_mouse_stream, smoothed
 from digiteyes.filters import OneEuroOptions
 from digiteyes.io import StateLogWriter
+from digiteyes.mouse_job import open_footage_mouse
 
 HELP = """Serve the 3D mouse (thesis Fig. 4.9) on http://127.0.0.1:PORT/.
 
-SOURCE is a dataset folder, a video file or a live camera index (e.g. 0; videos and
-cameras need --model, --rig and --init); without SOURCE the `mouse` scenario is rendered
-and tracked on the fly. --replay RUN plays back the states.csv (and overlay.mp4) that
-`digiteyes track` wrote in RUN. The stream starts when the first page connects and the
-server stops when it ends, or on Ctrl-C.
+SOURCE is a dataset folder, a video file or a live camera index (e.g. 0). A video or
+camera without --init starts by itself: the full hand is found, tracked (the keypoint
+tracker with MediaPipe installed) and its own start pose is the table (--rig optional:
+a default camera otherwise); with --init it is the thesis's set-up and needs --model and
+--rig. Without SOURCE the `mouse` scenario is rendered and tracked on the fly. --replay
+RUN plays back the states.csv (and overlay.mp4) that `digiteyes track` wrote in RUN. The
+stream starts when the first page connects and the server stops when it ends, or on
+Ctrl-C.
 """
 
 
@@ -29,8 +36,8 @@ server stops when it ends, or on Ctrl-C.
               help="Stop after this many frames.")
 @click.option("--fps", type=click.FloatRange(min=0.1), default=None,
               help="Frame rate for files, the scenario and replays (default: the source's).")
-@click.option("--model", "model_name", help="Model name or .dh file (default: mouse-hand or "
-              "the dataset's).")
+@click.option("--model", "model_name", help="Model name or .dh file (default: mouse-hand, "
+              "the dataset's, or for footage without --init the full hand).")
 @click.option("--rig", "rig_path", type=click.Path(dir_okay=False), help="Rig file.")
 @click.option("--init", "init_path", type=click.Path(dir_okay=False),
               help="Initial state JSON.")
@@ -54,11 +61,19 @@ def mouse(source: str | None, replay: str | None, port: int, frames: int | None,
           init_path: str | None, iterations: int, seed: int,
           sphere: tuple[float, float, float], reach: float, log_path: str | None,
           no_overlay: bool, smooth: bool) -> None:
-    stream = open_mouse_stream(source, replay=replay, model_name=model_name,
-                               rig_path=rig_path, init_path=init_path, frames=frames,
-                               fps=fps, iterations=iterations, seed=seed,
-                               overlay=not no_overlay,
-                               smooth=OneEuroOptions() if smooth else None)
+    if source is not None and replay is None and init_path is None \
+            and not Path(source).is_dir():
+        stream = open_footage_mouse(source, model_name=model_name, rig_path=rig_path,
+                                    frames=frames, fps=fps, overlay=not no_overlay)
+        if smooth:
+            stream = replace(stream, frames=smoothed(stream.frames, stream.model, stream.fps,
+                                                     OneEuroOptions()))
+    else:
+        stream = open_mouse_stream(source, replay=replay, model_name=model_name,
+                                   rig_path=rig_path, init_path=init_path, frames=frames,
+                                   fps=fps, iterations=iterations, seed=seed,
+                                   overlay=not no_overlay,
+                                   smooth=OneEuroOptions() if smooth else None)
     config = SceneConfig(tuple(sphere), reach, stream.description, stream.fps)
     log = StateLogWriter(log_path, stream.model) if log_path else None
 

@@ -309,21 +309,12 @@ MCP extends (negative lifts the tip off the table in mouse-hand.dh) while PIP an
 bend a little."""
 
 
-def mouse(seed: int = 0, n_frames: int | None = None) -> Scenario:
-    """Thesis Sec. 4.3.4-4.3.5: the 3D-mouse hand on the table, one camera at 45 degrees.
-
-    Phases (frames): 0-150 the index finger is raised and lowered twice (two peaks of the
-    pole height, the second lower) and raised again by frame 150; 150-200 it stays up while
-    the thumb abducts 25 degrees and returns (the "button event"); 200-350 the palm slides
-    (moves of up to 100 mm, at most 47 mm/s, below the 2.5 in/s at which the thesis's
-    tracker began to lose track) with everything else still; 350-500 palm position and
-    rotation, index, little finger and thumb all move (random keyframes, the only part
-    that depends on the seed). 10 Hz. ``metadata["index_tip_height_mm"]`` is the height of
-    the index tip centre above the table per frame, the truth for the pole height.
-    """
+def _mouse_motion(seed: int, n: int = 500) -> dict[str, np.ndarray]:
+    """The channels of the 3D-mouse motion (thesis Fig. 4.12), (n,) each: palm ``x``,
+    ``y`` (mm) and ``rot`` (deg) in the table plane, index ``lift`` (0 flat to 1 raised,
+    :data:`MOUSE_RAISE`), ``little`` and ``thumb`` spread (deg). Phases as
+    :data:`MOUSE_PHASES`; the last is random from ``seed``."""
     rng = np.random.default_rng(seed)
-    model = load_model("mouse-hand")
-    n = 500
     t = np.arange(n)
     raise_keys = [(0, 0), (10, 0), (35, 1), (45, 1), (70, 0), (80, 0), (100, 0.8),
                   (108, 0.8), (128, 0), (134, 0), (150, 1), (350, 1)]
@@ -348,15 +339,33 @@ def mouse(seed: int = 0, n_frames: int | None = None) -> Scenario:
         return keyframe_path(keys[:, 0], keys[:, 1:], t)
 
     palm = keyed(palm_keys)
-    lift = keyed(raise_keys)[:, 0]
-    states = np.zeros((n, model.n_q))
-    _set(model, states, "palm.x", palm[:, 0])
-    _set(model, states, "palm.y", palm[:, 1])
-    _set(model, states, "palm.rot", palm[:, 2] * DEG)
+    return {"x": palm[:, 0], "y": palm[:, 1], "rot": palm[:, 2],
+            "lift": keyed(raise_keys)[:, 0], "little": keyed(little_keys)[:, 0],
+            "thumb": keyed(thumb_keys)[:, 0]}
+
+
+def mouse(seed: int = 0, n_frames: int | None = None) -> Scenario:
+    """Thesis Sec. 4.3.4-4.3.5: the 3D-mouse hand on the table, one camera at 45 degrees.
+
+    Phases (frames): 0-150 the index finger is raised and lowered twice (two peaks of the
+    pole height, the second lower) and raised again by frame 150; 150-200 it stays up while
+    the thumb abducts 25 degrees and returns (the "button event"); 200-350 the palm slides
+    (moves of up to 100 mm, at most 47 mm/s, below the 2.5 in/s at which the thesis's
+    tracker began to lose track) with everything else still; 350-500 palm position and
+    rotation, index, little finger and thumb all move (random keyframes, the only part
+    that depends on the seed). 10 Hz. ``metadata["index_tip_height_mm"]`` is the height of
+    the index tip centre above the table per frame, the truth for the pole height.
+    """
+    model = load_model("mouse-hand")
+    motion = _mouse_motion(seed)
+    states = np.zeros((len(motion["x"]), model.n_q))
+    _set(model, states, "palm.x", motion["x"])
+    _set(model, states, "palm.y", motion["y"])
+    _set(model, states, "palm.rot", motion["rot"] * DEG)
     for name, value in zip(("index.mcp", "index.pip", "index.dip"), MOUSE_RAISE, strict=True):
-        _set(model, states, name, value * DEG * lift)
-    _set(model, states, "little.abd", keyed(little_keys)[:, 0] * DEG)
-    _set(model, states, "thumb.abd", keyed(thumb_keys)[:, 0] * DEG)
+        _set(model, states, name, value * DEG * motion["lift"])
+    _set(model, states, "little.abd", motion["little"] * DEG)
+    _set(model, states, "thumb.abd", motion["thumb"] * DEG)
     rig = Rig((tabletop_camera("cam0", MOUSE_TARGET, 420.0, -65.0, 45.0),))
     kin = forward_kinematics(model, states)
     tip_row = model.link("index.tip").row
@@ -366,6 +375,40 @@ def mouse(seed: int = 0, n_frames: int | None = None) -> Scenario:
     return _finish("mouse", "3D-mouse hand on the table: index raise/lower, thumb button, "
                    "palm slide, all together (thesis Sec. 4.3.4)", model, rig, states, 10.0,
                    seed, n_frames, meta, {"index_tip_height_mm": height})
+
+
+HAND_MOUSE_CENTRE = np.array([0.0, 0.0, 10.0])
+"""Where the full hand's centre rests at the start of ``hand-mouse`` (world mm): the
+finger axes 10 mm above the table, about a finger's radius."""
+
+
+def hand_mouse(seed: int = 0, n_frames: int | None = None) -> Scenario:
+    """The ``mouse`` scenario's motion played by the full hand (ours): the hand lies palm
+    down on the table, fingers along +y, and a webcam looks down at it from the front
+    left, 45 degrees above the table (as ``mouse``'s camera). The channels are those of
+    ``mouse`` (:func:`_mouse_motion`, same phases and seed): the palm slides and turns
+    about its centre, the index raises by :data:`MOUSE_RAISE`, the thumb spreads in the
+    palm plane (``thumb.cmc_flex``) and the little finger abducts (``little.abd``), so the
+    palm mapping of the 3D mouse (:class:`digiteyes.apps.palm_mouse.PalmMouse`) gives
+    the same controls. For ``digiteyes mouse`` on footage, with truth. 10 Hz."""
+    model = load_model("hand")
+    motion = _mouse_motion(seed)
+    n = len(motion["x"])
+    states = np.zeros((n, model.n_q))
+    rotvecs = np.zeros((n, 3))
+    rotvecs[:, 2] = -motion["rot"] * DEG
+    offsets = np.column_stack([motion["x"], motion["y"], np.zeros(n)])
+    _place_hand(model, states, R_PALM_DOWN, HAND_MOUSE_CENTRE, rotvecs, offsets)
+    for name, value in zip(("index.mcp", "index.pip", "index.dip"), MOUSE_RAISE, strict=True):
+        _set(model, states, name, value * DEG * motion["lift"])
+    _set(model, states, "little.abd", motion["little"] * DEG)
+    _set(model, states, "thumb.cmc_flex", motion["thumb"] * DEG)
+    rig = Rig((tabletop_camera("cam0", HAND_MOUSE_CENTRE + np.array([0.0, 20.0, 0.0]), 450.0,
+                               -65.0, 45.0),))
+    meta = {"phases": [list(p) for p in MOUSE_PHASES]}
+    return _finish("hand-mouse", "the 3D-mouse motion by the full hand, palm down, seen by "
+                   "a webcam 45 degrees above the table", model, rig, states, 10.0, seed,
+                   n_frames, meta)
 
 
 # --------------------------------------------------------------------------- two fingers
@@ -464,6 +507,7 @@ SCENARIOS: dict[str, Callable[..., Scenario]] = {
     "two-finger-occlusion": two_finger_occlusion,
     "natural": natural,
     "fast": fast,
+    "hand-mouse": hand_mouse,
 }
 """Scenario builders by name; each is called as ``builder(seed=..., n_frames=...)``."""
 
