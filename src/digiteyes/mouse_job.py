@@ -15,7 +15,7 @@ The thesis's mouse needs a calibrated table camera, the reduced model and a star
    (:func:`~digiteyes.track_job.resolve_tracker`: the keypoint tracker with MediaPipe
    installed, the feature tracker otherwise), re-detecting after a lost frame
    (:func:`~digiteyes.pipeline.recovered_state`);
-5. states become the pole and buttons by the palm mapping of the start state
+5. states become the pole and buttons by the palm mapping of the first tracked state
    (:class:`~digiteyes.apps.palm_mouse.PalmMouse`): the hand's own pose is the table.
 """
 
@@ -30,7 +30,6 @@ import numpy as np
 from digiteyes.apps.mouse_stream import (
     MouseFrame,
     MouseStream,
-    mouse_mapping,
     paced,
     timestamped,
     track_frames,
@@ -111,7 +110,6 @@ def footage_mouse_frames(model: KinematicModel, frames: Iterable[list[np.ndarray
     options = {"detector": detector} if name == FOOTAGE_TRACKER else {}
     tracker = create_tracker(name, model, rig, **options)
     yield from track_frames(
-        model, rig, timestamped(found), initial, tracker=tracker,
-        mapping=mouse_mapping(model, initial, mirrored=rig.mirrored), overlay=overlay,
+        model, rig, timestamped(found), initial, tracker=tracker, overlay=overlay,
         recover=lambda t, images, result: recovered_state(t, images, result, initialiser),
         first_index=skipped)

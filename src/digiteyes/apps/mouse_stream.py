@@ -181,14 +181,15 @@ def track_frames(model: KinematicModel, rig: Rig, frames: Iterable[tuple[float, 
     :class:`MouseFrame` per frame.
 
     ``tracker``: the tracker to step (None: a feature tracker with ``options``);
-    ``mapping``: state -> pole and buttons (None: :func:`mouse_mapping` of the initial
-    state); ``recover``: see :data:`Recover` (None: no re-detection); ``first_index``:
-    the number of the first frame (frames are numbered as the input's). The tracker first
+    ``mapping``: state -> pole and buttons (None: :func:`mouse_mapping` of the first
+    frame's estimate, so that a palm mapping's origin is where the tracker puts the hand,
+    not where the start did); ``recover``: see :data:`Recover` (None: no re-detection);
+    ``first_index``: the number of the first frame (frames are numbered as the input's).
+    The tracker first
     steps once on the first frame, untimed, and is reset
     (:func:`digiteyes.trackers.warm_up`): compiling or loading the kernels happens before
     the first frame's clock starts, so it never shows as frame-to-page latency."""
     tracker = tracker or FeatureTracker(model, rig, options or FeatureTrackerOptions())
-    mapping = mapping or mouse_mapping(model, initial_state, mirrored=rig.mirrored)
     frames = iter(frames)
     first = next(frames, None)
     if first is None:
@@ -200,6 +201,7 @@ def track_frames(model: KinematicModel, rig: Rig, frames: Iterable[tuple[float, 
         result = tracker.step(images)
         fresh = recover(tracker, images, result) if recover is not None else None
         state = result.state if fresh is None else fresh
+        mapping = mapping or mouse_mapping(model, state, mirrored=rig.mirrored)
         image = overlay_image(images, result, rig, model) if overlay else None
         yield mouse_frame(mapping, index, state, result.lost, t_frame, image)
 

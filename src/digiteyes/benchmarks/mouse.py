@@ -33,9 +33,22 @@ d. **Latency from frame to page**: ``digiteyes mouse`` serving (1) a replay of t
    (``window.digiteyesMouse``); median and 95th percentile, ms, with the tracking time
    alone. Needs Chromium, chromedriver and Selenium (otherwise the section records why
    it was left out). Target: at most 50 ms.
+e. **The mouse on footage** (``digiteyes mouse VIDEO`` with nothing else,
+   :mod:`digiteyes.mouse_job`): the ``hand-mouse`` scenario (the same motion by the full
+   hand, palm down, one camera 45 degrees above the table) rendered in colour in both
+   appearances (our capsule drawing and the independent flesh hand; black cloth, noise 2
+   grey levels), started automatically, tracked by the tracker ``track`` picks for
+   footage (the keypoint tracker with MediaPipe), mapped by the palm mapping of the
+   estimated start. Against the palm mapping of the true start: mean and 95th percentile
+   error of the pole base (x, y) and height (mm), the buttons' agreement with the truth's
+   (fraction of frames), frames flagged lost, the tracker's frames per second (rendering
+   excluded); the pole per frame, estimated and true, for the figure of
+   ``benchmarks/mouse_footage_figure.py``. Beside it the thesis's set-up on the same
+   motion (``mouse``: the reduced model, a table-calibrated camera, the feature tracker
+   from the true start, grey capsule renders).
 
 JSON keys: ``speed`` (runs, ``max_speed_before_loss_mm_s``), ``coupling``, ``resolution``,
-``latency``, ``machine`` (with the load average at the start and end).
+``latency``, ``footage``, ``machine`` (with the load average at the start and end).
 """
 
 from __future__ import annotations
@@ -50,10 +63,13 @@ import numpy as np
 
 from digiteyes.apps.mouse3d import buttons_from_state, pole_from_state
 from digiteyes.apps.mouse_stream import render_frames, resample_scenario
+from digiteyes.apps.palm_mouse import PalmMouse
 from digiteyes.benchmarks._machine import emit, kernel_threads, machine_info, machine_lines
+from digiteyes.errors import DatasetError
 from digiteyes.filters import one_euro_filter
 from digiteyes.io import StateLogWriter
 from digiteyes.kinematics import forward_kinematics
+from digiteyes.synth import RenderOptions, render_views
 from digiteyes.synth.scenarios import MOUSE_RAISE, build_scenario
 from digiteyes.trackers import FeatureTracker, FeatureTrackerOptions
 
@@ -67,6 +83,8 @@ SPEEDS = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0)
 QUICK_SPEEDS = (1.0, 3.0, 6.0)
 LATENCY_TARGET_MS = 50.0
 ITERATIONS = 5
+SEED_FOOTAGE = 0
+"""Seed of the footage section's sensor noise."""
 
 
 def track_states(scenario, first: int, last: int, progress: bool = False) -> dict[str, Any]:
@@ -223,15 +241,78 @@ def latency_section(frames: int, progress: bool) -> dict[str, Any]:
     return result
 
 
+def _pole_errors(estimate: np.ndarray, truth: np.ndarray) -> dict[str, float]:
+    """Mean and 95th percentile of the pole base distance and height error (mm)."""
+    base = np.hypot(*(estimate[:, :2] - truth[:, :2]).T)
+    height = np.abs(estimate[:, 2] - truth[:, 2])
+    return {"base_mean_mm": float(base.mean()), "base_p95_mm": float(np.percentile(base, 95)),
+            "height_mean_mm": float(height.mean()),
+            "height_p95_mm": float(np.percentile(height, 95))}
+
+
+def footage_section(frames: int, progress: bool) -> dict[str, Any]:
+    from digiteyes.mouse_job import footage_mouse_frames
+    from digiteyes.track_job import FOOTAGE_TRACKER, resolve_tracker
+
+    scenario = build_scenario("hand-mouse", n_frames=frames)
+    model = scenario.model
+    truth = PalmMouse.from_start(model, scenario.states[0])
+    result: dict[str, Any] = {"scenario": "hand-mouse", "frames": frames,
+                              "tracker": resolve_tracker("auto", True, "auto", model),
+                              "rows": []}
+    for appearance in ("model", "flesh"):
+        options = RenderOptions(color=True, appearance=appearance, noise_sigma=2.0)
+        images = [[render_views(model, q, scenario.rig, options,
+                                np.random.default_rng([SEED_FOOTAGE, t]))[0].image]
+                  for t, q in enumerate(scenario.states)]
+        start = time.perf_counter()
+        try:
+            out = list(footage_mouse_frames(model, iter(images), scenario.rig, overlay=False))
+        except DatasetError as exc:  # no hand found in any frame
+            result["rows"].append({"appearance": appearance, "started": False,
+                                   "why": str(exc)})
+            continue
+        seconds = time.perf_counter() - start
+        index = np.array([f.index for f in out])
+        pole, true_pole = np.array([f.pole for f in out]), truth.pole(scenario.states[index])
+        row = {"appearance": appearance, "started": True, "start_frame": int(index[0]),
+               "frames_tracked": len(out), "lost_frames": int(sum(f.lost for f in out)),
+               "fps": len(out) / seconds, **_pole_errors(pole, true_pole),
+               "frame": index.tolist(), "pole_mm": np.round(pole, 2).tolist(),
+               "true_pole_mm": np.round(true_pole, 2).tolist()}
+        pressed = truth.buttons(scenario.states[index])
+        for button in pressed:
+            estimate = np.array([f.buttons[button] for f in out])
+            row[f"{button}_button_agreement"] = float(np.mean(estimate == pressed[button]))
+            row[f"{button}_button_frames_true"] = int(pressed[button].sum())
+        result["rows"].append(row)
+        if progress:
+            print(f"  footage {appearance}: height error {row['height_mean_mm']:.1f} mm",
+                  flush=True)
+    thesis = build_scenario("mouse", n_frames=frames)
+    run = track_states(thesis, 0, frames)
+    result["thesis_setup"] = {
+        **_pole_errors(pole_from_state(thesis.model, run["states"]),
+                       pole_from_state(thesis.model, run["truth"])),
+        "lost_frames": int(run["lost"].sum()),
+        **{f"{k}_button_agreement": float(np.mean(v == buttons_from_state(
+            thesis.model, run["truth"])[k]))
+           for k, v in buttons_from_state(thesis.model, run["states"]).items()}}
+    result["uses_keypoints"] = result["tracker"] == FOOTAGE_TRACKER
+    return result
+
+
 def run(json_path: str | None = None, quick: bool = False, *, progress: bool = True) -> dict:
-    """Run the four sections; print the table and write ``json_path`` when given."""
+    """Run the five sections; print the table and write ``json_path`` when given."""
     with kernel_threads(1, 1):
         speed = speed_section(QUICK_SPEEDS if quick else SPEEDS, progress)
         coupling = coupling_section()
         resolution = resolution_section()
+        footage = footage_section(60 if quick else 500, progress)
     latency = latency_section(20 if quick else 80, progress)
     result = {"machine": machine_info(), "speed": speed, "coupling": coupling,
-              "resolution": resolution, "latency": latency, "quick": quick}
+              "resolution": resolution, "latency": latency, "footage": footage,
+              "quick": quick}
     return emit(result, format_table(result), json_path)
 
 
@@ -277,4 +358,28 @@ def format_table(result: dict) -> str:
             lines.append(f"   {key:<8} median {r['median_ms']:6.1f} ms, p95 {r['p95_ms']:6.1f} ms"
                          f" (tracking {r['tracking_median_ms']:.1f} ms); target <= "
                          f"{LATENCY_TARGET_MS:.0f} ms: {'met' if r['meets_target'] else 'not met'}")
+    lines += _footage_lines(result.get("footage"))
     return "\n".join(lines)
+
+
+def _footage_lines(footage: dict | None) -> list[str]:
+    if footage is None:
+        return []
+    lines = ["", f"e. the mouse on footage: {footage['scenario']}, {footage['frames']} frames, "
+             f"automatic start, tracker {footage['tracker']}, palm mapping",
+             "   appearance   start  lost  base mm mean/p95  height mm mean/p95  thumb  "
+             "little  frames/s"]
+    rows = [*footage["rows"], {"appearance": "thesis set-up", "started": True,
+                               "start_frame": 0, "fps": None, **footage["thesis_setup"]}]
+    for r in rows:
+        if not r["started"]:
+            lines.append(f"   {r['appearance']:<12} no start: {r['why']}")
+            continue
+        lines.append(f"   {r['appearance']:<12} {r['start_frame']:5d} {r['lost_frames']:5d}"
+                     f"  {r['base_mean_mm']:7.1f} /{r['base_p95_mm']:6.1f}"
+                     f"  {r['height_mean_mm']:8.1f} /{r['height_p95_mm']:6.1f}"
+                     f"  {100 * r['thumb_button_agreement']:4.0f} %"
+                     f"  {100 * r['little_button_agreement']:4.0f} %  {_f(r['fps'])}")
+    lines.append("   (thesis set-up: mouse-hand, table-calibrated camera, feature tracker from "
+                 "the true start, capsule renders)")
+    return lines
