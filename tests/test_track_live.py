@@ -510,7 +510,10 @@ def test_auto_takes_the_keypoint_tracker_only_for_datasets_the_detector_sees(tmp
         out = tmp_path / f"{appearance}-track"
         assert main(["track", str(data), "-o", str(out), "--quiet", "--no-overlay"]) == 0
         assert f"tracker: {expected}" in capsys.readouterr().out
-        assert json.loads((out / "summary.json").read_text())["tracker"] == expected
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary["tracker"] == expected
+        # the keypoint tracker records the hand's scale (two cameras: the model's size)
+        assert summary["start"].get("hand_scale") == (1.0 if expected == "keypoints" else None)
 
 
 @pytest.mark.skipif(not mediapipe_available(), reason="optional extra digiteyes[mediapipe]")

@@ -112,3 +112,21 @@ def test_the_stream_maps_the_reduced_model_by_the_table_and_a_full_hand_by_its_p
     two = load_model("two-finger")
     with pytest.raises(StateError, match="needs a full hand"):
         PalmMouse.from_start(two, two.neutral())
+
+
+def test_a_replayed_full_hand_run_is_mapped_by_its_palm(tmp_path):
+    """``digiteyes mouse --replay RUN`` of a full-hand track: the model comes from the
+    log's header and the pole from the palm mapping of its first state."""
+    from digiteyes.apps.mouse_stream import open_mouse_stream
+    from digiteyes.io import StateLogWriter
+
+    raised = START.copy()
+    raised[HAND.state_index("index.mcp")] = -np.radians(20.0)
+    with StateLogWriter(tmp_path / "states.csv", HAND) as log:
+        for i, q in enumerate((START, raised)):
+            log.append(i, q, time_s=0.0, lost=False, residual_rms_px=0.0, iterations=1)
+    stream = open_mouse_stream(replay=tmp_path, fps=1000.0)
+    frames = list(stream.frames)
+    assert stream.model.name == "hand" and isinstance(frames[0].mapping, PalmMouse)
+    np.testing.assert_allclose(frames[0].pole, 0.0, atol=1e-9)
+    assert frames[1].pole[2] == pytest.approx(INDEX_LENGTH_MM * np.sin(np.radians(20.0)))

@@ -223,3 +223,35 @@ def test_a_palm_ippe_puts_behind_the_camera_is_placed_by_sqpnp(hand, camera, pos
     assert (palm[:, 2] > 0).all()
     uv = camera.project(true_points(hand, starts[0]))[list(model_fit.PLANAR_PALM)]
     assert np.linalg.norm(uv - obs.keypoints[list(model_fit.PLANAR_PALM)], axis=1).mean() < 15
+
+
+def test_holding_the_palm_position_fits_the_size_one_camera_cannot_see(hand, camera, posed):
+    """A hand 12 % larger than the model, seen by one camera: with the palm held at its
+    known position (mm) the fitted scale is the hand's; without it, one camera places
+    the model's hand closer instead. The held position's residual and Jacobian (scale
+    column included) match finite differences."""
+    q = posed(hand, 4)
+    truth = true_points(hand, q, 1.12)
+    start = q.copy()
+    start[4:7] *= 1.12  # the true palm position, mm
+    obs = [KeypointObservation(camera, camera.project(truth))]
+    held = fit_keypoints(hand, obs, options=FitOptions(fit_scale=True, hold_position_mm=5.0),
+                         q0=start)
+    assert held.scale == pytest.approx(1.12, abs=0.02)
+    gaps = np.linalg.norm(held.keypoints_world - truth, axis=1)
+    assert np.median(gaps) < 4.0 and gaps.max() < 10.0  # one view: a finger's depth
+    free = fit_keypoints(hand, obs, options=FitOptions(fit_scale=False), q0=start)
+    assert np.linalg.norm(free.keypoints_world[9] - truth[9]) > 30.0
+    problem = KeypointFitProblem(hand, obs, None, FitOptions(hold_position_mm=5.0), True,
+                                 motion_from=start)
+    x = np.append(integrate(hand, q, np.linspace(-0.02, 0.03, hand.n_v)), 1.07)
+    r, J = problem.residuals(x, True)
+    rows = slice(r.size - 4, r.size - 1)  # before the scale's own prior row
+    np.testing.assert_allclose(r[rows], (1.07 * x[4:7] - start[4:7]) / 5.0, atol=1e-9)
+    eps = 1e-6
+    for i in range(problem.n_v):
+        step = np.zeros(problem.n_v)
+        step[i] = eps
+        fd = (problem.residuals(problem.retract(x, step), False)[0][rows]
+              - problem.residuals(problem.retract(x, -step), False)[0][rows]) / (2 * eps)
+        np.testing.assert_allclose(J[rows, i], fd, atol=1e-6 * np.abs(J[rows]).max())

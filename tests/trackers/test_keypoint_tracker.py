@@ -112,3 +112,32 @@ def test_bad_options_are_named():
                        ("detector", "sonar")):
         with pytest.raises(ValueError, match=key):
             create_tracker("keypoints", scenario.model, scenario.rig, **{key: value})
+
+
+@pytest.mark.parametrize("size", [0.85, 1.12])
+def test_one_camera_takes_the_hands_size_from_the_given_start(size):
+    """A hand of another size than the model, one camera, the true start given: the
+    first frame fits the size with the palm held at the start (the tracker's ``scale``),
+    and the palm stays where it is. Without it (``start_size=False``) one camera puts
+    the model's hand where its image size says, ``1 / size`` of the distance."""
+    from digiteyes.kinematics.scaling import scaled_model
+
+    scenario = build_scenario("desk-1cam", seed=1, n_frames=8)
+    model, rig = scenario.model, scenario.rig
+    truth = scaled_model(model, size)  # the same states pose a hand `size` times larger
+    blank = [np.zeros((c.height, c.width), np.uint8) for c in rig]
+    palm_errors = {}
+    for start_size in (True, False):
+        tracker = create_tracker("keypoints", model, rig, detector="classic",
+                                 silhouette_check=False, start_size=start_size)
+        tracker.reset(scenario.initial_state)
+        tracker._detectors = [TruthDetector(truth, scenario.states, noise_px=0.5)]
+        states = np.array([tracker.step(blank).state for _ in range(8)])
+        palm_errors[start_size] = np.linalg.norm(states[:, 4:7] - scenario.states[:, 4:7],
+                                                 axis=1)
+        if start_size:
+            assert tracker.scale == pytest.approx(size, abs=0.02)
+        else:
+            assert tracker.scale == 1.0
+    assert palm_errors[True].max() < 10.0, palm_errors[True]
+    assert palm_errors[False].min() > 30.0, palm_errors[False]

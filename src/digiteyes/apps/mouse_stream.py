@@ -42,7 +42,7 @@ from digiteyes.camera import Rig, load_rig
 from digiteyes.errors import CameraError, DatasetError
 from digiteyes.filters import OneEuroFilter, OneEuroOptions
 from digiteyes.io import VideoReader, open_sequence, open_video_frames, read_state_log
-from digiteyes.io.track_extras import track_fps
+from digiteyes.io.track_extras import model_of_log, track_fps
 from digiteyes.io.video import (
     DEFAULT_CAMERA_FPS,
     DEFAULT_FPS,
@@ -269,27 +269,6 @@ def replay_frames(run_dir: str | Path, model: KinematicModel, fps: float
             reader.close()
 
 
-REPLAY_MODELS = ("mouse-hand", "hand")
-"""The shipped models a replay's ``states.csv`` is matched against without ``--model``."""
-
-
-def replay_model(run_dir: str | Path) -> KinematicModel:
-    """The first of :data:`REPLAY_MODELS` whose states are all columns of
-    ``run_dir/states.csv`` (``mouse-hand`` when none is: reading the log then says what
-    is missing)."""
-    path = Path(run_dir) / "states.csv"
-    try:
-        with path.open(encoding="utf-8") as f:
-            header = set(f.readline().strip().split(","))
-    except OSError as exc:
-        raise DatasetError(f"{path}: cannot read the state log ({exc.strerror})") from None
-    for name in REPLAY_MODELS:
-        model = load_model(name)
-        if set(model.state_names) <= header:
-            return model
-    return load_model(REPLAY_MODELS[0])
-
-
 def paced(frames: Iterable[list[np.ndarray]], fps: float) -> Iterator[list[np.ndarray]]:
     """``frames`` released no faster than ``fps`` per second (a camera's clock for frames
     that come from files or the renderer); late frames go out at once."""
@@ -353,7 +332,8 @@ def _open_source(source: str | None = None, *, replay: str | Path | None = None,
     """
     options = FeatureTrackerOptions(iterations_per_frame=iterations)
     if replay is not None:
-        model = load_model(model_name) if model_name else replay_model(replay)
+        model = load_model(model_name) if model_name else model_of_log(
+            Path(replay) / "states.csv")
         rate = fps or track_fps(replay) or DEFAULT_FPS
         stream = replay_frames(replay, model, rate)
         return MouseStream(model, _limit(stream, frames), rate, f"replay of {replay}", frames)

@@ -92,6 +92,11 @@ class FitOptions:
         the expected change of the palm's position (mm) and of every angle, the palm's
         rotation included (deg), e.g. per frame of a track (the stabilisation of
         Rehg's eq. 2.22 as a prior); None (default): no such prior.
+    hold_position_mm : with a start state ``q0``, a prior that holds the palm's position
+        in millimetres (``s`` times the state's translation, the scale included) to
+        ``q0``'s (at ``scale``) within this sigma: with the scale fitted, the hand's
+        size is then what its image size is at the start's depth (the keypoint
+        tracker's size at the start); None (default): no such prior.
     """
 
     sigma_px: float = 4.0
@@ -103,6 +108,7 @@ class FitOptions:
     fit_scale: bool | None = None
     iterations: int = 10
     motion_sigma: tuple[float, float] | None = None
+    hold_position_mm: float | None = None
 
 
 @dataclass
@@ -201,6 +207,11 @@ class KeypointFitProblem:
         if motion_from is not None and options.motion_sigma is not None:
             self.motion_from = np.asarray(motion_from, dtype=float)
             self._motion_weights = 1.0 / _motion_sigmas(model, *options.motion_sigma)
+        self.position_from = None
+        if motion_from is not None and options.hold_position_mm is not None:
+            k = model.base_state
+            self.position_from = options.scale * np.asarray(motion_from, dtype=float)[k + 4:k + 7]
+            self._position_columns = model.q_to_v[k + 4:k + 7]
 
     def _shape_target(self, obs: KeypointObservation) -> np.ndarray | None:
         """The detector's shape of ``obs`` about its centroid, brought to the size of the
@@ -263,6 +274,18 @@ class KeypointFitProblem:
             if jacobian:
                 block = np.zeros((n, n + 1))
                 block[np.arange(n), np.arange(n)] = self._motion_weights
+                jac.append(block)
+        if self.position_from is not None:
+            # the palm's position in mm, s t: d/d(step) = s I on the translation
+            # columns (translation steps add), d/ds = t
+            k = self.model.base_state
+            sigma = self.options.hold_position_mm
+            t = q[k + 4:k + 7]
+            parts.append((s * t - self.position_from) / sigma)
+            if jacobian:
+                block = np.zeros((3, n + 1))
+                block[np.arange(3), self._position_columns] = s / sigma
+                block[:, n] = t / sigma
                 jac.append(block)
         parts.append(np.array([(s - self.options.scale) / self.options.sigma_scale]))
         if jacobian:

@@ -19,6 +19,20 @@ explain the keypoints, a fit from scratch is tried; a fit that moves the hand fa
 than a hand could move (``max_jump``) is refused. A frame in which no camera finds a hand,
 or no fit explains the keypoints near the last estimate, holds the previous state and is
 flagged lost.
+**The hand's size from the start.** With one camera the keypoints fix the hand's size
+times its depth, not each: a hand 10 % larger than the model is tracked 10 % too far
+away. A start state that was *given* (a dataset's, or one the user placed, as in the
+thesis) fixes the depth, so on the first frame after :meth:`KeypointTracker.reset` the
+hand's scale is fitted too, with the palm's position held to the start's
+(``start_size``; :data:`START_POSITION_SIGMA_MM`), and kept for the track. An automatic
+start took its depth from the model's size, so there the fit returns about that size.
+States stay those of the model file, in millimetres: the palm where the scaled hand's
+is, the angles its angles (:meth:`~digiteyes.detect.model_fit.PoseFit.scaled_state`);
+the fingers drawn from them have the model's lengths. One camera only: several see the
+depth themselves, and there the fitted size made the tracks worse (the model's fingers
+placed at the right palm reach less far than a compromise fit puts them;
+docs/keypoint-tracker.md).
+
 A fit that explains the keypoints can still be wrong (a detector that takes a hand-like
 drawing or a back-lit hand for a hand labels its joints anyway), so the shared silhouette
 rule (:mod:`digiteyes.trackers.silhouette_loss`, plain backdrops) judges every frame as
@@ -29,7 +43,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import ClassVar
 
 import numpy as np
@@ -50,6 +64,11 @@ from digiteyes.trackers.silhouette_loss import SilhouetteLoss, SilhouetteLossOpt
 
 JUMP_FRAMES = 4
 """The frames without a fit that widen the jump bound of ``max_jump`` at most."""
+START_POSITION_SIGMA_MM = 5.0
+"""How closely the first frame's size fit holds the palm to the start's position (mm)."""
+START_SCALE_RANGE = (0.6, 1.6)
+"""Hand scales (relative to the model file) the size fit at the start may return; outside
+them the model's size is kept."""
 
 
 @dataclass(frozen=True)
@@ -78,6 +97,9 @@ class KeypointTrackerOptions(SilhouetteLossOptions, LossHoldOptions):
         between frames, a detector that labels part of the hand (or something else)
         makes the fit do so. A hand that comes back far from where it was lost is taken
         up by the run loop's re-detection, which restarts the tracker.
+    start_size : with one camera, fit the hand's scale on the first frame with the palm
+        held at the start state's position (module docstring); False keeps the model's
+        size.
     """
 
     detector: str = "auto"
@@ -89,6 +111,7 @@ class KeypointTrackerOptions(SilhouetteLossOptions, LossHoldOptions):
     max_jump: float = 0.5
     motion_sigma_mm: float | None = None
     motion_sigma_deg: float | None = None
+    start_size: bool = True
 
     def __post_init__(self) -> None:
         for name in ("sigma_px", "sigma_joint_deg", "max_error_px", "max_jump"):
@@ -105,6 +128,8 @@ class KeypointTrackerOptions(SilhouetteLossOptions, LossHoldOptions):
             if value is not None and (isinstance(value, bool)
                                       or not isinstance(value, int | float) or not value > 0):
                 raise ValueError(f"{name} must be a positive number or None, got {value!r}")
+        if not isinstance(self.start_size, bool):
+            raise ValueError(f"start_size must be true or false, got {self.start_size!r}")
         if self.detector not in DETECTORS:
             raise ValueError(f"detector must be one of {', '.join(DETECTORS)}, got "
                              f"{self.detector!r}")
@@ -139,6 +164,9 @@ class KeypointTracker:
         self._fit_options = FitOptions(sigma_px=opts.sigma_px,
                                        sigma_joint_deg=opts.sigma_joint_deg, fit_scale=False,
                                        iterations=opts.iterations, motion_sigma=motion)
+        self.scale = 1.0
+        """The hand's scale relative to the model file (the start's size fit)."""
+        self._size_pending = False
         self._detectors: list = []
         self.silhouette_loss = SilhouetteLoss.from_options(model, rig, self.options)
         self.loss_hold = LossHold(self.options.hold_lost_frames)
@@ -158,6 +186,8 @@ class KeypointTracker:
         self.loss_hold.reset()
         self._frame_index = 0
         self._since_fit = 1
+        self._set_scale(1.0)
+        self._size_pending = self.options.start_size and len(self.rig) == 1
 
     def restart(self, state: np.ndarray) -> None:
         """Continue from ``state`` after a re-detection: the detectors keep following and
@@ -181,7 +211,11 @@ class KeypointTracker:
         start = time.perf_counter()
         observations = [KeypointObservation.of(c, camera)
                         for c, camera in zip(candidates, self.rig, strict=True) if c is not None]
-        fit, iterations = self._fit(observations) if observations else (None, 0)
+        fit, iterations = None, 0
+        if observations and self._size_pending:
+            fit, iterations = self._fit_size(observations)
+        if fit is None and observations:
+            fit, iterations = self._fit(observations)
         timings["fit"] = time.perf_counter() - start
         predicted = self.state
         reprojection = np.full((len(self.rig), 21), np.nan)
@@ -192,7 +226,7 @@ class KeypointTracker:
             self._since_fit += 1
         else:
             self._since_fit = 1
-            self.state = np.array(fit.q, dtype=float)
+            self.state = fit.scaled_state()
             seen = [c is not None for c in candidates]
             reprojection[seen] = fit.reprojection_px
             errors = fit.reprojection_px[np.isfinite(fit.reprojection_px)]
@@ -224,12 +258,42 @@ class KeypointTracker:
         return min(found, key=lambda c: float(np.mean(np.linalg.norm(c.keypoints - here,
                                                                       axis=1))))
 
+    def _set_scale(self, scale: float) -> None:
+        self.scale = float(scale)
+        self._fit_options = replace(self._fit_options, scale=self.scale)
+
+    def _model_units(self, state: np.ndarray) -> np.ndarray:
+        """``state`` (translation in mm) as a start of the fit at the current scale
+        (translation in model units, :class:`~digiteyes.detect.model_fit.PoseFit`)."""
+        q = np.array(state, dtype=float)
+        k = self.model.base_state
+        q[k + 4:k + 7] /= self.scale
+        return q
+
+    def _fit_size(self, observations: list[KeypointObservation]) -> tuple[PoseFit | None, int]:
+        """The first frame's fit with the hand's scale free and the palm held to the start
+        state's position; the scale is kept when the fit explains the keypoints and the
+        scale lies in :data:`START_SCALE_RANGE`. Returns that fit (None otherwise: the
+        frame is fitted as any other) and its iterations."""
+        self._size_pending = False
+        options = replace(self._fit_options, fit_scale=True,
+                          hold_position_mm=START_POSITION_SIGMA_MM)
+        try:
+            fit = fit_keypoints(self.model, observations, options=options, q0=self.state)
+        except DigitEyesError:
+            return None, 0
+        low, high = START_SCALE_RANGE
+        if not (self._explains(fit) and low <= fit.scale <= high):
+            return None, fit.iterations
+        self._set_scale(fit.scale)
+        return fit, fit.iterations
+
     def _fit(self, observations: list[KeypointObservation]) -> tuple[PoseFit | None, int]:
         """The fit from the previous estimate when it explains the keypoints near the last
         estimate, else the fit from scratch when that one does, else None; and the solver
         iterations spent."""
         iterations = 0
-        for q0 in (self.state, None):
+        for q0 in (self._model_units(self.state), None):
             try:
                 fit = fit_keypoints(self.model, observations, options=self._fit_options, q0=q0)
             except DigitEyesError:
