@@ -141,3 +141,20 @@ def test_one_camera_takes_the_hands_size_from_the_given_start(size):
             assert tracker.scale == 1.0
     assert palm_errors[True].max() < 10.0, palm_errors[True]
     assert palm_errors[False].min() > 30.0, palm_errors[False]
+
+
+def test_the_size_is_read_at_the_start_frame_only():
+    """No hand in the start's frame: the size stays the model's (a later frame's hand has
+    moved away from the start's position, which would read as another size)."""
+    from digiteyes.kinematics.scaling import scaled_model
+
+    scenario = build_scenario("desk-1cam", seed=1, n_frames=4)
+    model, rig = scenario.model, scenario.rig
+    tracker = create_tracker("keypoints", model, rig, detector="classic",
+                             silhouette_check=False)
+    tracker.reset(scenario.initial_state)
+    tracker._detectors = [TruthDetector(scaled_model(model, 1.12), scenario.states,
+                                        noise_px=0.5, missing={0})]
+    blank = [np.zeros((c.height, c.width), np.uint8) for c in rig]
+    results = [tracker.step(blank) for _ in range(4)]
+    assert results[0].lost and not results[3].lost and tracker.scale == 1.0

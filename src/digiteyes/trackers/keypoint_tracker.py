@@ -24,7 +24,8 @@ times its depth, not each: a hand 10 % larger than the model is tracked 10 % too
 away. A start state that was *given* (a dataset's, or one the user placed, as in the
 thesis) fixes the depth, so on the first frame after :meth:`KeypointTracker.reset` the
 hand's scale is fitted too, with the palm's position held to the start's
-(``start_size``; :data:`START_POSITION_SIGMA_MM`), and kept for the track. An automatic
+(``start_size``; :data:`START_POSITION_SIGMA_MM`), and kept for the track (when the
+hand is not found in that frame, the model's size is kept: later the hand has moved). An automatic
 start took its depth from the model's size, so there the fit returns about that size.
 States stay those of the model file, in millimetres: the palm where the scaled hand's
 is, the angles its angles (:meth:`~digiteyes.detect.model_fit.PoseFit.scaled_state`);
@@ -214,6 +215,7 @@ class KeypointTracker:
         fit, iterations = None, 0
         if observations and self._size_pending:
             fit, iterations = self._fit_size(observations)
+        self._size_pending = False  # the start's frame only: later, the hand has moved
         if fit is None and observations:
             fit, iterations = self._fit(observations)
         timings["fit"] = time.perf_counter() - start
@@ -275,7 +277,6 @@ class KeypointTracker:
         state's position; the scale is kept when the fit explains the keypoints and the
         scale lies in :data:`START_SCALE_RANGE`. Returns that fit (None otherwise: the
         frame is fitted as any other) and its iterations."""
-        self._size_pending = False
         options = replace(self._fit_options, fit_scale=True,
                           hold_position_mm=START_POSITION_SIGMA_MM)
         try:
