@@ -149,3 +149,27 @@ def test_scenario_tracked_on_the_fly_until_sigterm(driver, tmp_path, model):
     print(f"tracked frame-to-page latency: median {np.median(latency):.1f} ms "
           f"(tracking {np.median(tracking):.1f} ms)")
     assert driver.find_element("id", "pole-height").text != "-"
+
+
+def test_footage_without_a_hand_says_so_on_the_page_and_in_the_terminal(driver, tmp_path):
+    """``digiteyes mouse VIDEO`` whose frames show no hand: the automatic start finds
+    none, the page says why it stopped, and the command exits with the one-line error."""
+    import cv2
+
+    video = tmp_path / "empty.mp4"
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"mp4v"), 10.0, (160, 120))
+    for _ in range(5):
+        writer.write(np.full((120, 160, 3), 90, np.uint8))
+    writer.release()
+    child, url = start_mouse_server([str(video), "--fps", "50"])
+    try:
+        state = watch_until_ended(driver, url, timeout_s=60)
+        assert child.wait(timeout=30) == 2
+        output = child.stdout.read()
+    finally:
+        stop_server(child)
+    assert "no hand found in 5 frame(s)" in state["error"]
+    assert "stopped: --init auto: no hand found" in driver.find_element("id",
+                                                                         "description").text
+    assert "digiteyes: error: --init auto: no hand found in 5 frame(s)" in output
+    assert "Traceback" not in output

@@ -162,7 +162,9 @@ class MouseServer:
         stopping.set()
 
     def _produce(self, loop: asyncio.AbstractEventLoop) -> None:
-        """Worker thread: pull frames from the stream and hand them to the event loop."""
+        """Worker thread: pull frames from the stream and hand them to the event loop. A
+        digiteyes error of the source (no hand found, an unreadable frame) is told to the
+        pages as an ``error`` message, then raised to the command."""
         frames = self.stream.frames
         try:
             for frame in frames:
@@ -175,6 +177,10 @@ class MouseServer:
                 self.frames_sent += 1
                 if self.on_frame is not None:
                     self.on_frame(frame)
+        except DigitEyesError as exc:
+            message = json.dumps({"type": "error", "message": str(exc)})
+            asyncio.run_coroutine_threadsafe(self._send(message, None), loop).result()
+            raise
         finally:
             close = getattr(frames, "close", None)
             if close is not None:

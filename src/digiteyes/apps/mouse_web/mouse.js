@@ -13,7 +13,7 @@ const GRID_STEP_MM = 20.0;
 
 // Everything the page knows, exposed for tests and the console.
 const mouse = {
-  connected: false, ended: false, description: "",
+  connected: false, ended: false, error: null, description: "",
   pole: null,                 // [x, y, height] mm, as received
   buttons: {},                // name -> pressed
   sphere: { centre: [0, 30, 15], radius: 15, held: false, offset: [0, 0, 0] },
@@ -206,6 +206,10 @@ function connect() {
     } else if (msg.type === "end") {
       mouse.ended = true;
       setText("description", mouse.description + " (ended after " + msg.frames + " frames)");
+    } else if (msg.type === "error") {
+      mouse.ended = true;
+      mouse.error = msg.message;
+      setText("description", mouse.description + " (stopped: " + msg.message + ")");
     }
   };
   socket.onclose = () => { mouse.connected = false; };
