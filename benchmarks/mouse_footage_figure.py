@@ -34,8 +34,8 @@ def main() -> int:
     write_mouse_pole_plot(args.out, np.array(row["frame"]), np.array(row["pole_mm"]),
                           np.array(row["true_pole_mm"]),
                           phases=[p for p in MOUSE_PHASES if p[0] < row["frame"][-1]],
-                          title="Webcam mouse, full hand from the images alone (flesh "
-                                "render): estimate (solid), truth (dashed)")
+                          title="Webcam mouse from the images alone (flesh render): "
+                                "estimate solid, truth dashed")
     print(f"-> {args.out}")
     return 0
 
