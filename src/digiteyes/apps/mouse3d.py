@@ -47,7 +47,8 @@ DEFAULT_BUTTON_THRESHOLD_DEG = 12.5
 stroke of the ``mouse`` scenario's button event (thesis Fig. 4.11, frames 158-192)."""
 
 
-def _palm_row(model: KinematicModel) -> int:
+def palm_row(model: KinematicModel) -> int:
+    """The row of ``model``'s palm link; :class:`StateError` when it has none."""
     palms = [link for link in model.links if link.kind == "palm"]
     if not palms:
         raise StateError(f"model {model.name!r} has no palm link: no mouse-pole base")
@@ -79,7 +80,7 @@ def pole_from_state(model: KinematicModel, q: np.ndarray) -> np.ndarray:
                          "height") from None
     T = forward_kinematics(model, Q).T_world_shape  # (N, F, 4, 4)
     pole = np.empty((T.shape[0], 3))
-    pole[:, :2] = T[:, _palm_row(model), :2, 3]
+    pole[:, :2] = T[:, palm_row(model), :2, 3]
     pole[:, 2] = T[:, tip.row, 2, 3] - tip.radius
     return pole if Q.ndim == 2 else pole[0]
 

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from digiteyes.apps.mouse3d import DEFAULT_BUTTON_THRESHOLD_DEG, POLE_TIP
+from digiteyes.apps.mouse3d import DEFAULT_BUTTON_THRESHOLD_DEG, POLE_TIP, palm_row
 from digiteyes.errors import StateError
 from digiteyes.kinematics import KinematicModel, forward_kinematics, validate_state
 
@@ -53,13 +53,6 @@ def _row(model: KinematicModel, name: str) -> int:
     except KeyError:
         raise StateError(f"model {model.name!r} has no link {name!r}: the palm mouse needs "
                          "a full hand (index tip, thumb, little finger)") from None
-
-
-def _palm_row(model: KinematicModel) -> int:
-    palms = [link for link in model.links if link.kind == "palm"]
-    if not palms:
-        raise StateError(f"model {model.name!r} has no palm link: no palm mouse")
-    return palms[0].row
 
 
 @dataclass(frozen=True)
@@ -88,7 +81,7 @@ class PalmMouse:
                    threshold_deg: float = DEFAULT_BUTTON_THRESHOLD_DEG) -> PalmMouse:
         """The mapping whose table is the palm of state ``q0`` (n_q,); ``mirrored``: the
         states are a left hand's mirror image (x then points to the thumb's side)."""
-        T = forward_kinematics(model, validate_state(model, q0)).T_world_shape[0, _palm_row(model)]
+        T = forward_kinematics(model, validate_state(model, q0)).T_world_shape[0, palm_row(model)]
         R_world_palm, origin = T[:3, :3], T[:3, 3]
         sign = 1.0 if mirrored else -1.0  # x: the little finger's side of a right hand
         R_world_table = np.column_stack([sign * R_world_palm[:, 0], R_world_palm[:, 1],
@@ -110,7 +103,7 @@ class PalmMouse:
         """Pole base x, base y (table mm) and height (mm above the palm plane) of state(s)
         ``q`` (n_q,) or (N, n_q): (3,) or (N, 3)."""
         T, batch = self._frames(q)
-        palm = T[:, _palm_row(self.model)]
+        palm = T[:, palm_row(self.model)]
         tip = T[:, _row(self.model, POLE_TIP), :3, 3]
         base = palm[:, :3, 3] @ self.T_table_world[:3, :3].T + self.T_table_world[:3, 3]
         # the tip in the palm frame; the back of the hand is the palm frame's -z
@@ -122,7 +115,7 @@ class PalmMouse:
         """Each button digit's spread (rad): the angle, in the palm plane, of its first
         link's base to its tip from the palm's y axis, positive away from the fingers."""
         T, batch = self._frames(q)
-        palm = T[:, _palm_row(self.model)]
+        palm = T[:, palm_row(self.model)]
         out: dict[str, np.ndarray | float] = {}
         for button, (first, end, side) in SPREAD_LINKS.items():
             line = T[:, _row(self.model, end), :3, 3] - T[:, _row(self.model, first), :3, 3]
