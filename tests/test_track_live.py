@@ -527,7 +527,9 @@ def test_hand_auto_tracks_a_left_hand_video_as_the_mirror_image(tmp_path, capsys
     assert main(["track", str(video), "--rig", str(tmp_path / "rig.json"), "--init", "auto",
                  "-o", str(out), "--quiet", "--no-overlay"]) == 0
     assert "--hand auto: the detector sees a left hand" in capsys.readouterr().out
-    assert json.loads((out / "summary.json").read_text())["start"]["hand"] == "left"
+    start = json.loads((out / "summary.json").read_text())["start"]
+    assert start["hand"] == "left"
+    assert start["hand_scale"] == 1.0  # footage: the model's size, none read from the start
     with open(out / "keypoints.csv", newline="", encoding="utf-8") as handle:
         rows = list(csv.DictReader(handle))
     errors = []

@@ -107,7 +107,8 @@ def footage_mouse_frames(model: KinematicModel, frames: Iterable[list[np.ndarray
     if initialiser.last.sides() == {"left"}:
         initialiser, rig, found, initial = as_left_hand(initialiser, rig, found, initial)
     name = resolve_tracker(AUTO_TRACKER, True, detector, model)
-    options = {"detector": detector} if name == FOOTAGE_TRACKER else {}
+    # footage: the start's depth came from the model's size, so no size is read from it
+    options = {"detector": detector, "start_size": False} if name == FOOTAGE_TRACKER else {}
     tracker = create_tracker(name, model, rig, **options)
     yield from track_frames(
         model, rig, timestamped(found), initial, tracker=tracker, overlay=overlay,

@@ -304,10 +304,18 @@ def has_hand21(model: KinematicModel) -> bool:
     return True
 
 
-def _tracker_options(job: TrackJob, model: KinematicModel, name: str) -> dict[str, object]:
+def _tracker_options(job: TrackJob, model: KinematicModel, name: str,
+                     footage: bool) -> dict[str, object]:
+    """The options of tracker ``name``: the job's ``--option`` pairs over the flags. The
+    keypoint tracker reads the hand's size from a dataset's start (its true state), not
+    from footage's, which the images gave (from the model's size) or the user placed by
+    eye (``--init FILE``); there the model's (or a personal model's) size stays
+    (``--option start_size=true`` overrides)."""
     options = dict(job.options)
     if name == FOOTAGE_TRACKER:
         options.setdefault("detector", job.detector)
+        if footage:
+            options.setdefault("start_size", False)
     if name == DEFAULT_TRACKER:
         flags = tracker_options(job.iterations, job.window, job.links, model, job.robust,
                                 job.prediction, job.shading)
@@ -386,7 +394,8 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
     frames = chain(ahead, rest)
     if name != job.tracker_name:
         say(f"tracker: {name} (--tracker auto: {_why_tracker(name, source.footage)})")
-    tracker = create_tracker(name, model, rig, **_tracker_options(job, model, name))
+    tracker = create_tracker(name, model, rig,
+                             **_tracker_options(job, model, name, source.footage))
     check = _detection_check(job, source.footage, name, model, rig)
     out = Path(job.output)
     out.mkdir(parents=True, exist_ok=True)

@@ -26,7 +26,9 @@ thesis) fixes the depth, so on the first frame after :meth:`KeypointTracker.rese
 hand's scale is fitted too, with the palm's position held to the start's
 (``start_size``; :data:`START_POSITION_SIGMA_MM`), and kept for the track (when the
 hand is not found in that frame, the model's size is kept: later the hand has moved). An automatic
-start took its depth from the model's size, so there the fit returns about that size.
+start took its depth from the model's size, so there the fit returns about that size
+(``digiteyes track`` turns the size fit off for footage, whose start the images or the
+user's eye gave).
 States stay those of the model file, in millimetres: the palm where the scaled hand's
 is, the angles its angles (:meth:`~digiteyes.detect.model_fit.PoseFit.scaled_state`);
 the fingers drawn from them have the model's lengths. One camera only: several see the
