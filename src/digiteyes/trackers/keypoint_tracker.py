@@ -19,22 +19,21 @@ explain the keypoints, a fit from scratch is tried; a fit that moves the hand fa
 than a hand could move (``max_jump``) is refused. A frame in which no camera finds a hand,
 or no fit explains the keypoints near the last estimate, holds the previous state and is
 flagged lost.
+
 **The hand's size from the start.** With one camera the keypoints fix the hand's size
 times its depth, not each: a hand 10 % larger than the model is tracked 10 % too far
-away. A start state that was *given* (a dataset's, or one the user placed, as in the
-thesis) fixes the depth, so on the first frame after :meth:`KeypointTracker.reset` the
-hand's scale is fitted too, with the palm's position held to the start's
-(``start_size``; :data:`START_POSITION_SIGMA_MM`), and kept for the track (when the
-hand is not found in that frame, the model's size is kept: later the hand has moved). An automatic
-start took its depth from the model's size, so there the fit returns about that size
-(``digiteyes track`` turns the size fit off for footage, whose start the images or the
-user's eye gave).
-States stay those of the model file, in millimetres: the palm where the scaled hand's
-is, the angles its angles (:meth:`~digiteyes.detect.model_fit.PoseFit.scaled_state`);
-the fingers drawn from them have the model's lengths. One camera only: several see the
-depth themselves, and there the fitted size made the tracks worse (the model's fingers
-placed at the right palm reach less far than a compromise fit puts them;
-docs/keypoint-tracker.md).
+away. A start state that was *given* (a dataset's true state) fixes the depth, so on the
+first frame after :meth:`KeypointTracker.reset` the hand's scale is fitted too, with the
+palm's position held to the start's (``start_size``; :data:`START_POSITION_SIGMA_MM`),
+and kept for the track; when the hand is not found in that frame the model's size stays
+(later the hand has moved). An automatic start took its depth from the model's size, so
+there the fit returns about that size, and ``digiteyes track`` turns the size fit off
+for footage, whose start the images or the user's eye gave. States stay those of the
+model file, in millimetres: the palm where the scaled hand's is, the angles its angles
+(:meth:`~digiteyes.detect.model_fit.PoseFit.scaled_state`); the fingers drawn from them
+have the model's lengths. One camera only: several see the depth themselves, and there
+the fitted size made the tracks worse (the model's fingers placed at the right palm reach
+less far than a compromise fit puts them; docs/keypoint-tracker.md).
 
 A fit that explains the keypoints can still be wrong (a detector that takes a hand-like
 drawing or a back-lit hand for a hand labels its joints anyway), so the shared silhouette
