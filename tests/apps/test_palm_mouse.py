@@ -130,3 +130,26 @@ def test_a_replayed_full_hand_run_is_mapped_by_its_palm(tmp_path):
     assert stream.model.name == "hand" and isinstance(frames[0].mapping, PalmMouse)
     np.testing.assert_allclose(frames[0].pole, 0.0, atol=1e-9)
     assert frames[1].pole[2] == pytest.approx(INDEX_LENGTH_MM * np.sin(np.radians(20.0)))
+
+
+def test_a_replayed_left_hand_run_moves_the_pole_as_the_real_hand_moves(tmp_path):
+    """A left hand's run holds the mirror image's states (``summary.json`` says
+    ``start.hand: left``): its replay maps them as mirrored, so the same states move the
+    pole the other way in x than a right hand's run does."""
+    import json
+
+    from digiteyes.apps.mouse_stream import open_mouse_stream
+    from digiteyes.io import StateLogWriter
+
+    moved = START.copy()
+    moved[4:7] += Rotation.from_quat(START[:4], scalar_first=True).apply([10.0, 0.0, 0.0])
+    poles = {}
+    for side in ("right", "left"):
+        run = tmp_path / side
+        run.mkdir()
+        with StateLogWriter(run / "states.csv", HAND) as log:
+            for i, q in enumerate((START, moved)):
+                log.append(i, q, time_s=0.0, lost=False, residual_rms_px=0.0, iterations=1)
+        (run / "summary.json").write_text(json.dumps({"fps": 10.0, "start": {"hand": side}}))
+        poles[side] = list(open_mouse_stream(replay=run, fps=1000.0).frames)[1].pole
+    assert poles["right"][0] == pytest.approx(-10.0) and poles["left"][0] == pytest.approx(10.0)

@@ -42,7 +42,7 @@ from digiteyes.camera import Rig, load_rig
 from digiteyes.errors import CameraError, DatasetError
 from digiteyes.filters import OneEuroFilter, OneEuroOptions
 from digiteyes.io import VideoReader, open_sequence, open_video_frames, read_state_log
-from digiteyes.io.track_extras import model_of_log, track_fps
+from digiteyes.io.track_extras import model_of_log, track_fps, track_is_left_hand
 from digiteyes.io.video import (
     DEFAULT_CAMERA_FPS,
     DEFAULT_FPS,
@@ -167,7 +167,7 @@ def timestamped(frames: Iterable[Sequence[np.ndarray]]) -> Iterator[tuple[float,
         yield time.time(), list(images)
 
 
-Recover = Callable[[Tracker, Sequence[np.ndarray], TrackResult], "np.ndarray | None"]
+Recover = Callable[[Tracker, Sequence[np.ndarray], TrackResult], np.ndarray | None]
 """After each frame: the state to continue from (the tracker restarted from it) or None
 (:func:`digiteyes.pipeline.recovered_state` with a re-detection)."""
 
@@ -185,8 +185,7 @@ def track_frames(model: KinematicModel, rig: Rig, frames: Iterable[tuple[float, 
     frame's estimate, so that a palm mapping's origin is where the tracker puts the hand,
     not where the start did); ``recover``: see :data:`Recover` (None: no re-detection);
     ``first_index``: the number of the first frame (frames are numbered as the input's).
-    The tracker first
-    steps once on the first frame, untimed, and is reset
+    The tracker first steps once on the first frame, untimed, and is reset
     (:func:`digiteyes.trackers.warm_up`): compiling or loading the kernels happens before
     the first frame's clock starts, so it never shows as frame-to-page latency."""
     tracker = tracker or FeatureTracker(model, rig, options or FeatureTrackerOptions())
@@ -249,10 +248,11 @@ def replay_frames(run_dir: str | Path, model: KinematicModel, fps: float
     """The states of a finished run (``run_dir/states.csv``) with the frames of its
     ``overlay.mp4`` when there is one, paced at ``fps`` frames per second; mapped by
     :func:`mouse_mapping` of the run's first state (a full hand's palm mapping starts
-    from it)."""
+    from it; a left hand's run holds the mirror image's states, ``summary.json``)."""
     folder = Path(run_dir)
     log = read_state_log(folder / "states.csv", model)
-    mapping = mouse_mapping(model, log.states[0]) if len(log.states) else None
+    mapping = (mouse_mapping(model, log.states[0], mirrored=track_is_left_hand(folder))
+               if len(log.states) else None)
     video_path = folder / "overlay.mp4"
     reader = VideoReader(video_path) if video_path.is_file() else None
     period = 1.0 / fps
