@@ -39,10 +39,12 @@ e. **The mouse on footage** (``digiteyes mouse VIDEO`` with nothing else,
    appearances (our capsule drawing and the independent flesh hand; black cloth, noise 2
    grey levels), started automatically, tracked by the tracker ``track`` picks for
    footage (the keypoint tracker with MediaPipe), mapped by the palm mapping of the
-   estimated start. Against the palm mapping of the true start: mean and 95th percentile
+   first tracked state. Against the palm mapping of the true start: mean and 95th percentile
    error of the pole base (x, y) and height (mm), the buttons' agreement with the truth's
-   (fraction of frames), frames flagged lost, the tracker's frames per second (rendering
-   excluded); the pole per frame, estimated and true, for the figure of
+   (fraction of frames), the jitter of the pole (RMS frame-to-frame change of its error),
+   frames flagged lost, the tracker's frames per second (rendering excluded), and the
+   same with the states One Euro filtered online (``digiteyes mouse --smooth``); the
+   pole per frame, estimated and true, for the figure of
    ``benchmarks/mouse_footage_figure.py``. Beside it the thesis's set-up on the same
    motion (``mouse``: the reduced model, a table-calibrated camera, the feature tracker
    from the true start, grey capsule renders).
@@ -62,11 +64,11 @@ from typing import Any
 import numpy as np
 
 from digiteyes.apps.mouse3d import buttons_from_state, pole_from_state
-from digiteyes.apps.mouse_stream import render_frames, resample_scenario
+from digiteyes.apps.mouse_stream import render_frames, resample_scenario, smoothed
 from digiteyes.apps.palm_mouse import PalmMouse
 from digiteyes.benchmarks._machine import emit, kernel_threads, machine_info, machine_lines
 from digiteyes.errors import DatasetError
-from digiteyes.filters import one_euro_filter
+from digiteyes.filters import OneEuroOptions, one_euro_filter
 from digiteyes.io import StateLogWriter
 from digiteyes.kinematics import forward_kinematics
 from digiteyes.synth import RenderOptions, render_views
@@ -242,12 +244,18 @@ def latency_section(frames: int, progress: bool) -> dict[str, Any]:
 
 
 def _pole_errors(estimate: np.ndarray, truth: np.ndarray) -> dict[str, float]:
-    """Mean and 95th percentile of the pole base distance and height error (mm)."""
-    base = np.hypot(*(estimate[:, :2] - truth[:, :2]).T)
-    height = np.abs(estimate[:, 2] - truth[:, 2])
+    """Mean and 95th percentile of the pole base distance and height error (mm), and the
+    jitter: the RMS frame-to-frame change of the error (mm/frame; what a steady cursor
+    lacks)."""
+    error = estimate - truth
+    base = np.hypot(*error[:, :2].T)
+    height = np.abs(error[:, 2])
+    step = np.diff(error, axis=0)
     return {"base_mean_mm": float(base.mean()), "base_p95_mm": float(np.percentile(base, 95)),
             "height_mean_mm": float(height.mean()),
-            "height_p95_mm": float(np.percentile(height, 95))}
+            "height_p95_mm": float(np.percentile(height, 95)),
+            "base_jitter_mm": float(np.sqrt(np.mean(np.sum(step[:, :2] ** 2, axis=1)))),
+            "height_jitter_mm": float(np.sqrt(np.mean(step[:, 2] ** 2)))}
 
 
 def footage_section(frames: int, progress: bool) -> dict[str, Any]:
@@ -285,6 +293,12 @@ def footage_section(frames: int, progress: bool) -> dict[str, Any]:
             estimate = np.array([f.buttons[button] for f in out])
             row[f"{button}_button_agreement"] = float(np.mean(estimate == pressed[button]))
             row[f"{button}_button_frames_true"] = int(pressed[button].sum())
+        steady = list(smoothed(out, model, scenario.fps, OneEuroOptions()))
+        row["smoothed"] = _pole_errors(np.array([f.pole for f in steady]), true_pole)
+        for button in pressed:
+            estimate = np.array([f.buttons[button] for f in steady])
+            row["smoothed"][f"{button}_button_agreement"] = float(
+                np.mean(estimate == pressed[button]))
         result["rows"].append(row)
         if progress:
             print(f"  footage {appearance}: height error {row['height_mean_mm']:.1f} mm",
@@ -367,10 +381,15 @@ def _footage_lines(footage: dict | None) -> list[str]:
         return []
     lines = ["", f"e. the mouse on footage: {footage['scenario']}, {footage['frames']} frames, "
              f"automatic start, tracker {footage['tracker']}, palm mapping",
-             "   appearance   start  lost  base mm mean/p95  height mm mean/p95  thumb  "
-             "little  frames/s"]
-    rows = [*footage["rows"], {"appearance": "thesis set-up", "started": True,
-                               "start_frame": 0, "fps": None, **footage["thesis_setup"]}]
+             "   appearance   start  lost  base mm mean/p95  height mm mean/p95  jitter mm "
+             "base/height  thumb  little  frames/s"]
+    rows = []
+    for r in footage["rows"]:
+        rows.append(r)
+        if r["started"]:
+            rows.append({**r, **r["smoothed"], "appearance": "  --smooth", "fps": None})
+    rows.append({"appearance": "thesis set-up", "started": True, "start_frame": 0,
+                 "fps": None, **footage["thesis_setup"]})
     for r in rows:
         if not r["started"]:
             lines.append(f"   {r['appearance']:<12} no start: {r['why']}")
@@ -378,6 +397,7 @@ def _footage_lines(footage: dict | None) -> list[str]:
         lines.append(f"   {r['appearance']:<12} {r['start_frame']:5d} {r['lost_frames']:5d}"
                      f"  {r['base_mean_mm']:7.1f} /{r['base_p95_mm']:6.1f}"
                      f"  {r['height_mean_mm']:8.1f} /{r['height_p95_mm']:6.1f}"
+                     f"  {r['base_jitter_mm']:8.2f} /{r['height_jitter_mm']:5.2f}"
                      f"  {100 * r['thumb_button_agreement']:4.0f} %"
                      f"  {100 * r['little_button_agreement']:4.0f} %  {_f(r['fps'])}")
     lines.append("   (thesis set-up: mouse-hand, table-calibrated camera, feature tracker from "
