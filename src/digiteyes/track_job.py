@@ -278,7 +278,7 @@ def resolve_tracker(name: str, footage: bool, detector: str,
     ``mouse-hand``, machines without the MediaPipe extra). Why: on the real video the
     feature tracker is more than half a palm length off MediaPipe's keypoints in 93 % of
     frames and flags 7, the keypoint tracker in none; on the flesh hand's renders its
-    mean error over the accuracy table is 16.5 mm against 42.4
+    mean error over the accuracy table is 16.3 mm against 42.4
     (docs/keypoint-tracker.md)."""
     if name != AUTO_TRACKER:
         return name

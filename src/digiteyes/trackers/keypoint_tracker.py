@@ -84,7 +84,9 @@ class KeypointTrackerOptions(SilhouetteLossOptions, LossHoldOptions):
         ``"mediapipe"``, ``"mediapipe-lite"`` or ``"classic"``.
     sigma_px : expected keypoint error of the detector, px (Huber scale of the fit).
     sigma_joint_deg : width of the fit's prior on each joint angle (deg).
-    iterations : Gauss-Newton iterations of a fit at most.
+    iterations : Gauss-Newton iterations of a fit at most (5: a warm start needs few;
+        10 gave 0.2 mm less over the accuracy table at 10 % less speed on the real video,
+        docs/keypoint-tracker.md).
     max_error_px : a fit explains the keypoints when at least ``min_explained`` of them
         reproject within this distance (px).
     min_explained : that fraction.
@@ -107,7 +109,7 @@ class KeypointTrackerOptions(SilhouetteLossOptions, LossHoldOptions):
     detector: str = "auto"
     sigma_px: float = 4.0
     sigma_joint_deg: float = 45.0
-    iterations: int = 10
+    iterations: int = 5
     max_error_px: float = 25.0
     min_explained: float = 0.5
     max_jump: float = 0.5
