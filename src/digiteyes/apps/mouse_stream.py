@@ -167,15 +167,17 @@ def timestamped(frames: Iterable[Sequence[np.ndarray]]) -> Iterator[tuple[float,
         yield time.time(), list(images)
 
 
-Recover = Callable[[Tracker, Sequence[np.ndarray], TrackResult], np.ndarray | None]
-"""After each frame: the state to continue from (the tracker restarted from it) or None
-(:func:`digiteyes.pipeline.recovered_state` with a re-detection)."""
+RecoverAfterStep = Callable[[Tracker, Sequence[np.ndarray], TrackResult], np.ndarray | None]
+"""After each frame: the state to continue from (the tracker restarted from it) or None;
+:func:`digiteyes.pipeline.recovered_state` bound to a re-detection (``apps`` sits above
+``pipeline``, so the stream takes it as a callable; not the pipeline's ``Recover``, which
+is the re-detection itself)."""
 
 
 def track_frames(model: KinematicModel, rig: Rig, frames: Iterable[tuple[float, list]],
                  initial_state: np.ndarray, options: FeatureTrackerOptions | None = None,
                  *, overlay: bool = True, tracker: Tracker | None = None,
-                 mapping: MouseMapping | None = None, recover: Recover | None = None,
+                 mapping: MouseMapping | None = None, recover: RecoverAfterStep | None = None,
                  first_index: int = 0) -> Iterator[MouseFrame]:
     """Track timestamped frames (from :func:`timestamped`) and yield one
     :class:`MouseFrame` per frame.
@@ -183,7 +185,7 @@ def track_frames(model: KinematicModel, rig: Rig, frames: Iterable[tuple[float, 
     ``tracker``: the tracker to step (None: a feature tracker with ``options``);
     ``mapping``: state -> pole and buttons (None: :func:`mouse_mapping` of the first
     frame's estimate, so that a palm mapping's origin is where the tracker puts the hand,
-    not where the start did); ``recover``: see :data:`Recover` (None: no re-detection);
+    not where the start did); ``recover``: see :data:`RecoverAfterStep` (None: no re-detection);
     ``first_index``: the number of the first frame (frames are numbered as the input's).
     The tracker first steps once on the first frame, untimed, and is reset
     (:func:`digiteyes.trackers.warm_up`): compiling or loading the kernels happens before

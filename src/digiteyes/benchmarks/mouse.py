@@ -260,7 +260,7 @@ def _pole_errors(estimate: np.ndarray, truth: np.ndarray) -> dict[str, float]:
 
 def footage_section(frames: int, progress: bool) -> dict[str, Any]:
     from digiteyes.mouse_job import footage_mouse_frames
-    from digiteyes.track_job import FOOTAGE_TRACKER, resolve_tracker
+    from digiteyes.track_job import resolve_tracker
 
     scenario = build_scenario("hand-mouse", n_frames=frames)
     model = scenario.model
@@ -312,7 +312,6 @@ def footage_section(frames: int, progress: bool) -> dict[str, Any]:
         **{f"{k}_button_agreement": float(np.mean(v == buttons_from_state(
             thesis.model, run["truth"])[k]))
            for k, v in buttons_from_state(thesis.model, run["states"]).items()}}
-    result["uses_keypoints"] = result["tracker"] == FOOTAGE_TRACKER
     return result
 
 
