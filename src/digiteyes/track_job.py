@@ -496,10 +496,6 @@ def _open_sinks(job: TrackJob, model: KinematicModel, rig: Rig, out: Path, fps: 
     return sinks
 
 
-AGREEMENT_PALM_LENGTHS = 0.5
-"""A dataset's hand is the detector's when no digit of the initial state is farther than
-this (palm lengths) from the detection on the first frame (:func:`_detector_agrees`; the
-detection check's "off the hand")."""
 AGREEMENT_FRAMES = 20
 """The dataset's first frames in which the detector must find a hand ..."""
 AGREEMENT_RATE = 0.9
@@ -509,19 +505,22 @@ AGREEMENT_RATE = 0.9
 def _detector_agrees(model: KinematicModel, rig: Rig, detector: str,
                      frames: list[list[np.ndarray]], state: np.ndarray) -> bool:
     """Whether the detector takes a dataset's images for a hand: on the first of
-    ``frames`` within :data:`AGREEMENT_PALM_LENGTHS` of the initial ``state`` in every
-    digit, and in at least :data:`AGREEMENT_RATE` of them (the first camera's images).
+    ``frames`` no digit of the initial ``state`` off the detected hand (the detection
+    check's bound, ``DetectionCheck.max_gap``: half a palm length), and a hand found in
+    at least :data:`AGREEMENT_RATE` of them (the first camera's images).
     Both are needed: the first frame alone passes our capsule drawing of the desk view
     (the thumb's gap 0.21 palm lengths), in whose first 40 frames MediaPipe finds a hand
     in 35 % (the flesh hand: 100 %); and the gap's old bound of 0.25 refused a flesh hand
     0.9 times the model's size (0.26, the thumb: MediaPipe's thumb base is not the
     model's). Not caught: our drawing of `natural` at 30 frames/s, whose hand MediaPipe
-    keeps through the first 20 frames and loses later (70 % of 40 frames at 15 Hz)."""
+    keeps through the first 20 frames and loses later (found in 70 % of every other frame
+    of the first 40)."""
     from digiteyes.detect.check import DetectionCheck
     from digiteyes.detect.pose import make_detector
 
-    worst = DetectionCheck(model, rig, detector).worst_digit(frames[0], state)
-    if worst is None or worst[0] > AGREEMENT_PALM_LENGTHS:
+    check = DetectionCheck(model, rig, detector)
+    worst = check.worst_digit(frames[0], state)
+    if worst is None or worst[0] > check.max_gap:
         return False
     still = make_detector(detector, model)
     found = sum(bool(still.detect(images[0], rig[0])) for images in frames)
