@@ -512,8 +512,17 @@ def test_auto_takes_the_keypoint_tracker_only_for_datasets_the_detector_sees(tmp
         assert f"tracker: {expected}" in capsys.readouterr().out
         summary = json.loads((out / "summary.json").read_text())
         assert summary["tracker"] == expected
-        # the keypoint tracker records the hand's scale (two cameras: the model's size)
+        # the keypoint tracker records the hand's scale (two cameras: the model's size at
+        # the start, then measured on-line, per frame in states.csv, the last in the summary)
         assert summary["start"].get("hand_scale") == (1.0 if expected == "keypoints" else None)
+        header = (out / "states.csv").read_text().splitlines()[0].split(",")
+        assert ("hand_scale" in header) == (expected == "keypoints")
+        if expected == "keypoints":
+            log = read_state_log(out / "states.csv", open_sequence(data).model)
+            assert summary["hand_scale"] == log.hand_scale[-1]
+            assert 0.8 < summary["hand_scale"] < 1.2
+        else:
+            assert summary["hand_scale"] is None
 
 
 @pytest.mark.skipif(not mediapipe_available(), reason="optional extra digiteyes[mediapipe]")

@@ -55,7 +55,15 @@ from digiteyes.camera import Rig
 from digiteyes.io import StateLogWriter, VideoWriter
 from digiteyes.io.safe_paths import atomic_write_json
 from digiteyes.kinematics import KinematicModel
-from digiteyes.trackers import Tracker, TrackResult, residual_unit, restart, warm_up
+from digiteyes.kinematics.scaling import model_of_size
+from digiteyes.trackers import (
+    Tracker,
+    TrackResult,
+    residual_unit,
+    restart,
+    sizes_hand,
+    warm_up,
+)
 from digiteyes.viz.model_view import write_model_png
 from digiteyes.viz.track_overlay import overlay_image
 from digiteyes.viz.trajectory import write_trajectory_plots
@@ -93,6 +101,8 @@ class TrackingRun:
     loop (reading frames, tracking, logging, overlays); ``wall_seconds`` adds the one-off
     outputs written at the end (plots, last 3D view, summary). ``fps`` is the frame rate
     of the input sequence (frames/s), not the tracker's speed (``tracker_fps``).
+    ``hand_scale`` is the hand's size at the last frame relative to the model file, for
+    trackers that fit it (:func:`~digiteyes.trackers.sizes_hand`; else None).
     """
 
     out_dir: Path
@@ -113,6 +123,7 @@ class TrackingRun:
     finger_lost_frames: dict[str, int] = field(default_factory=dict)
     reinitialised_frames: list[int] = field(default_factory=list)
     files: dict[str, Path] = field(default_factory=dict)
+    hand_scale: float | None = None
 
     @property
     def tracker_fps(self) -> float:
@@ -158,6 +169,7 @@ class TrackingRun:
             "lost_frames_per_finger": dict(self.finger_lost_frames),
             "reinitialisations": len(self.reinitialised_frames),
             "reinitialised_frames": list(self.reinitialised_frames),
+            "hand_scale": self.hand_scale,
             "files": {k: str(v) for k, v in self.files.items()},
         }
 
@@ -253,7 +265,8 @@ def run_tracker(
                         preset=OVERLAY_PRESET) if overlay else None
     bar = tqdm(frames, total=total, unit="frame", desc="tracking", disable=not progress)
     try:
-        with StateLogWriter(log_path, model, reinitialised=recover is not None) as log:
+        with StateLogWriter(log_path, model, reinitialised=recover is not None,
+                            hand_scale=sizes_hand(tracker)) as log:
             for index, images, result, seconds in step_frames(tracker, bar, initial_state,
                                                                  first_index):
                 start = time.perf_counter()
@@ -262,21 +275,25 @@ def run_tracker(
                     if reason:
                         result = replace(result, lost=True, loss_reason=reason)
                 fresh = recovered_state(tracker, images, result, recover)
-                if fresh is not None:
-                    result = replace(result, state=fresh)
+                if fresh is not None:  # a fit at the model's size
+                    result = replace(result, state=fresh, hand_scale=1.0)
                     run.reinitialised_frames.append(index)
                 seconds += time.perf_counter() - start
                 log.append(index, result.state, time_s=seconds, lost=result.lost,
                            residual_rms_px=result.residual_rms_px,
-                           iterations=result.iterations, reinitialised=fresh is not None)
+                           iterations=result.iterations, reinitialised=fresh is not None,
+                           hand_scale=result.hand_scale)
                 _account(run, result, index, seconds)
+                if sizes_hand(tracker):
+                    run.hand_scale = float(result.hand_scale)
                 for sink in sinks:
                     sink.write(index, images, result, fresh is not None)
                 states.append(result.state)
                 if video is not None:
                     video.write(overlay_image(images, result, rig, model))
                 if views_every and index % views_every == views_every - 1:
-                    _write_view(model, result.state, out, index, view, run, rig.mirrored)
+                    _write_view(model_of_size(model, result.hand_scale), result.state, out,
+                                index, view, run, rig.mirrored)
                 bar.set_postfix(rms=f"{result.residual_rms_px:.2f} {run.residual_unit}",
                                 lost=run.n_lost)
     except KeyboardInterrupt:
@@ -294,7 +311,8 @@ def run_tracker(
     if states:
         last = first_index + run.n_frames - 1
         if not (views_every and last % views_every == views_every - 1):
-            _write_view(model, states[-1], out, last, view, run, rig.mirrored)
+            _write_view(model_of_size(model, run.hand_scale or 1.0), states[-1], out, last,
+                        view, run, rig.mirrored)
         run.files.update(write_trajectory_plots(model, np.array(states), out))
     run.wall_seconds = time.perf_counter() - started
     summary = out / "summary.json"

@@ -53,6 +53,7 @@ from digiteyes.trackers import (
     FeatureTrackerOptions,
     all_features,
     create_tracker,
+    sizes_hand,
     thesis_whole_hand_links,
 )
 
@@ -409,8 +410,8 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
         for sink in sinks:
             sink.close()
     run.files["keypoints"] = out / KEYPOINTS_FILE
-    if getattr(tracker, "scale", None) is not None:  # the keypoint tracker's hand size
-        start_note["hand_scale"] = float(tracker.scale)
+    if sizes_hand(tracker):
+        start_note["hand_scale"] = float(getattr(tracker, "start_scale", tracker.scale))
     _record_start(run, start_note, initialiser, job.smooth, source.rate, check)
     if source.lengths is not None and not run.interrupted and job.max_frames is None:
         record_missing(run.files["summary"], source.lengths[0], first_index + run.n_frames,

@@ -65,3 +65,25 @@ def test_export_command_errors_in_one_line(tmp_path, capsys):
     assert main(["export", str(tmp_path), "-o", str(tmp_path / "x"), "--format", "csv"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("digiteyes: error:") and "states.csv" in err
+
+
+def test_a_track_of_a_hand_of_its_own_size_is_exported_at_that_size(tmp_path, capsys):
+    """A log with ``hand_scale`` (the keypoint tracker's fitted size): the exported
+    keypoints are those of the hand of the track's median size, and the command says so."""
+    from digiteyes.kinematics.keypoints import hand_keypoints
+
+    scenario = build_scenario("whole-hand")
+    states = scenario.states[:5]
+    track = tmp_path / "track"
+    with StateLogWriter(track / "states.csv", scenario.model, hand_scale=True) as log:
+        for t, q in enumerate(states):
+            log.append(t, q, time_s=0.01, lost=False, residual_rms_px=0.5, iterations=5,
+                       hand_scale=0.9)
+    assert main(["export", str(track), "-o", str(tmp_path / "out"), "--format", "csv"]) == 0
+    assert "the hand 0.900 times the model" in capsys.readouterr().out
+    with open(tmp_path / "out" / "track.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    names, points = hand_keypoints(scenario.model, states, 0.9)
+    tip = names.index("index.tip")
+    got = np.array([[float(r[f"index.tip_{a}_mm"]) for a in "xyz"] for r in rows])
+    np.testing.assert_allclose(got, points[:, tip], atol=1e-9)

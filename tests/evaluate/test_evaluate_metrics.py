@@ -196,3 +196,23 @@ def test_quaternion_angle_matches_scipy_and_ignores_sign():
     np.testing.assert_allclose(quaternion_angle(q1, q2), expected, atol=1e-12)
     np.testing.assert_allclose(quaternion_angle(-scale * q1, q2), expected, atol=1e-12)
     assert quaternion_angle(q1[0], q1[0]) == 0.0
+
+
+def test_the_logs_hand_scale_sizes_the_estimated_hand(hand, rig, make_trajectory,
+                                                      make_truth, make_log):
+    """Truth drawn from a hand 0.9 times the model's: a log of the true states at the
+    model's size is off at the fingertips by a tenth of their distance from the palm; the
+    same log with ``hand_scale`` 0.9 is exact."""
+    from dataclasses import replace
+
+    from digiteyes.kinematics.scaling import scaled_model
+
+    small = scaled_model(hand, 0.9)
+    states = make_trajectory(hand, N, seed=2)
+    truth = make_truth(small, rig, states)
+    log = make_log(states)
+    off = evaluate_run(log, truth, hand, rig)["fingertip_error_mm"]["mean"]
+    exact = evaluate_run(replace(log, hand_scale=np.full(N, 0.9)), truth, hand, rig)
+    assert off > 5.0
+    assert exact["fingertip_error_mm"]["max"] == pytest.approx(0.0, abs=1e-9)
+    assert exact["reprojection_error_px"]["max"] == pytest.approx(0.0, abs=1e-6)

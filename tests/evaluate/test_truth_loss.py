@@ -43,3 +43,14 @@ def test_flag_scores_counts():
     assert flag_scores([False], [False])["precision"] is None
     with pytest.raises(DigitEyesError):
         flag_scores([True], [True, False])
+
+
+def test_an_estimate_of_the_right_size_is_not_lost():
+    """The estimated hand drawn at the log's ``hand_scale``: at the true size the error
+    is nil."""
+    from digiteyes.synth.perturb import scale_model
+
+    hand = load_model("hand")
+    q = hand.neutral()[None]
+    labels = truth_loss(hand, q, q, true_model=scale_model(hand, 1.1), hand_scale=1.1)
+    np.testing.assert_allclose(labels.tip_error_mm, 0.0, atol=1e-9)

@@ -90,3 +90,30 @@ def test_append_checks_state_size(tmp_path, hand):
 
     with StateLogWriter(tmp_path / "s.csv", hand) as log, pytest.raises(StateError, match="28"):
         log.append(0, np.zeros(5), time_s=0, lost=False, residual_rms_px=0, iterations=0)
+
+
+def test_the_hand_scale_column_round_trips_and_defaults_to_one(tmp_path, hand):
+    """A tracker that fits the hand's size writes ``hand_scale`` (after ``reinitialised``);
+    a log without the column reads as scale 1; a scale that is not positive is refused
+    with the file and line."""
+    states = random_states(hand, np.random.default_rng(1), 3)
+    path = tmp_path / "states.csv"
+    with StateLogWriter(path, hand, reinitialised=True, hand_scale=True) as log:
+        for i, q in enumerate(states):
+            log.append(i, q, time_s=0.0, lost=False, residual_rms_px=1.0, iterations=1,
+                       reinitialised=i == 1, hand_scale=0.9 + 0.01 * i)
+    header = path.read_text().splitlines()[0].split(",")
+    assert header[5:7] == ["reinitialised", "hand_scale"]
+    read = read_state_log(path, hand)
+    np.testing.assert_array_equal(read.hand_scale, [0.9, 0.91, 0.92])
+    np.testing.assert_array_equal(read.states, states)
+    with StateLogWriter(tmp_path / "plain.csv", hand) as log:
+        log.append(0, states[0], time_s=0.0, lost=False, residual_rms_px=1.0, iterations=1)
+    np.testing.assert_array_equal(read_state_log(tmp_path / "plain.csv", hand).hand_scale, [1.0])
+    lines = path.read_text().splitlines()
+    cells = lines[2].split(",")
+    cells[6] = "-0.5"
+    lines[2] = ",".join(cells)
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(DatasetError, match=r"states.csv:3: column 'hand_scale' must be positive"):
+        read_state_log(path, hand)

@@ -158,3 +158,67 @@ def test_the_size_is_read_at_the_start_frame_only():
     blank = [np.zeros((c.height, c.width), np.uint8) for c in rig]
     results = [tracker.step(blank) for _ in range(4)]
     assert results[0].lost and not results[3].lost and tracker.scale == 1.0
+
+
+def test_two_cameras_measure_the_hands_size_on_line_and_the_results_carry_it():
+    """A hand 0.88 times the model's, two cameras, the model's size at the start: the
+    size is measured every frame and averaged (a running mean of the first
+    ``size_frames``, then that time constant), each result carries it, and the hand drawn
+    at that size (``hand_keypoints``) lands on the true fingertips, where the model's size
+    (``size_frames=None``) leaves them off."""
+    from digiteyes.kinematics.keypoints import hand_keypoints
+    from digiteyes.kinematics.scaling import scaled_model
+
+    n, size = 10, 0.88
+    scenario = build_scenario("desk-2cam", seed=1, n_frames=n)
+    model, rig = scenario.model, scenario.rig
+    truth = scaled_model(model, size)
+    true_states = scenario.states  # the smaller hand's palm where the model's would be
+    blank = [np.zeros((c.height, c.width), np.uint8) for c in rig]
+    _, true_tips = hand_keypoints(truth, true_states)
+    errors = {}
+    for size_frames in (4.0, None):
+        tracker = create_tracker("keypoints", model, rig, detector="classic",
+                                 silhouette_check=False, size_frames=size_frames)
+        tracker.reset(true_states[0])
+        tracker._detectors = [TruthDetector(truth, scenario.states, noise_px=0.5, seed=c)
+                              for c in range(len(rig))]
+        results = [tracker.step(blank) for _ in range(n)]
+        scales = np.array([r.hand_scale for r in results])
+        _, tips = hand_keypoints(model, np.array([r.state for r in results]), scales)
+        errors[size_frames] = np.linalg.norm(tips - true_tips, axis=2).mean(axis=1)
+        if size_frames is None:
+            assert np.all(scales == 1.0)
+        else:
+            assert scales[0] == 1.0  # the first frame is fitted before its measurement
+            assert np.all(np.abs(scales[1:] - size) < 0.02), scales
+    assert errors[4.0][1:].max() < 1.0, errors[4.0]
+    assert errors[None].mean() > 5.0, errors
+
+
+def test_the_on_line_size_follows_a_change_with_its_time_constant():
+    """After the running mean of the first ``size_frames`` measurements, each frame moves
+    the size by ``1 / size_frames`` of the way to its measurement (in log scale): one
+    frame of a hand drawn 1.3 times larger barely moves it."""
+    from digiteyes.kinematics.scaling import scaled_model
+
+    scenario = build_scenario("desk-2cam", seed=1, n_frames=8)
+    model, rig = scenario.model, scenario.rig
+    tracker = create_tracker("keypoints", model, rig, detector="classic",
+                             silhouette_check=False, size_frames=20.0)
+    tracker.reset(scenario.initial_state)
+    tracker._adapt_size(0.9)
+    tracker._adapt_size(1.0)
+    assert tracker.scale == pytest.approx(np.sqrt(0.9))  # the mean of two, in log scale
+    tracker._size_measured = 20
+    before = tracker.scale
+    tracker._adapt_size(1.3)
+    assert np.log(tracker.scale) == pytest.approx(np.log(before) + (np.log(1.3)
+                                                                     - np.log(before)) / 20)
+    blank = [np.zeros((c.height, c.width), np.uint8) for c in rig]
+    tracker.reset(scenario.initial_state)
+    tracker._detectors = [TruthDetector(scaled_model(model, 1.3), scenario.states,
+                                        noise_px=0.5, seed=c) for c in range(len(rig))]
+    tracker._size_measured = 20  # as after a long track at the model's size
+    tracker.step(blank)
+    assert 1.0 < tracker.scale < 1.3 ** (1 / 20) + 1e-3

@@ -104,7 +104,7 @@ def row_figures(sequence: RenderedSequence, outcome: Any) -> dict[str, Any]:
     tip = metrics["fingertip_error_mm"]
     out["fingertip_err_mm_median"] = _number(tip and tip.get("median"))
     truth = truth_loss(model, outcome.log.states, sequence.truth.states[:len(outcome.log)],
-                       sequence.truth_model)
+                       sequence.truth_model, hand_scale=outcome.log.hand_scale)
     out["truly_lost_frames"] = int(truth.lost.sum())
     out["flag"] = flag_scores(outcome.log.lost, truth.lost)
     out["timeline"] = {"flagged": _bits(outcome.log.lost), "truly_lost": _bits(truth.lost)}

@@ -284,6 +284,7 @@ def track_sequence(sequence: RenderedSequence, options: Any, label: str = "track
     rms = np.full(n, np.nan)
     iterations = np.zeros(n, dtype=int)
     seconds = np.zeros(n)
+    hand_scale = np.ones(n)
     stage = dict.fromkeys(runner.stages, 0.0)
     features = 0
     finger_lost: list[dict[str, bool]] = []
@@ -293,12 +294,12 @@ def track_sequence(sequence: RenderedSequence, options: Any, label: str = "track
                                                   sequence.scenario.initial_state):
         seconds[t] = step_seconds
         states[t], lost[t], rms[t] = result.state, result.lost, result.residual_rms_px
-        iterations[t] = result.iterations
+        iterations[t], hand_scale[t] = result.iterations, result.hand_scale
         finger_lost.append(dict(result.finger_lost))
         features += getattr(result.details, "n_features", 0)
         for key in stage:
             stage[key] += result.timings.get(key, 0.0)
-    log = StateLog(np.arange(n), states, lost, rms, iterations, seconds)
+    log = StateLog(np.arange(n), states, lost, rms, iterations, seconds, hand_scale)
     return TrackOutcome(log, stage, float(seconds.sum()), int(iterations.sum()),
                         features / max(n, 1), finger_lost)
 

@@ -21,7 +21,7 @@ from digiteyes.camera import Rig
 from digiteyes.errors import DatasetError
 from digiteyes.io.dataset import GroundTruth
 from digiteyes.io.state_log import StateLog
-from digiteyes.kinematics import KinematicModel, Kinematics, forward_kinematics
+from digiteyes.kinematics import KinematicModel, Kinematics
 from digiteyes.kinematics.anatomy import (
     FINGERS,
     finger_of,
@@ -29,6 +29,7 @@ from digiteyes.kinematics.anatomy import (
     joint_type_of,
     palm_pose,
 )
+from digiteyes.kinematics.keypoints import hand_keypoints, keypoints
 
 KeypointFn = Callable[[KinematicModel, Kinematics], tuple[Sequence[str], np.ndarray]]
 
@@ -106,12 +107,6 @@ def _row_mean(x: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- evaluation
-def _default_keypoint_fn() -> KeypointFn:
-    from digiteyes.kinematics.keypoints import keypoints
-
-    return keypoints
-
-
 def _frame_indices(estimated: StateLog, truth: GroundTruth) -> np.ndarray:
     frames = np.asarray(estimated.frames, dtype=int)
     if not len(frames):
@@ -127,13 +122,6 @@ def _frame_indices(estimated: StateLog, truth: GroundTruth) -> np.ndarray:
     return frames
 
 
-def _keypoints(model: KinematicModel, states: np.ndarray, keypoint_fn: KeypointFn
-               ) -> tuple[tuple[str, ...], np.ndarray]:
-    names, points = keypoint_fn(model, forward_kinematics(model, states))
-    return tuple(str(n) for n in names), np.asarray(points, dtype=float).reshape(
-        len(states), len(names), 3)
-
-
 def _true_keypoints(truth: GroundTruth, frames: np.ndarray, model: KinematicModel, rig: Rig,
                     keypoint_fn: KeypointFn):
     """True keypoints at ``frames``: names, (T,K,3), (T,C,K,2), (T,C,K) visible.
@@ -147,7 +135,7 @@ def _true_keypoints(truth: GroundTruth, frames: np.ndarray, model: KinematicMode
                 truth.visible[frames])
     if truth.states is None:
         raise DatasetError("the ground truth has neither states nor keypoints")
-    names, kp3 = _keypoints(model, truth.states[frames], keypoint_fn)
+    names, kp3 = hand_keypoints(model, truth.states[frames], keypoint_fn=keypoint_fn)
     kp2 = np.stack([cam.project(kp3) for cam in rig.cameras], axis=1)
     visible = np.stack([cam.in_image(cam.project(kp3)) & (cam.depth(kp3) > 0)
                         for cam in rig.cameras], axis=1)
@@ -161,7 +149,9 @@ def evaluate_run(estimated: StateLog, truth: GroundTruth, model: KinematicModel,
 
     Parameters
     ----------
-    estimated : the run's state log; its ``frames`` index the ground truth.
+    estimated : the run's state log; its ``frames`` index the ground truth; its
+        ``hand_scale`` sizes the estimated hand
+        (:func:`~digiteyes.kinematics.keypoints.hand_keypoints`).
     truth : ground truth of the sequence (states and/or keypoints).
     model : the kinematic model of both.
     rig : the cameras (for reprojection errors).
@@ -178,7 +168,7 @@ def evaluate_run(estimated: StateLog, truth: GroundTruth, model: KinematicModel,
     Raises :class:`DatasetError` when the log and the truth do not fit together.
     """
     if keypoint_fn is None:
-        keypoint_fn = _default_keypoint_fn()
+        keypoint_fn = keypoints
     frames = _frame_indices(estimated, truth)
     est_states = np.asarray(estimated.states, dtype=float)
     if est_states.shape != (len(frames), model.n_q):
@@ -189,7 +179,7 @@ def evaluate_run(estimated: StateLog, truth: GroundTruth, model: KinematicModel,
                            f"model {model.name!r} needs {model.n_q}")
     n = len(frames)
     names_t, kp3_t, kp2_t, vis_t = _true_keypoints(truth, frames, model, rig, keypoint_fn)
-    names_e, kp3_e_all = _keypoints(model, est_states, keypoint_fn)
+    names_e, kp3_e_all = hand_keypoints(model, est_states, estimated.hand_scale, keypoint_fn)
     unknown = [k for k in names_t if k not in names_e]
     if unknown:
         raise DatasetError(f"ground-truth keypoints {', '.join(unknown)} are not keypoints of "

@@ -18,8 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from digiteyes.errors import DigitEyesError
-from digiteyes.kinematics import KinematicModel, forward_kinematics
-from digiteyes.kinematics.keypoints import keypoints
+from digiteyes.kinematics import KinematicModel
+from digiteyes.kinematics.keypoints import hand_keypoints
 
 TRULY_LOST_MEAN_MM = 30.0
 """Mean fingertip error (mm) above which a frame is truly lost."""
@@ -43,9 +43,12 @@ class TruthLoss:
     lost: np.ndarray
 
 
-def fingertips(model: KinematicModel, states: np.ndarray) -> tuple[tuple[str, ...], np.ndarray]:
-    """Fingertip names (F,) and world positions (T, F, 3) mm of states (T, n_q)."""
-    names, points = keypoints(model, forward_kinematics(model, np.atleast_2d(states)))
+def fingertips(model: KinematicModel, states: np.ndarray, hand_scale: float | np.ndarray = 1.0
+               ) -> tuple[tuple[str, ...], np.ndarray]:
+    """Fingertip names (F,) and world positions (T, F, 3) mm of states (T, n_q) of a hand
+    ``hand_scale`` times the model's size (one scale or (T,);
+    :func:`~digiteyes.kinematics.keypoints.hand_keypoints`)."""
+    names, points = hand_keypoints(model, states, hand_scale)
     tips = [i for i, name in enumerate(names) if str(name).endswith(".tip")]
     if not tips:
         raise DigitEyesError(f"model {model.name!r} has no fingertips (links named *.tip)")
@@ -55,16 +58,18 @@ def fingertips(model: KinematicModel, states: np.ndarray) -> tuple[tuple[str, ..
 def truth_loss(model: KinematicModel, estimated: np.ndarray, true_states: np.ndarray,
                true_model: KinematicModel | None = None,
                mean_mm: float = TRULY_LOST_MEAN_MM,
-               any_mm: float = TRULY_LOST_ANY_MM) -> TruthLoss:
-    """Loss labels of estimated states (T, n_q) of ``model`` against true states (T, n_q)
-    of ``true_model`` (default ``model``): frame lost when the mean fingertip error exceeds
-    ``mean_mm`` or any fingertip error exceeds ``any_mm``. Raises :class:`DigitEyesError`
-    when the state arrays or the two models' fingertips do not match."""
+               any_mm: float = TRULY_LOST_ANY_MM,
+               hand_scale: float | np.ndarray = 1.0) -> TruthLoss:
+    """Loss labels of estimated states (T, n_q) of ``model`` (a hand ``hand_scale`` times
+    its size, e.g. a state log's column) against true states (T, n_q) of ``true_model``
+    (default ``model``): frame lost when the mean fingertip error exceeds ``mean_mm`` or
+    any fingertip error exceeds ``any_mm``. Raises :class:`DigitEyesError` when the state
+    arrays or the two models' fingertips do not match."""
     est, true = np.atleast_2d(estimated), np.atleast_2d(true_states)
     if est.shape[0] != true.shape[0]:
         raise DigitEyesError(f"truth_loss: {est.shape[0]} estimated states but "
                              f"{true.shape[0]} true states")
-    names, tips = fingertips(model, est)
+    names, tips = fingertips(model, est, hand_scale)
     true_names, true_tips = fingertips(true_model or model, true)
     if names != true_names:
         raise DigitEyesError(f"truth_loss: the models' fingertips differ: {names} and "

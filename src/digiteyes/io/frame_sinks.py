@@ -28,8 +28,8 @@ from digiteyes.camera import Rig
 from digiteyes.camera.mirror import unmirror_points
 from digiteyes.errors import DatasetError
 from digiteyes.filters import OneEuroFilter, OneEuroOptions
-from digiteyes.kinematics import KinematicModel, forward_kinematics
-from digiteyes.kinematics.keypoints import keypoint_names, keypoints
+from digiteyes.kinematics import KinematicModel
+from digiteyes.kinematics.keypoints import hand_keypoints, keypoint_names
 
 KEYPOINTS_FILE = "keypoints.csv"
 
@@ -41,15 +41,17 @@ class TrackResult(Protocol):
     state: np.ndarray
     lost: bool
     residual_rms_px: float
+    hand_scale: float
 
 
-def camera_keypoints(model: KinematicModel, rig: Rig, q: np.ndarray
+def camera_keypoints(model: KinematicModel, rig: Rig, q: np.ndarray, hand_scale: float = 1.0
                      ) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
     """Names, pixels (n_cameras, K, 2) and camera-frame points (n_cameras, K, 3), mm, of
-    the model keypoints of state ``q`` in every camera of ``rig``, in the real images and
-    camera frames (:meth:`~digiteyes.camera.Rig.real_pixels`; a mirrored rig's points
-    reflected back, :mod:`digiteyes.camera.mirror`)."""
-    names, world = keypoints(model, forward_kinematics(model, np.asarray(q, dtype=float)))
+    the model keypoints of state ``q`` (a hand ``hand_scale`` times the model's size,
+    :func:`~digiteyes.kinematics.keypoints.hand_keypoints`) in every camera of ``rig``,
+    in the real images and camera frames (:meth:`~digiteyes.camera.Rig.real_pixels`; a
+    mirrored rig's points reflected back, :mod:`digiteyes.camera.mirror`)."""
+    names, world = hand_keypoints(model, q, hand_scale)
     world = world[0]
     uv = np.stack([cam.project(world) for cam in rig])
     xyz = np.stack([cam.to_camera(world) for cam in rig])
@@ -76,7 +78,7 @@ class KeypointLog:
     def write(self, index: int, images: Sequence[np.ndarray], result: TrackResult,
               reinitialised: bool) -> None:
         """Append the keypoints of ``result.state``."""
-        _, uv, xyz = camera_keypoints(self.model, self.rig, result.state)
+        _, uv, xyz = camera_keypoints(self.model, self.rig, result.state, result.hand_scale)
         row = [str(index)]
         for c in range(len(self.rig)):
             for k in range(uv.shape[1]):
@@ -98,7 +100,8 @@ def keypoint_columns(model: KinematicModel, rig: Rig) -> list[str]:
 def frame_message(model: KinematicModel, rig: Rig, index: int, result: TrackResult,
                   reinitialised: bool) -> dict:
     """One frame as a JSON-ready object: ``frame``, ``time`` (Unix s), ``lost``,
-    ``reinitialised``, ``residual_rms_px``, ``state`` (by name; mm, rad) and
+    ``reinitialised``, ``residual_rms_px``, ``state`` (by name; mm, rad), ``hand_scale``
+    (the hand's size relative to the model file) and
     ``keypoints[camera][keypoint] = {"uv_px": [u, v], "xyz_mm": [x, y, z]}``."""
     rms = float(result.residual_rms_px)
     return {
@@ -108,7 +111,8 @@ def frame_message(model: KinematicModel, rig: Rig, index: int, result: TrackResu
         "reinitialised": bool(reinitialised),
         "residual_rms_px": rms if np.isfinite(rms) else None,
         "state": state_by_name(model, result.state),
-        "keypoints": keypoints_by_camera(model, rig, result.state),
+        "hand_scale": float(result.hand_scale),
+        "keypoints": keypoints_by_camera(model, rig, result.state, result.hand_scale),
     }
 
 
@@ -117,10 +121,12 @@ def state_by_name(model: KinematicModel, state: np.ndarray) -> dict[str, float]:
     return {n: float(v) for n, v in zip(model.state_names, state, strict=True)}
 
 
-def keypoints_by_camera(model: KinematicModel, rig: Rig, state: np.ndarray) -> dict:
-    """``{camera: {keypoint: {"uv_px": [u, v], "xyz_mm": [x, y, z]}}}`` of a state (n_q,):
-    the projection (px) and the point in the camera's frame (mm), rounded to 0.01."""
-    names, uv, xyz = camera_keypoints(model, rig, state)
+def keypoints_by_camera(model: KinematicModel, rig: Rig, state: np.ndarray,
+                        hand_scale: float = 1.0) -> dict:
+    """``{camera: {keypoint: {"uv_px": [u, v], "xyz_mm": [x, y, z]}}}`` of a state (n_q,)
+    of a hand ``hand_scale`` times the model's size: the projection (px) and the point in
+    the camera's frame (mm), rounded to 0.01."""
+    names, uv, xyz = camera_keypoints(model, rig, state, hand_scale)
     return {cam.name: {n: {"uv_px": [round(float(u), 2) for u in uv[c, k]],
                            "xyz_mm": [round(float(v), 2) for v in xyz[c, k]]}
                        for k, n in enumerate(names)}
@@ -176,7 +182,7 @@ class JsonLinesStream:
             smoothed = self._filter.follow(result.state, result.lost)
             message["state_smoothed"] = state_by_name(self.model, smoothed)
             message["keypoints_smoothed"] = keypoints_by_camera(self.model, self.rig,
-                                                                smoothed)
+                                                                smoothed, result.hand_scale)
         try:
             self._out.write(json.dumps(message) + "\n")
             self._out.flush()

@@ -3,13 +3,14 @@
 The thesis logged the estimated states of its real-time runs and plotted them afterwards
 (Figs. 4.7, 4.8); ``digiteyes evaluate`` reads the same log. Header::
 
-    frame,time_s,lost,residual_rms_px,iterations,<state names of the model>
+    frame,time_s,lost,residual_rms_px,iterations[,reinitialised][,hand_scale],<state names>
 
 ``frame`` is the 0-based index of the frame in its sequence or video, ``time_s`` the
 wall-clock seconds spent on that frame (measurement + solving), ``lost`` 0 or 1 (the
 tracker's own track-loss flag), ``residual_rms_px`` the RMS image residual after the last
 iteration (pixels; empty cell or ``nan`` when unknown), ``iterations`` the solver iterations
-spent on the frame, then the estimated state (mm, radians, quaternion w, x, y, z). Every row
+spent on the frame, the optional columns of :data:`OPTIONAL_COLUMNS`, then the estimated
+state (mm, radians, quaternion w, x, y, z). Every row
 is flushed as soon as it is written, so an interrupted run keeps every frame it finished.
 """
 
@@ -27,10 +28,13 @@ from digiteyes.errors import DatasetError, StateError
 from digiteyes.kinematics import KinematicModel, validate_state
 
 LOG_COLUMNS = ("frame", "time_s", "lost", "residual_rms_px", "iterations")
-OPTIONAL_COLUMNS = ("reinitialised",)
-"""Columns a log may carry after :data:`LOG_COLUMNS`: ``reinitialised`` (0 or 1) is
-written when the run re-detects after a loss (``digiteyes track --init auto``); 1 marks a
-frame whose state came from the detector and the model fit."""
+OPTIONAL_COLUMNS = ("reinitialised", "hand_scale")
+"""Columns a log may carry after :data:`LOG_COLUMNS`, in this order: ``reinitialised``
+(0 or 1) is written when the run re-detects after a loss (``digiteyes track --init
+auto``); 1 marks a frame whose state came from the detector and the model fit.
+``hand_scale`` is written by trackers that fit the hand's size (the keypoint tracker):
+the size of the hand the row's state poses, relative to the model file
+(:attr:`~digiteyes.trackers.TrackResult.hand_scale`); without the column it is 1."""
 
 
 @dataclass(frozen=True)
@@ -38,7 +42,8 @@ class StateLog:
     """A state log read back: T rows.
 
     frames (T,) int, states (T, n_q), lost (T,) bool, residual_rms_px (T,) px (nan when
-    unknown), iterations (T,) int, time_s (T,) seconds per frame.
+    unknown), iterations (T,) int, time_s (T,) seconds per frame, hand_scale (T,) the
+    hand's size relative to the model file (ones when the log has no such column).
     """
 
     frames: np.ndarray
@@ -47,6 +52,11 @@ class StateLog:
     residual_rms_px: np.ndarray
     iterations: np.ndarray
     time_s: np.ndarray
+    hand_scale: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.hand_scale is None:
+            object.__setattr__(self, "hand_scale", np.ones(len(self.frames)))
 
     def __len__(self) -> int:
         return len(self.frames)
@@ -61,10 +71,11 @@ class StateLogWriter:
     """
 
     def __init__(self, path: str | Path, model: KinematicModel, *,
-                 reinitialised: bool = False) -> None:
+                 reinitialised: bool = False, hand_scale: bool = False) -> None:
         self.path = Path(path)
         self.model = model
         self.reinitialised = reinitialised
+        self.hand_scale = hand_scale
         self.n_rows = 0
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -74,8 +85,9 @@ class StateLogWriter:
                                ) from None
         self._buffer = io.StringIO()
         self._writer = csv.writer(self._buffer)
-        self._write([*LOG_COLUMNS, *OPTIONAL_COLUMNS[:int(reinitialised)],
-                     *model.state_names])
+        optional = [c for c, on in zip(OPTIONAL_COLUMNS, (reinitialised, hand_scale),
+                                       strict=True) if on]
+        self._write([*LOG_COLUMNS, *optional, *model.state_names])
 
     def _write(self, row: list[str]) -> None:
         try:
@@ -89,9 +101,11 @@ class StateLogWriter:
                                ) from None
 
     def append(self, frame: int, state: np.ndarray, *, time_s: float, lost: bool,
-               residual_rms_px: float, iterations: int, reinitialised: bool = False) -> None:
+               residual_rms_px: float, iterations: int, reinitialised: bool = False,
+               hand_scale: float = 1.0) -> None:
         """Write one row: the estimate of ``frame`` (0-based) and how it was obtained
-        (``reinitialised`` is written only by a writer created with that column)."""
+        (``reinitialised`` and ``hand_scale`` are written only by a writer created with
+        that column)."""
         if self._handle.closed:
             raise DatasetError(f"{self.path}: state log is closed")
         state = np.asarray(state, dtype=float)
@@ -101,6 +115,7 @@ class StateLogWriter:
         self._write([str(int(frame)), repr(float(time_s)), str(int(bool(lost))),
                      repr(float(residual_rms_px)), str(int(iterations)),
                      *([str(int(bool(reinitialised)))] if self.reinitialised else []),
+                     *([repr(float(hand_scale))] if self.hand_scale else []),
                      *(repr(float(x)) for x in state)])
         self.n_rows += 1
 
@@ -173,6 +188,8 @@ def read_state_log(path: str | Path, model: KinematicModel) -> StateLog:
     lost = np.empty(n, dtype=bool)
     residual = np.empty(n)
     time_s = np.empty(n)
+    hand_scale = np.ones(n)
+    scale_column = header.index("hand_scale") if "hand_scale" in header else None
     states = np.empty((n, model.n_q))
     for i, row in enumerate(body):
         line = i + 2
@@ -183,9 +200,14 @@ def read_state_log(path: str | Path, model: KinematicModel) -> StateLog:
         lost[i] = _number(row[col["lost"]], path, line, "lost", integer=True) != 0
         residual[i] = _number(row[col["residual_rms_px"]], path, line, "residual_rms_px")
         time_s[i] = _number(row[col["time_s"]], path, line, "time_s")
+        if scale_column is not None:
+            hand_scale[i] = _number(row[scale_column], path, line, "hand_scale")
+            if not hand_scale[i] > 0:
+                raise DatasetError(f"{path}:{line}: column 'hand_scale' must be positive, "
+                                   f"got {row[scale_column]!r}")
         states[i] = [_number(row[col[name]], path, line, name) for name in model.state_names]
     try:
         validate_state(model, states, normalize=True)
     except StateError as exc:
         raise DatasetError(f"{path}: {exc}") from None
-    return StateLog(frames, states, lost, residual, iterations, time_s)
+    return StateLog(frames, states, lost, residual, iterations, time_s, hand_scale)

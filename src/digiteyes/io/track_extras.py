@@ -8,6 +8,8 @@ import csv
 import json
 from pathlib import Path
 
+import numpy as np
+
 from digiteyes.errors import DatasetError, DigitEyesError
 from digiteyes.filters import OneEuroOptions, one_euro_filter, restarts_after_losses
 from digiteyes.io.state_log import (
@@ -34,17 +36,20 @@ def smooth_log(log: StateLog, model: KinematicModel, fps: float,
     states = one_euro_filter(model, log.states, fps, options,
                              reset=restarts_after_losses(log.lost))
     return StateLog(log.frames, states, log.lost, log.residual_rms_px, log.iterations,
-                    log.time_s)
+                    log.time_s, log.hand_scale)
 
 
 def write_log(path: Path, log: StateLog, model: KinematicModel) -> Path:
-    """Write ``log`` as a state log (the format of ``states.csv``)."""
-    with StateLogWriter(path, model) as writer:
+    """Write ``log`` as a state log (the format of ``states.csv``; with its
+    ``hand_scale`` column when the hand is not the model's size)."""
+    sized = bool(np.any(log.hand_scale != 1.0))
+    with StateLogWriter(path, model, hand_scale=sized) as writer:
         for i in range(len(log)):
             writer.append(int(log.frames[i]), log.states[i], time_s=float(log.time_s[i]),
                           lost=bool(log.lost[i]),
                           residual_rms_px=float(log.residual_rms_px[i]),
-                          iterations=int(log.iterations[i]))
+                          iterations=int(log.iterations[i]),
+                          hand_scale=float(log.hand_scale[i]))
     return path
 
 

@@ -8,7 +8,14 @@ conquer (``"divide-conquer"``), with its baselines ``"condensation"`` and
 ``"random-search"``. :func:`create_tracker` builds any registered tracker by name.
 """
 
-from digiteyes.trackers.base import Tracker, TrackResult, residual_unit, restart, warm_up
+from digiteyes.trackers.base import (
+    Tracker,
+    TrackResult,
+    residual_unit,
+    restart,
+    sizes_hand,
+    warm_up,
+)
 from digiteyes.trackers.divide_conquer import (
     CondensationOptions,
     CondensationTracker,
@@ -79,6 +86,6 @@ __all__ = [
     "LayeredTemplateTracker", "RandomSearchOptions", "RandomSearchTracker",
     "StateParameterisation", "StatePredictor", "TemplateDetails", "TrackResult", "Tracker",
     "TrackerEntry", "TrackerError", "all_features", "create_tracker", "register_tracker",
-    "residual_unit", "restart", "thesis_whole_hand_links", "tracker_entry", "tracker_names",
-    "warm_up",
+    "residual_unit", "restart", "sizes_hand", "thesis_whole_hand_links", "tracker_entry",
+    "tracker_names", "warm_up",
 ]

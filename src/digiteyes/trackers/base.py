@@ -48,6 +48,10 @@ class TrackResult:
         (divide and conquer); empty when the tracker judges the hand as a whole.
     details : what this tracker type measured (its own dataclass; overlays dispatch on
         its type). ``None`` when the tracker reports nothing more.
+    hand_scale : the size of the hand the state poses, relative to the model file (1: the
+        model's hand; the keypoint tracker's fitted size). ``state``'s translation is the
+        palm's position in mm; its points are those of
+        :func:`~digiteyes.kinematics.keypoints.hand_keypoints` at this scale.
     """
 
     state: np.ndarray
@@ -61,6 +65,7 @@ class TrackResult:
     timings: dict[str, float] = field(default_factory=dict)
     finger_lost: Mapping[str, bool] = field(default_factory=dict)
     details: Any = None
+    hand_scale: float = 1.0
 
 
 @runtime_checkable
@@ -115,6 +120,13 @@ def residual_unit(tracker: Tracker) -> str:
     """The unit of ``tracker``'s :attr:`TrackResult.residual_rms_px`: its
     ``residual_unit`` attribute, ``"px"`` when it has none."""
     return str(getattr(tracker, "residual_unit", "px"))
+
+
+def sizes_hand(tracker: Tracker) -> bool:
+    """Whether ``tracker`` fits the hand's size (it has a ``scale`` attribute, the size of
+    the hand its states pose, relative to the model file): its results carry
+    :attr:`TrackResult.hand_scale`, and its state logs a ``hand_scale`` column."""
+    return getattr(tracker, "scale", None) is not None
 
 
 def restart(tracker: Tracker, state: np.ndarray) -> None:

@@ -30,10 +30,21 @@ and kept for the track; when the hand is not found in that frame the model's siz
 there the fit returns about that size, and ``digiteyes track`` turns the size fit off
 for footage, whose start the images or the user's eye gave. States stay those of the
 model file, in millimetres: the palm where the scaled hand's is, the angles its angles
-(:meth:`~digiteyes.detect.model_fit.PoseFit.scaled_state`); the fingers drawn from them
-have the model's lengths. One camera only: several see the depth themselves, and there
-the fitted size made the tracks worse (the model's fingers placed at the right palm reach
-less far than a compromise fit puts them; docs/keypoint-tracker.md).
+(:meth:`~digiteyes.detect.model_fit.PoseFit.scaled_state`), and every result carries the
+size (:attr:`~digiteyes.trackers.TrackResult.hand_scale`), with which the outputs and the
+evaluation draw the hand (:func:`~digiteyes.kinematics.keypoints.hand_keypoints`).
+
+**The hand's size on-line** (issue 16: "adapt on-line with a long time constant"). Two
+or more cameras see the hand's depth, so every frame measures its size: after the frame's
+fit at the current size, a short fit with the scale free starts from it
+(:data:`SIZE_ITERATIONS`). The measurements of frames that are not lost, in which two
+cameras or more found the hand, and whose
+size fit explains the keypoints well (:data:`SIZE_MAX_RMS`) with a scale within
+:data:`START_SCALE_RANGE` are averaged, a running
+mean of the first ``size_frames`` and then an exponential average with that time
+constant (frames): the size settles within the first frames and then follows only what
+persists, not a frame's bad detection. One camera cannot measure it (a hand ``s`` times
+larger at ``s`` times the depth gives the same image), so there the size is the start's.
 
 A fit that explains the keypoints can still be wrong (a detector that takes a hand-like
 drawing or a back-lit hand for a hand labels its joints anyway), so the shared silhouette
@@ -59,6 +70,7 @@ from digiteyes.detect.pose import DETECTORS, make_detector
 from digiteyes.errors import DigitEyesError
 from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import KinematicModel, forward_kinematics
+from digiteyes.kinematics.scaling import model_unit_states
 from digiteyes.kinematics.state import validate_state
 from digiteyes.trackers.base import TrackResult, start_step
 from digiteyes.trackers.loss_hold import LossHold, LossHoldOptions
@@ -69,8 +81,15 @@ JUMP_FRAMES = 4
 START_POSITION_SIGMA_MM = 5.0
 """How closely the first frame's size fit holds the palm to the start's position (mm)."""
 START_SCALE_RANGE = (0.6, 1.6)
-"""Hand scales (relative to the model file) the size fit at the start may return; outside
-them the model's size is kept."""
+"""Hand scales (relative to the model file) the size fit at the start (and a frame's size
+measurement) may return; outside them the model's size is kept (the measurement
+ignored)."""
+SIZE_ITERATIONS = 3
+"""Gauss-Newton iterations of a frame's size measurement (from the frame's fit)."""
+SIZE_MAX_RMS = 2.0
+"""A frame measures the hand's size only when its size fit reprojects the keypoints
+within this many ``sigma_px`` (RMS): a hand-like drawing that the detector labels as a
+hand is explained less well and would pull the size (docs/keypoint-tracker.md)."""
 
 
 @dataclass(frozen=True)
@@ -104,6 +123,8 @@ class KeypointTrackerOptions(SilhouetteLossOptions, LossHoldOptions):
     start_size : with one camera, fit the hand's scale on the first frame with the palm
         held at the start state's position (module docstring); False keeps the model's
         size.
+    size_frames : with two or more cameras, the time constant (frames) of the on-line
+        size (module docstring); None keeps the model's size.
     """
 
     detector: str = "auto"
@@ -116,6 +137,7 @@ class KeypointTrackerOptions(SilhouetteLossOptions, LossHoldOptions):
     motion_sigma_mm: float | None = None
     motion_sigma_deg: float | None = None
     start_size: bool = True
+    size_frames: float | None = 100.0
 
     def __post_init__(self) -> None:
         for name in ("sigma_px", "sigma_joint_deg", "max_error_px", "max_jump"):
@@ -132,6 +154,11 @@ class KeypointTrackerOptions(SilhouetteLossOptions, LossHoldOptions):
             if value is not None and (isinstance(value, bool)
                                       or not isinstance(value, int | float) or not value > 0):
                 raise ValueError(f"{name} must be a positive number or None, got {value!r}")
+        if self.size_frames is not None and (
+                isinstance(self.size_frames, bool)
+                or not isinstance(self.size_frames, int | float) or not self.size_frames >= 1):
+            raise ValueError(f"size_frames must be a number of frames >= 1 or None, got "
+                             f"{self.size_frames!r}")
         if not isinstance(self.start_size, bool):
             raise ValueError(f"start_size must be true or false, got {self.start_size!r}")
         if self.detector not in DETECTORS:
@@ -169,8 +196,12 @@ class KeypointTracker:
                                        sigma_joint_deg=opts.sigma_joint_deg, fit_scale=False,
                                        iterations=opts.iterations, motion_sigma=motion)
         self.scale = 1.0
-        """The hand's scale relative to the model file (the start's size fit)."""
+        """The hand's scale relative to the model file (the start's size fit, or the
+        on-line size with several cameras)."""
+        self.start_scale = 1.0
+        """The scale the track started with (the start's size fit, else 1)."""
         self._size_pending = False
+        self._size_measured = 0
         self._detectors: list = []
         self.silhouette_loss = SilhouetteLoss.from_options(model, rig, self.options)
         self.loss_hold = LossHold(self.options.hold_lost_frames)
@@ -191,6 +222,8 @@ class KeypointTracker:
         self._frame_index = 0
         self._since_fit = 1
         self._set_scale(1.0)
+        self.start_scale = 1.0
+        self._size_measured = 0
         self._size_pending = self.options.start_size and len(self.rig) == 1
 
     def restart(self, state: np.ndarray) -> None:
@@ -221,6 +254,10 @@ class KeypointTracker:
         self._size_pending = False  # the start's frame only: later, the hand has moved
         if fit is None and observations:
             fit, iterations = self._fit(observations)
+        size = None
+        if fit is not None and self._adapts_size and len(observations) >= 2:
+            size, size_iterations = self._measure_size(observations, fit)
+            iterations += size_iterations
         timings["fit"] = time.perf_counter() - start
         predicted = self.state
         reprojection = np.full((len(self.rig), 21), np.nan)
@@ -249,7 +286,10 @@ class KeypointTracker:
         result = TrackResult(self.state.copy(), fit.cost if fit is not None else float("nan"),
                              rms, lost, reason, iterations, predicted, self._frame_index,
                              timings, finger_lost,
-                             details=KeypointDetails(candidates, reprojection))
+                             details=KeypointDetails(candidates, reprojection),
+                             hand_scale=self.scale)
+        if size is not None and not lost:
+            self._adapt_size(size)
         self._frame_index += 1
         timings["total"] = time.perf_counter() - start_total
         return self.loss_hold.apply(result)
@@ -258,22 +298,44 @@ class KeypointTracker:
         """Of the hands a camera found, the one nearest the current estimate's keypoints."""
         if len(found) <= 1:
             return found[0] if found else None
-        rows, points = self._anchors
-        here = camera.project(forward_kinematics(self.model, self.state).points(rows, points))
+        here = camera.project(self._keypoints_here())
         return min(found, key=lambda c: float(np.mean(np.linalg.norm(c.keypoints - here,
                                                                       axis=1))))
+
+    @property
+    def _adapts_size(self) -> bool:
+        return self.options.size_frames is not None and len(self.rig) >= 2
+
+    def _measure_size(self, observations: list[KeypointObservation], fit: PoseFit
+                      ) -> tuple[float | None, int]:
+        """The hand's scale measured in this frame: a short fit with the scale free from
+        the frame's ``fit`` (:data:`SIZE_ITERATIONS`); None when it does not explain the
+        keypoints (or not within :data:`SIZE_MAX_RMS`) or leaves
+        :data:`START_SCALE_RANGE`. Also the iterations spent."""
+        options = replace(self._fit_options, fit_scale=True, iterations=SIZE_ITERATIONS)
+        try:
+            measured = fit_keypoints(self.model, observations, options=options, q0=fit.q)
+        except DigitEyesError:
+            return None, 0
+        low, high = START_SCALE_RANGE
+        errors = measured.reprojection_px[np.isfinite(measured.reprojection_px)]
+        if not (self._explains(measured) and low <= measured.scale <= high
+                and np.sqrt(np.mean(errors ** 2)) <= SIZE_MAX_RMS * self.options.sigma_px):
+            return None, measured.iterations
+        return float(measured.scale), measured.iterations
+
+    def _adapt_size(self, measured: float) -> None:
+        """Move the scale towards a frame's measurement: the running mean of the first
+        ``size_frames`` measurements, then an exponential average with that time constant
+        (in the logarithm of the scale, so that 0.9 and 1/0.9 weigh alike)."""
+        self._size_measured += 1
+        gain = 1.0 / min(self._size_measured, float(self.options.size_frames))
+        self._set_scale(float(np.exp((1.0 - gain) * np.log(self.scale)
+                                     + gain * np.log(measured))))
 
     def _set_scale(self, scale: float) -> None:
         self.scale = float(scale)
         self._fit_options = replace(self._fit_options, scale=self.scale)
-
-    def _model_units(self, state: np.ndarray) -> np.ndarray:
-        """``state`` (translation in mm) as a start of the fit at the current scale
-        (translation in model units, :class:`~digiteyes.detect.model_fit.PoseFit`)."""
-        q = np.array(state, dtype=float)
-        k = self.model.base_state
-        q[k + 4:k + 7] /= self.scale
-        return q
 
     def _fit_size(self, observations: list[KeypointObservation]) -> tuple[PoseFit | None, int]:
         """The first frame's fit with the hand's scale free and the palm held to the start
@@ -290,6 +352,7 @@ class KeypointTracker:
         if not (self._explains(fit) and low <= fit.scale <= high):
             return None, fit.iterations
         self._set_scale(fit.scale)
+        self.start_scale = self.scale
         return fit, fit.iterations
 
     def _fit(self, observations: list[KeypointObservation]) -> tuple[PoseFit | None, int]:
@@ -297,7 +360,7 @@ class KeypointTracker:
         estimate, else the fit from scratch when that one does, else None; and the solver
         iterations spent."""
         iterations = 0
-        for q0 in (self._model_units(self.state), None):
+        for q0 in (model_unit_states(self.model, self.state, self.scale), None):
             try:
                 fit = fit_keypoints(self.model, observations, options=self._fit_options, q0=q0)
             except DigitEyesError:
@@ -310,11 +373,16 @@ class KeypointTracker:
     def _near(self, fit: PoseFit) -> bool:
         """Whether ``fit`` keeps the hand within ``max_jump`` hand lengths per frame since
         the last fit taken (keypoints' centroid, mm)."""
-        rows, points = self._anchors
-        here = forward_kinematics(self.model, self.state).points(rows, points).mean(axis=0)
+        here = self._keypoints_here().mean(axis=0)
         jump = float(np.linalg.norm(fit.keypoints_world.mean(axis=0) - here))
         frames = min(self._since_fit, JUMP_FRAMES)
         return jump <= self.options.max_jump * self._hand_length * frames
+
+    def _keypoints_here(self) -> np.ndarray:
+        """The 21 keypoints (21, 3) mm of the current estimate, at the current size."""
+        rows, points = self._anchors
+        q = model_unit_states(self.model, self.state, self.scale)
+        return self.scale * forward_kinematics(self.model, q).points(rows, points)
 
     def _explains(self, fit: PoseFit) -> bool:
         errors = fit.reprojection_px[np.isfinite(fit.reprojection_px)]

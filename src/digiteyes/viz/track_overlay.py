@@ -23,6 +23,7 @@ from digiteyes.camera import Camera, Rig
 from digiteyes.camera.mirror import mirror_images
 from digiteyes.detect.hand21 import BONES
 from digiteyes.kinematics import KinematicModel
+from digiteyes.kinematics.scaling import model_of_size
 from digiteyes.trackers import FeatureDetails, KeypointDetails, TemplateDetails, TrackResult
 from digiteyes.viz.model_view import draw_wireframe
 from digiteyes.viz.overlay import draw_features, to_rgb
@@ -55,7 +56,8 @@ def drawer_for(details: Any) -> DetailsDrawer:
 def draw_model(image: np.ndarray, camera_index: int, camera: Camera, result: TrackResult,
                model: KinematicModel) -> np.ndarray:
     """The fallback panel: the model projected at the estimated state over the image."""
-    return draw_wireframe(model, result.state, camera, to_rgb(image))
+    return draw_wireframe(model_of_size(model, result.hand_scale), result.state, camera,
+                          to_rgb(image))
 
 
 def draw_result(image: np.ndarray, camera_index: int, camera: Camera, result: TrackResult,
@@ -109,7 +111,8 @@ def _draw_keypoint_details(image: np.ndarray, camera_index: int, camera: Camera,
                            result: TrackResult, model: KinematicModel) -> np.ndarray:
     """The fitted model's wireframe and the detector's 21 keypoints (yellow dots, joined
     along the hand's bones)."""
-    panel = draw_wireframe(model, result.state, camera, to_rgb(image))
+    panel = draw_wireframe(model_of_size(model, result.hand_scale), result.state, camera,
+                           to_rgb(image))
     candidate = result.details.candidates[camera_index]
     if candidate is not None:
         points = np.round(candidate.keypoints).astype(np.int32)

@@ -1,0 +1,42 @@
+"""The per-frame sinks draw the hand at the size the tracker reports."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+
+from digiteyes.io.frame_sinks import KeypointLog, frame_message
+from digiteyes.kinematics import forward_kinematics
+from digiteyes.kinematics.keypoints import keypoints
+from digiteyes.kinematics.scaling import scaled_model
+from digiteyes.synth.scenarios import build_scenario
+from digiteyes.trackers import TrackResult
+
+
+def test_keypoints_of_a_result_are_those_of_the_hand_of_its_size(tmp_path):
+    """A result of a hand 0.9 times the model's: the JSON line and ``keypoints.csv`` give
+    the points of ``scaled_model(model, 0.9)`` at the result's state, in the camera frame
+    and in pixels, and the line names the size."""
+    scenario = build_scenario("desk-2cam", seed=0, n_frames=1)
+    model, rig, q = scenario.model, scenario.rig, scenario.states[0]
+    result = TrackResult(q, 0.0, 1.0, False, "", 1, hand_scale=0.9)
+    small = scaled_model(model, 0.9)
+    names, world = keypoints(small, forward_kinematics(small, q))
+    message = json.loads(json.dumps(frame_message(model, rig, 7, result, False)))
+    assert message["hand_scale"] == 0.9
+    log = KeypointLog(tmp_path / "keypoints.csv", model, rig)
+    log.write(7, [], result, False)
+    log.close()
+    with open(tmp_path / "keypoints.csv", newline="", encoding="utf-8") as handle:
+        row = next(csv.DictReader(handle))
+    for camera in rig:
+        got = message["keypoints"][camera.name]
+        xyz = np.array([got[n]["xyz_mm"] for n in names])
+        uv = np.array([got[n]["uv_px"] for n in names])
+        np.testing.assert_allclose(xyz, camera.to_camera(world[0]), atol=0.006)
+        np.testing.assert_allclose(uv, camera.project(world[0]), atol=0.006)
+        tip = names.index("index.tip")
+        np.testing.assert_allclose([float(row[f"{camera.name}.index.tip.{a}"])
+                                    for a in ("x_mm", "y_mm", "z_mm")], xyz[tip], atol=0.006)
