@@ -38,8 +38,7 @@ from digiteyes.benchmarks.tracker import render_sequence
 from digiteyes.detect.initialiser import AutoInitialiser, start_automatically
 from digiteyes.detect.mediapipe_detector import mediapipe_available
 from digiteyes.errors import DatasetError
-from digiteyes.kinematics import forward_kinematics
-from digiteyes.kinematics.keypoints import keypoints
+from digiteyes.kinematics.keypoints import hand_keypoints
 from digiteyes.pipeline import recovered_state, step_frames
 from digiteyes.synth.scenarios import build_scenario
 from digiteyes.track_job import tracker_options
@@ -63,30 +62,35 @@ TOLERANCE_MM = 1.0
 """Mean keypoint error the automatic run may exceed the run from truth by, mm."""
 
 
-def keypoint_error_mm(model, states: np.ndarray, truth, first: int = 0) -> np.ndarray:
-    """Mean distance (mm) of the model keypoints of ``states`` (T, n_q), frames ``first``
-    on, to the true keypoints."""
-    names, points = keypoints(model, forward_kinematics(model, states))
+def keypoint_error_mm(model, states: np.ndarray, truth, first: int = 0,
+                      hand_scale: float | np.ndarray = 1.0) -> np.ndarray:
+    """Mean distance (mm) of the model keypoints of ``states`` (T, n_q) of a hand
+    ``hand_scale`` times the model's size (one or per state), frames ``first`` on, to the
+    true keypoints."""
+    names, points = hand_keypoints(model, states, hand_scale)
     idx = [truth.keypoint_names.index(n) for n in names]
     true = truth.keypoints_3d[first:first + len(states)][:, idx]
     return np.linalg.norm(points - true, axis=2).mean(axis=1)
 
 
 def track_states(tracker: Tracker, frames, start: np.ndarray,
-                 recover: AutoInitialiser | None = None) -> tuple[np.ndarray, list[int], float]:
-    """States per frame, the frames re-initialised, and the seconds spent (tracking plus
+                 recover: AutoInitialiser | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, list[int], float]:
+    """States per frame, their hand sizes (:attr:`~digiteyes.trackers.TrackResult.
+    hand_scale`), the frames re-initialised, and the seconds spent (tracking plus
     recovery), with the recovery of :func:`digiteyes.pipeline.run_tracker`."""
-    states, fresh_frames, seconds = [], [], 0.0
+    states, scales, fresh_frames, seconds = [], [], [], 0.0
     for index, images, result, step_s in step_frames(tracker, frames, start):
-        q = result.state
+        q, scale = result.state, result.hand_scale
         started = time.perf_counter()
         fresh = recovered_state(tracker, images, result, recover)
         if fresh is not None:
-            q = fresh
+            q, scale = fresh, 1.0  # a fit at the model's size
             fresh_frames.append(index)
         seconds += step_s + time.perf_counter() - started
         states.append(q)
-    return np.array(states), fresh_frames, seconds
+        scales.append(scale)
+    return np.array(states), np.array(scales), fresh_frames, seconds
 
 
 def make_tracker(name: str, model, rig, detector: str) -> Tracker:
@@ -115,13 +119,13 @@ def setup_entry(name: str, n_frames: int, detector: str = "classic",
     except DatasetError as error:
         return entry | {"started": False, "why": str(error), "meets_target": False}
     start_s = time.perf_counter() - started
-    truth_states, truth_fresh, truth_s = track_states(
+    truth_states, truth_scales, truth_fresh, truth_s = track_states(
         make_tracker(tracker, model, rig, detector), sequence.images[skipped:],
         scenario.states[skipped], AutoInitialiser(model, rig, detector))
-    auto_states, fresh, auto_s = track_states(make_tracker(tracker, model, rig, detector),
-                                              list(rest), start, initialiser)
-    err_truth = keypoint_error_mm(model, truth_states, sequence.truth, skipped)
-    err_auto = keypoint_error_mm(model, auto_states, sequence.truth, skipped)
+    auto_states, auto_scales, fresh, auto_s = track_states(
+        make_tracker(tracker, model, rig, detector), list(rest), start, initialiser)
+    err_truth = keypoint_error_mm(model, truth_states, sequence.truth, skipped, truth_scales)
+    err_auto = keypoint_error_mm(model, auto_states, sequence.truth, skipped, auto_scales)
     gap = err_auto - err_truth
     within = np.flatnonzero(np.array([np.all(gap[t:] <= TOLERANCE_MM)
                                       for t in range(len(gap))]))
