@@ -18,9 +18,11 @@ from digiteyes import forward_kinematics
 from digiteyes.camera import Rig, save_rig
 from digiteyes.camera.mirror import mirrored_rig
 from digiteyes.cli import main
+from digiteyes.detect.hand_size import model_hand_length
 from digiteyes.detect.mediapipe_detector import mediapipe_available
 from digiteyes.io import VideoReader, VideoWriter, open_sequence, read_state_log
 from digiteyes.io.video import CaptureReader, open_capture_frames
+from digiteyes.kinematics import model_from_file
 from digiteyes.kinematics.anatomy import FINGERS
 from digiteyes.kinematics.keypoints import keypoints
 from digiteyes.pipeline import run_tracker
@@ -509,7 +511,8 @@ def test_auto_takes_the_keypoint_tracker_only_for_datasets_the_detector_sees(tmp
                      "--appearance", appearance]) == 0
         out = tmp_path / f"{appearance}-track"
         assert main(["track", str(data), "-o", str(out), "--quiet", "--no-overlay"]) == 0
-        assert f"tracker: {expected}" in capsys.readouterr().out
+        printed = capsys.readouterr().out
+        assert f"tracker: {expected}" in printed
         summary = json.loads((out / "summary.json").read_text())
         assert summary["tracker"] == expected
         # the keypoint tracker records the hand's scale (two cameras: the model's size at
@@ -521,8 +524,16 @@ def test_auto_takes_the_keypoint_tracker_only_for_datasets_the_detector_sees(tmp
             log = read_state_log(out / "states.csv", open_sequence(data).model)
             assert summary["hand_scale"] == log.hand_scale[-1]
             assert 0.8 < summary["hand_scale"] < 1.2
+            # the measured hand as a model file, for later footage of one camera
+            measured = model_from_file(out / "hand-measured.dh")
+            model = open_sequence(data).model
+            assert measured.state_names == model.state_names
+            assert model_hand_length(measured) == pytest.approx(
+                summary["hand_scale"] * model_hand_length(model), rel=1e-4)
+            assert "hand-measured.dh" in printed
         else:
             assert summary["hand_scale"] is None
+            assert not (out / "hand-measured.dh").exists()
 
 
 @pytest.mark.skipif(not mediapipe_available(), reason="optional extra digiteyes[mediapipe]")

@@ -34,6 +34,7 @@ from digiteyes.detect.link_lengths import measured_lengths, triangulate, with_li
 from digiteyes.detect.model_fit import PoseFit, palm_points
 from digiteyes.detect.pose import estimate_pose
 from digiteyes.errors import DigitEyesError
+from digiteyes.io.safe_paths import atomic_write_bytes
 from digiteyes.kinematics import KinematicModel, format_model_text
 from digiteyes.kinematics.scaling import scaled_model
 
@@ -105,18 +106,20 @@ def measure_hand(image_sets: Iterable[Sequence[np.ndarray]], rig: Rig,
 
 def write_personal_model(model: KinematicModel, scale: float, path: str | Path,
                          name: str = "my-hand",
-                         lengths: np.ndarray | None = None) -> KinematicModel:
+                         lengths: np.ndarray | None = None,
+                         source: str = "digiteyes calibrate-hand") -> KinematicModel:
     """Write ``model`` scaled by ``scale`` as a model file, with the 15 digit segments set
     to ``lengths`` (mm, :data:`~digiteyes.detect.link_lengths.SEGMENT_NAMES` order) when
-    given; returns the personal model."""
+    given; ``source`` names the writer in the file's header; returns the personal
+    model."""
     personal = scaled_model(model, scale, name=name)
     if lengths is not None:
         personal = with_link_lengths(personal, lengths)
     text = format_model_text(personal.spec)
-    header = (f"# personal hand model written by digiteyes calibrate-hand: {model.name} "
+    header = (f"# personal hand model written by {source}: {model.name} "
               f"scaled by {scale:.4f} (hand length {model_hand_length(personal):.1f} mm"
               f"{', measured finger segments' if lengths is not None else ''})\n")
-    Path(path).write_text(header + text, encoding="utf-8")
+    atomic_write_bytes(path, (header + text).encode("utf-8"))
     return personal
 
 
