@@ -56,14 +56,7 @@ from digiteyes.io import StateLogWriter, VideoWriter
 from digiteyes.io.safe_paths import atomic_write_json
 from digiteyes.kinematics import KinematicModel
 from digiteyes.kinematics.scaling import model_of_size
-from digiteyes.trackers import (
-    Tracker,
-    TrackResult,
-    residual_unit,
-    restart,
-    sizes_hand,
-    warm_up,
-)
+from digiteyes.trackers import Tracker, TrackResult, residual_unit, restart, sizes_hand, warm_up
 from digiteyes.viz.model_view import write_model_png
 from digiteyes.viz.track_overlay import overlay_image
 from digiteyes.viz.trajectory import write_trajectory_plots
