@@ -222,3 +222,32 @@ def test_the_on_line_size_follows_a_change_with_its_time_constant():
     tracker._size_measured = 20  # as after a long track at the model's size
     tracker.step(blank)
     assert 1.0 < tracker.scale < 1.3 ** (1 / 20) + 1e-3
+
+
+def test_a_warm_start_stuck_in_a_local_minimum_gives_way_to_the_fit_from_scratch():
+    """The previous estimate turned 120 degrees about the palm's y axis: the fit from it
+    explains most keypoints (so it passes the tracker's tests) but leaves some 50 px off;
+    since not every keypoint is within ``max_error_px``, the fit from scratch is tried
+    too and, of lower cost, taken."""
+    from digiteyes.detect.model_fit import FitOptions, KeypointObservation, fit_keypoints
+    from digiteyes.kinematics.rotations import quaternion_from_rotvec, quaternion_multiply
+
+    scenario = build_scenario("desk-1cam", seed=1, n_frames=2)
+    model, rig = scenario.model, scenario.rig
+    truth = scenario.states[0]
+    turned = truth.copy()
+    turned[0:4] = quaternion_multiply(truth[0:4], quaternion_from_rotvec(
+        np.radians(120.0) * np.array([0.0, 1.0, 0.0])))
+    rows, points = model_anchors(model)
+    uv = rig[0].project(forward_kinematics(model, truth).points(rows, points))
+    warm = fit_keypoints(model, [KeypointObservation(rig[0], uv)],
+                         options=FitOptions(fit_scale=False, iterations=5), q0=turned)
+    assert warm.reprojection_px.max() > 25.0 and np.mean(warm.reprojection_px <= 25.0) >= 0.5
+    tracker = create_tracker("keypoints", model, rig, detector="classic",
+                             silhouette_check=False, start_size=False)
+    tracker.reset(turned)
+    tracker._detectors = [TruthDetector(model, scenario.states, noise_px=0.0)]
+    result = tracker.step([np.zeros((c.height, c.width), np.uint8) for c in rig])
+    assert not result.lost
+    assert np.nanmax(result.details.reprojection_px) < 2.0
+    assert tip_errors(model, [result.state], [truth])[0] < 2.0

@@ -356,19 +356,28 @@ class KeypointTracker:
         return fit, fit.iterations
 
     def _fit(self, observations: list[KeypointObservation]) -> tuple[PoseFit | None, int]:
-        """The fit from the previous estimate when it explains the keypoints near the last
-        estimate, else the fit from scratch when that one does, else None; and the solver
-        iterations spent."""
-        iterations = 0
+        """The fit from the previous estimate when it puts every keypoint within
+        ``max_error_px``; otherwise also the fit from scratch, and of the two that explain
+        the keypoints near the last estimate the one of lower cost (a warm start can
+        leave a finger in a local minimum, tens of pixels off, while the rest explains
+        the frame); None when neither does. Also the solver iterations spent."""
+        iterations, best = 0, None
         for q0 in (model_unit_states(self.model, self.state, self.scale), None):
+            if best is not None and self._fits_every_keypoint(best):
+                break
             try:
                 fit = fit_keypoints(self.model, observations, options=self._fit_options, q0=q0)
             except DigitEyesError:
                 continue
             iterations += fit.iterations
-            if self._explains(fit) and self._near(fit):
-                return fit, iterations
-        return None, iterations
+            if self._explains(fit) and self._near(fit) and (best is None
+                                                            or fit.cost < best.cost):
+                best = fit
+        return best, iterations
+
+    def _fits_every_keypoint(self, fit: PoseFit) -> bool:
+        errors = fit.reprojection_px[np.isfinite(fit.reprojection_px)]
+        return bool(np.all(errors <= self.options.max_error_px))
 
     def _near(self, fit: PoseFit) -> bool:
         """Whether ``fit`` keeps the hand within ``max_jump`` hand lengths per frame since
