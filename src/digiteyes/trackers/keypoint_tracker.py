@@ -84,6 +84,9 @@ START_SCALE_RANGE = (0.6, 1.6)
 """Hand scales (relative to the model file) the size fit at the start (and a frame's size
 measurement) may return; outside them the model's size is kept (the measurement
 ignored)."""
+SCRATCH_MAX_TURN_DEG = 30.0
+"""A fit from scratch replaces a warm fit that explains the keypoints only when it turns
+the palm by less than this (degrees; docs/keypoint-tracker.md)."""
 SIZE_ITERATIONS = 3
 """Gauss-Newton iterations of a frame's size measurement (from the frame's fit)."""
 SIZE_MAX_RMS = 2.0
@@ -356,11 +359,15 @@ class KeypointTracker:
         return fit, fit.iterations
 
     def _fit(self, observations: list[KeypointObservation]) -> tuple[PoseFit | None, int]:
-        """The fit from the previous estimate when it puts every keypoint within
-        ``max_error_px``; otherwise also the fit from scratch, and of the two that explain
-        the keypoints near the last estimate the one of lower cost (a warm start can
-        leave a finger in a local minimum, tens of pixels off, while the rest explains
-        the frame); None when neither does. Also the solver iterations spent."""
+        """The fit from the previous estimate; when it leaves a keypoint beyond
+        ``max_error_px``, also the fit from scratch, taken when the warm fit does not
+        explain the keypoints near the last estimate, or when it costs less and turns the
+        palm by less than :data:`SCRATCH_MAX_TURN_DEG` from the warm fit's (a warm start
+        can leave a finger in a local minimum, tens of pixels off, while the rest
+        explains the frame; a fit from scratch that turns the palm over is the other
+        side of the ambiguity of a planar palm in one view, which the warm start
+        settles); None when neither explains the keypoints. Also the solver iterations
+        spent."""
         iterations, best = 0, None
         for q0 in (model_unit_states(self.model, self.state, self.scale), None):
             if best is not None and self._fits_every_keypoint(best):
@@ -370,10 +377,18 @@ class KeypointTracker:
             except DigitEyesError:
                 continue
             iterations += fit.iterations
-            if self._explains(fit) and self._near(fit) and (best is None
-                                                            or fit.cost < best.cost):
+            if self._explains(fit) and self._near(fit) and (
+                    best is None or (fit.cost < best.cost and self._palm_turn_deg(fit, best)
+                                     < SCRATCH_MAX_TURN_DEG)):
                 best = fit
         return best, iterations
+
+    def _palm_turn_deg(self, a: PoseFit, b: PoseFit) -> float:
+        """The angle between the palm orientations of two fits (degrees)."""
+        k = self.model.base_state
+        qa, qb = a.q[k:k + 4], b.q[k:k + 4]
+        cosine = abs(float(qa @ qb)) / (np.linalg.norm(qa) * np.linalg.norm(qb))
+        return float(np.degrees(2.0 * np.arccos(min(1.0, cosine))))
 
     def _fits_every_keypoint(self, fit: PoseFit) -> bool:
         errors = fit.reprojection_px[np.isfinite(fit.reprojection_px)]
