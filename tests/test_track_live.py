@@ -520,6 +520,9 @@ def test_auto_takes_the_keypoint_tracker_only_for_datasets_the_detector_sees(tmp
         assert summary["start"].get("hand_scale") == (1.0 if expected == "keypoints" else None)
         header = (out / "states.csv").read_text().splitlines()[0].split(",")
         assert ("hand_scale" in header) == (expected == "keypoints")
+        # the model it ran with, beside the log, for export and replay
+        assert model_from_file(out / "model.dh").state_names == tuple(header[
+            len(header) - len(open_sequence(data).model.state_names):])
         if expected == "keypoints":
             log = read_state_log(out / "states.csv", open_sequence(data).model)
             assert summary["hand_scale"] == log.hand_scale[-1]

@@ -37,7 +37,7 @@ from digiteyes.io import open_sequence, open_video_frames
 from digiteyes.io.frame_sinks import KEYPOINTS_FILE, JsonLinesStream, KeypointLog
 from digiteyes.io.image_folder import is_image_folder, open_image_folder_frames
 from digiteyes.io.safe_paths import atomic_write_json
-from digiteyes.io.track_extras import write_track_extras
+from digiteyes.io.track_extras import write_track_extras, write_track_model
 from digiteyes.io.video import (
     DEFAULT_CAMERA_FPS,
     DEFAULT_FPS,
@@ -420,6 +420,7 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
         record_missing(run.files["summary"], source.lengths[0], first_index + run.n_frames,
                        source.lengths[1])
     run.files.update(write_track_extras(out, model, source.rate, job.smooth))
+    run.files["model"] = write_track_model(out, model)
     from digiteyes.evaluate.report_page import write_report_page
 
     run.files["report"] = write_report_page(out)

@@ -87,3 +87,31 @@ def test_a_track_of_a_hand_of_its_own_size_is_exported_at_that_size(tmp_path, ca
     tip = names.index("index.tip")
     got = np.array([[float(r[f"index.tip_{a}_mm"]) for a in "xyz"] for r in rows])
     np.testing.assert_allclose(got, points[:, tip], atol=1e-9)
+
+
+def test_a_track_folder_carries_its_model_and_export_uses_it(tmp_path, capsys):
+    """A track of a personal model (lengths other than the shipped hand's): the folder's
+    ``model.dh`` (what ``track`` writes) is the model ``export`` and the replay read, not
+    the shipped model whose state names the log shares."""
+    from digiteyes.io.track_extras import model_of_log, write_track_model
+    from digiteyes.kinematics.keypoints import hand_keypoints
+    from digiteyes.kinematics.scaling import scaled_model
+
+    scenario = build_scenario("whole-hand")
+    personal = scaled_model(scenario.model, 0.85, name="my-hand")
+    states = scenario.states[:4]
+    track = tmp_path / "track"
+    with StateLogWriter(track / "states.csv", personal) as log:
+        for t, q in enumerate(states):
+            log.append(t, q, time_s=0.01, lost=False, residual_rms_px=0.5, iterations=5)
+    assert model_of_log(track / "states.csv").name == "hand"  # by its header alone
+    write_track_model(track, personal)
+    found = model_of_log(track / "states.csv")
+    assert found.name == "my-hand" and found.state_names == personal.state_names
+    assert main(["export", str(track), "-o", str(tmp_path / "out"), "--format", "csv"]) == 0
+    with open(tmp_path / "out" / "track.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    names, points = hand_keypoints(personal, states)
+    tip = names.index("middle.tip")
+    got = np.array([[float(r[f"middle.tip_{a}_mm"]) for a in "xyz"] for r in rows])
+    np.testing.assert_allclose(got, points[:, tip], atol=1e-6)

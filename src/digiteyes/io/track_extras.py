@@ -12,6 +12,7 @@ import numpy as np
 
 from digiteyes.errors import DatasetError, DigitEyesError
 from digiteyes.filters import OneEuroOptions, one_euro_filter, restarts_after_losses
+from digiteyes.io.safe_paths import atomic_write_bytes
 from digiteyes.io.state_log import (
     LOG_COLUMNS,
     OPTIONAL_COLUMNS,
@@ -20,11 +21,12 @@ from digiteyes.io.state_log import (
     read_state_log,
 )
 from digiteyes.io.video import DEFAULT_FPS
-from digiteyes.kinematics import KinematicModel, load_model
+from digiteyes.kinematics import KinematicModel, format_model_text, load_model, model_from_file
 from digiteyes.kinematics.joint_angles import write_joint_angles_csv
 from digiteyes.models import shipped_models
 
 STATES = "states.csv"
+TRACK_MODEL = "model.dh"
 SMOOTHED_STATES = "states-smoothed.csv"
 JOINT_ANGLES = "joint_angles.csv"
 SMOOTHED_JOINT_ANGLES = "joint_angles-smoothed.csv"
@@ -69,10 +71,31 @@ def write_track_extras(out_dir: str | Path, model: KinematicModel, fps: float,
     return files
 
 
+def write_track_model(out_dir: str | Path, model: KinematicModel) -> Path:
+    """Write the model a run tracked with as ``out_dir/model.dh`` (atomically), so that
+    what reads the folder later (``export``, ``mouse --replay``) draws the states with
+    the same hand, a personal model's lengths included (:func:`model_of_log`)."""
+    path = Path(out_dir) / TRACK_MODEL
+    text = (f"# the model digiteyes track ran with ({model.name}); export and replay read "
+            f"it\n{format_model_text(model.spec)}")
+    atomic_write_bytes(path, text.encode("utf-8"))
+    return path
+
+
 def model_of_log(path: str | Path) -> KinematicModel:
-    """The shipped model whose state names are exactly the state columns of a state log.
-    Raises :class:`DatasetError` when none or several fit (then pass ``--model``)."""
+    """The model a state log was tracked with: the ``model.dh`` that ``track`` writes
+    beside it (:func:`write_track_model`), else the shipped model whose state names are
+    exactly the log's state columns. Raises
+    :class:`DatasetError` when none or several shipped models fit (then pass
+    ``--model``), or when the folder's ``model.dh`` cannot be read."""
     path = Path(path)
+    beside = path.parent / TRACK_MODEL
+    if beside.is_file():
+        try:
+            model = model_from_file(beside)
+        except DigitEyesError as exc:
+            raise DatasetError(f"{beside}: {exc}") from None
+        return model
     try:
         with open(path, newline="", encoding="utf-8") as handle:
             header = next(csv.reader(handle), [])

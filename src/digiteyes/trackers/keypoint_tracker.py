@@ -14,9 +14,11 @@ joint limits, metric 3D in the camera frame from the hand's size, joint angles, 
 cameras in one estimate. Per frame the 21 keypoints of every camera that sees the hand
 are fitted (:func:`~digiteyes.detect.model_fit.fit_keypoints`, robust Gauss-Newton with
 the joint prior) starting from the previous estimate, which keeps each finger's bend
-towards or away from the camera where one view cannot tell; when that fit does not
-explain the keypoints, a fit from scratch is tried; a fit that moves the hand farther
-than a hand could move (``max_jump``) is refused. A frame in which no camera finds a hand,
+towards or away from the camera where one view cannot tell; when that fit leaves a
+keypoint beyond ``max_error_px``, a fit from scratch is tried too (:meth:`KeypointTracker.
+_fit`: taken when it costs less without turning the palm over, or when the warm fit does
+not explain the keypoints); a fit that moves the hand farther than a hand could move
+(``max_jump``) is refused. A frame in which no camera finds a hand,
 or no fit explains the keypoints near the last estimate, holds the previous state and is
 flagged lost.
 
