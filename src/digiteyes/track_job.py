@@ -412,9 +412,10 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
     run.files["keypoints"] = out / KEYPOINTS_FILE
     if sizes_hand(tracker):
         start_note["hand_scale"] = float(getattr(tracker, "start_scale", tracker.scale))
-        if run.hand_scale is not None and run.hand_scale != 1.0:
-            run.files["measured-model"] = _write_measured_model(model, run.hand_scale, out,
-                                                                say)
+        segments = getattr(tracker, "measured_segments", None)
+        if run.hand_scale is not None and (run.hand_scale != 1.0 or segments is not None):
+            run.files["measured-model"] = _write_measured_model(model, run.hand_scale,
+                                                                segments, out, say)
     _record_start(run, start_note, initialiser, job.smooth, source.rate, check)
     if source.lengths is not None and not run.interrupted and job.max_frames is None:
         record_missing(run.files["summary"], source.lengths[0], first_index + run.n_frames,
@@ -431,18 +432,22 @@ MEASURED_MODEL = "hand-measured.dh"
 """The model file ``track`` writes when the tracker measured the hand's size."""
 
 
-def _write_measured_model(model: KinematicModel, scale: float, out: Path,
+def _write_measured_model(model: KinematicModel, scale: float,
+                          segments: np.ndarray | None, out: Path,
                           say: Callable[[str], None]) -> Path:
-    """Write ``model`` at the size the tracker measured (its last frame's) as
-    ``out/hand-measured.dh``, to track later footage of the same hand with ``--model``
-    (one camera cannot measure the size itself); say so."""
+    """Write ``model`` at the size the tracker measured (its last frame's), with the 15
+    finger ``segments`` (mm) when it measured them, as ``out/hand-measured.dh``, to track
+    later footage of the same hand with ``--model`` (one camera cannot measure the size
+    itself); say so."""
     from digiteyes.detect.hand_size import model_hand_length, write_personal_model
 
     path = out / MEASURED_MODEL
-    personal = write_personal_model(model, scale, path, name=model.name,
-                                     source="digiteyes track (the size it measured)")
+    personal = write_personal_model(model, scale, path, name=model.name, lengths=segments,
+                                    source="digiteyes track (the size it measured)")
+    measured = ", and its 15 finger segments" if segments is not None else ""
     say(f"the hand measured {scale:.3f} times the model's size (hand length "
-        f"{model_hand_length(personal):.0f} mm): {path} (track it with --model {path})")
+        f"{model_hand_length(personal):.0f} mm{measured}): {path} (track it with --model "
+        f"{path})")
     return path
 
 

@@ -278,3 +278,37 @@ def test_a_fit_from_scratch_that_turns_the_palm_over_does_not_replace_the_warm_o
     turn_from_truth = np.degrees(2 * np.arccos(min(1.0, abs(float(quat @ truth[0:4])))))
     assert turn_from_truth > SCRATCH_MAX_TURN_DEG
     assert np.nanmax(result.details.reprojection_px) > 25.0
+
+
+def test_two_cameras_also_measure_the_finger_segments():
+    """A hand whose finger segments differ from the model's (each link 8 % longer or
+    shorter at random) seen by two cameras through a detector that locates joints: the
+    segments the tracker measures on-line are the hand's (triangulated, median over the
+    frames), to 0.5 mm; before ``SEGMENT_FRAMES`` frames, or with a detector that does
+    not locate joints, there are none."""
+    from digiteyes.detect.link_lengths import model_lengths
+    from digiteyes.synth.perturb import perturb_model
+    from digiteyes.trackers.keypoint_tracker import SEGMENT_FRAMES
+
+    n = SEGMENT_FRAMES + 2
+    scenario = build_scenario("desk-2cam", seed=1, n_frames=n)
+    model, rig = scenario.model, scenario.rig
+    truth = perturb_model(model, link_length=0.08, rng=3)
+    assert np.abs(model_lengths(truth) - model_lengths(model)).max() > 2.0
+    blank = [np.zeros((c.height, c.width), np.uint8) for c in rig]
+    measured = {}
+    for locates in (True, False):
+        tracker = create_tracker("keypoints", model, rig, detector="classic",
+                                 silhouette_check=False)
+        tracker.reset(scenario.states[0])
+        tracker._detectors = [TruthDetector(truth, scenario.states, noise_px=0.5, seed=c)
+                              for c in range(len(rig))]
+        for detector in tracker._detectors:
+            detector.locates_joints = locates
+        for t in range(n):
+            tracker.step(blank)
+            if t == 0:
+                assert tracker.measured_segments is None  # too few frames yet
+        measured[locates] = tracker.measured_segments
+    assert measured[False] is None
+    np.testing.assert_allclose(measured[True], model_lengths(truth), atol=0.5)

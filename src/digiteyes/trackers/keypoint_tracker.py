@@ -47,6 +47,11 @@ mean of the first ``size_frames`` and then an exponential average with that time
 constant (frames): the size settles within the first frames and then follows only what
 persists, not a frame's bad detection. One camera cannot measure it (a hand ``s`` times
 larger at ``s`` times the depth gives the same image), so there the size is the start's.
+The same frames also measure the 15 finger segments, from the keypoints of a detector
+that locates joints triangulated between the cameras
+(:mod:`~digiteyes.detect.link_lengths`, as ``calibrate-hand`` does): their medians,
+:attr:`KeypointTracker.measured_segments`, go into the model ``track`` writes at the
+measured size; the track itself keeps one scale.
 
 A fit that explains the keypoints can still be wrong (a detector that takes a hand-like
 drawing or a back-lit hand for a hand labels its joints anyway), so the shared silhouette
@@ -67,6 +72,7 @@ from digiteyes.camera import Camera, Rig
 from digiteyes.detect.candidate import HandCandidate
 from digiteyes.detect.hand21 import model_anchors
 from digiteyes.detect.hand_size import model_hand_length
+from digiteyes.detect.link_lengths import segment_lengths, triangulate
 from digiteyes.detect.model_fit import FitOptions, KeypointObservation, PoseFit, fit_keypoints
 from digiteyes.detect.pose import DETECTORS, make_detector
 from digiteyes.errors import DigitEyesError
@@ -86,6 +92,9 @@ START_SCALE_RANGE = (0.6, 1.6)
 """Hand scales (relative to the model file) the size fit at the start (and a frame's size
 measurement) may return; outside them the model's size is kept (the measurement
 ignored)."""
+SEGMENT_FRAMES = 10
+"""Frames that must measure a finger segment before :attr:`KeypointTracker.
+measured_segments` reports the segments."""
 SCRATCH_MAX_TURN_DEG = 30.0
 """A fit from scratch replaces a warm fit that explains the keypoints only when it turns
 the palm by less than this (degrees; docs/keypoint-tracker.md)."""
@@ -207,6 +216,7 @@ class KeypointTracker:
         """The scale the track started with (the start's size fit, else 1)."""
         self._size_pending = False
         self._size_measured = 0
+        self._segments: list[np.ndarray] = []
         self._detectors: list = []
         self.silhouette_loss = SilhouetteLoss.from_options(model, rig, self.options)
         self.loss_hold = LossHold(self.options.hold_lost_frames)
@@ -229,6 +239,7 @@ class KeypointTracker:
         self._set_scale(1.0)
         self.start_scale = 1.0
         self._size_measured = 0
+        self._segments = []
         self._size_pending = self.options.start_size and len(self.rig) == 1
 
     def restart(self, state: np.ndarray) -> None:
@@ -295,6 +306,7 @@ class KeypointTracker:
                              hand_scale=self.scale)
         if size is not None and not lost:
             self._adapt_size(size)
+            self._measure_segments(candidates)
         self._frame_index += 1
         timings["total"] = time.perf_counter() - start_total
         return self.loss_hold.apply(result)
@@ -337,6 +349,27 @@ class KeypointTracker:
         gain = 1.0 / min(self._size_measured, float(self.options.size_frames))
         self._set_scale(float(np.exp((1.0 - gain) * np.log(self.scale)
                                      + gain * np.log(measured))))
+
+    @property
+    def measured_segments(self) -> np.ndarray | None:
+        """The 15 finger segments (mm, :data:`~digiteyes.detect.link_lengths.SEGMENT_NAMES`
+        order) measured on-line: per segment the median over the frames that measured
+        the size; None before every segment was measured in :data:`SEGMENT_FRAMES`
+        frames, or when the detectors do not locate joints."""
+        if not self._segments:
+            return None
+        lengths = np.array(self._segments)
+        if (np.isfinite(lengths).sum(axis=0) < SEGMENT_FRAMES).any():
+            return None
+        return np.nanmedian(lengths, axis=0)
+
+    def _measure_segments(self, candidates: list[HandCandidate | None]) -> None:
+        """Add this frame's finger segments, triangulated from the cameras that found the
+        hand, when every detector locates joints."""
+        if not all(getattr(d, "locates_joints", False) for d in self._detectors):
+            return
+        seen = [None if c is None else c.keypoints for c in candidates]
+        self._segments.append(segment_lengths(triangulate(self.rig, seen)))
 
     def _set_scale(self, scale: float) -> None:
         self.scale = float(scale)
