@@ -419,8 +419,11 @@ class KeypointTracker:
         return best, iterations
 
     def _palm_turn_deg(self, a: PoseFit, b: PoseFit) -> float:
-        """The angle between the palm orientations of two fits (degrees)."""
+        """The angle between the palm orientations of two fits (degrees; 0 for a model
+        whose palm has no pose base)."""
         k = self.model.base_state
+        if k is None:
+            return 0.0
         qa, qb = a.q[k:k + 4], b.q[k:k + 4]
         cosine = abs(float(qa @ qb)) / (np.linalg.norm(qa) * np.linalg.norm(qb))
         return float(np.degrees(2.0 * np.arccos(min(1.0, cosine))))
