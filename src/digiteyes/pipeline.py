@@ -258,8 +258,9 @@ def run_tracker(
                         preset=OVERLAY_PRESET) if overlay else None
     bar = tqdm(frames, total=total, unit="frame", desc="tracking", disable=not progress)
     try:
+        sized = sizes_hand(tracker)
         with StateLogWriter(log_path, model, reinitialised=recover is not None,
-                            hand_scale=sizes_hand(tracker)) as log:
+                            hand_scale=sized) as log:
             for index, images, result, seconds in step_frames(tracker, bar, initial_state,
                                                                  first_index):
                 start = time.perf_counter()
@@ -277,7 +278,7 @@ def run_tracker(
                            iterations=result.iterations, reinitialised=fresh is not None,
                            hand_scale=result.hand_scale)
                 _account(run, result, index, seconds)
-                if sizes_hand(tracker):
+                if sized:
                     run.hand_scale = float(result.hand_scale)
                 for sink in sinks:
                     sink.write(index, images, result, fresh is not None)

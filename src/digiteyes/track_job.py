@@ -347,7 +347,7 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
     rig = source.rig or Rig((default_camera(first[0].shape[1], first[0].shape[0],
                                             job.hfov),))
     rig.check_images(first)
-    frames = prepend(first, frames)
+    frames = chain([first], frames)
     rig, frames = _transformed_input(job, rig, frames, say)
     model = source.model
     auto = source.initial is None
@@ -585,15 +585,9 @@ def as_left_hand(initialiser: AutoInitialiser, rig: Rig, frames: Iterator[list[n
     fresh = AutoInitialiser(initialiser.model, mirrored, initialiser.detector)
     fitted = fresh(mirror_images(first))
     if fitted is None:
-        return initialiser, rig, prepend(first, frames), state
+        return initialiser, rig, chain([first], frames), state
     flipped = (mirror_images(images) for images in frames)
-    return fresh, mirrored, prepend(mirror_images(first), flipped), fitted
-
-
-def prepend(first: list[np.ndarray], frames: Iterator) -> Iterator[list[np.ndarray]]:
-    """``first`` followed by the rest of ``frames``."""
-    yield first
-    yield from frames
+    return fresh, mirrored, chain([mirror_images(first)], flipped), fitted
 
 
 def _record_start(run: TrackingRun, note: dict[str, object], initialiser,

@@ -33,8 +33,6 @@ hand_scale column) is exported with the model at the track's median size."""
 def export(track_dir: Path, output: Path, formats: tuple[str, ...], model_name: str | None,
            fps: float | None, smooth: bool, min_cutoff: float | None,
            beta: float | None) -> None:
-    import numpy as np
-
     from digiteyes.commands.track import smoothing_options
     from digiteyes.io.export import export_track
     from digiteyes.io.track_extras import read_track, track_is_left_hand
@@ -45,7 +43,7 @@ def export(track_dir: Path, output: Path, formats: tuple[str, ...], model_name: 
     model = load_model(model_name) if model_name else None
     model, log, fps = read_track(track_dir, model, fps, options)
     left = track_is_left_hand(track_dir if track_dir.is_dir() else track_dir.parent)
-    size = float(np.median(log.hand_scale)) if len(log) else 1.0
+    size = log.median_hand_scale
     model = model_of_size(model, size)  # the states pose a hand of this size
     for fmt in dict.fromkeys(formats):
         path = export_track(model, log.frames, log.states, log.lost, fps, output, fmt, left)

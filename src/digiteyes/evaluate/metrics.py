@@ -30,6 +30,7 @@ from digiteyes.kinematics.anatomy import (
     palm_pose,
 )
 from digiteyes.kinematics.keypoints import hand_keypoints, keypoints
+from digiteyes.kinematics.rotations import quaternion_angle
 
 KeypointFn = Callable[[KinematicModel, Kinematics], tuple[Sequence[str], np.ndarray]]
 
@@ -40,24 +41,6 @@ REPORT_ORDER = (*FINGERS, "thumb")
 
 
 # --------------------------------------------------------------------------- geometry
-def quaternion_angle(q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
-    """Geodesic angle (radians, in [0, pi]) between the rotations of two quaternions.
-
-    Quaternions (w, x, y, z), any norm, batched over leading dimensions. Sign-invariant:
-    ``q`` and ``-q`` are the same rotation. Computed as ``2 atan2(|v|, |w|)`` of the relative
-    quaternion ``conj(q1) q2 = (w, v)``, accurate for small and large angles alike.
-    """
-    q1 = np.asarray(q1, dtype=float)
-    q2 = np.asarray(q2, dtype=float)
-    q1 = q1 / np.linalg.norm(q1, axis=-1, keepdims=True)
-    q2 = q2 / np.linalg.norm(q2, axis=-1, keepdims=True)
-    w1, v1 = q1[..., 0], q1[..., 1:]
-    w2, v2 = q2[..., 0], q2[..., 1:]
-    w = w1 * w2 + np.sum(v1 * v2, axis=-1)
-    v = w1[..., None] * v2 - w2[..., None] * v1 - np.cross(v1, v2)
-    return 2.0 * np.arctan2(np.linalg.norm(v, axis=-1), np.abs(w))
-
-
 def wrap_angle(angle: np.ndarray) -> np.ndarray:
     """Angles wrapped into [-pi, pi) (radians)."""
     return (np.asarray(angle, dtype=float) + np.pi) % (2.0 * np.pi) - np.pi

@@ -61,6 +61,12 @@ class StateLog:
     def __len__(self) -> int:
         return len(self.frames)
 
+    @property
+    def median_hand_scale(self) -> float:
+        """The hand's size over the log (median of ``hand_scale``; 1 for an empty log):
+        what a whole-track output (an export, a replay) draws the states at."""
+        return float(np.median(self.hand_scale)) if len(self) else 1.0
+
 
 class StateLogWriter:
     """Append tracker results to a state-log CSV (context manager).

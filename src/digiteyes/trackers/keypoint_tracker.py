@@ -78,6 +78,7 @@ from digiteyes.detect.pose import DETECTORS, make_detector
 from digiteyes.errors import DigitEyesError
 from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import KinematicModel, forward_kinematics
+from digiteyes.kinematics.rotations import quaternion_angle
 from digiteyes.kinematics.scaling import model_unit_states
 from digiteyes.kinematics.state import validate_state
 from digiteyes.trackers.base import TrackResult, start_step
@@ -424,9 +425,7 @@ class KeypointTracker:
         k = self.model.base_state
         if k is None:
             return 0.0
-        qa, qb = a.q[k:k + 4], b.q[k:k + 4]
-        cosine = abs(float(qa @ qb)) / (np.linalg.norm(qa) * np.linalg.norm(qb))
-        return float(np.degrees(2.0 * np.arccos(min(1.0, cosine))))
+        return float(np.degrees(quaternion_angle(a.q[k:k + 4], b.q[k:k + 4])))
 
     def _fits_every_keypoint(self, fit: PoseFit) -> bool:
         errors = fit.reprojection_px[np.isfinite(fit.reprojection_px)]
