@@ -132,6 +132,22 @@ def test_a_replayed_full_hand_run_is_mapped_by_its_palm(tmp_path):
     assert frames[1].pole[2] == pytest.approx(INDEX_LENGTH_MM * np.sin(np.radians(20.0)))
 
 
+def test_a_replayed_run_of_a_measured_hand_is_mapped_at_its_size(tmp_path):
+    """A keypoint track that measured the hand at 0.9 (``hand_scale``): the replay's pole
+    height is that of the smaller finger (0.9 of the model's for the same raise)."""
+    from digiteyes.apps.mouse_stream import open_mouse_stream
+    from digiteyes.io import StateLogWriter
+
+    raised = START.copy()
+    raised[HAND.state_index("index.mcp")] = -np.radians(20.0)
+    with StateLogWriter(tmp_path / "states.csv", HAND, hand_scale=True) as log:
+        for i, q in enumerate((START, raised)):
+            log.append(i, q, time_s=0.0, lost=False, residual_rms_px=0.0, iterations=1,
+                       hand_scale=0.9)
+    frames = list(open_mouse_stream(replay=tmp_path, fps=1000.0).frames)
+    assert frames[1].pole[2] == pytest.approx(0.9 * INDEX_LENGTH_MM * np.sin(np.radians(20.0)))
+
+
 def test_a_replayed_left_hand_run_moves_the_pole_as_the_real_hand_moves(tmp_path):
     """A left hand's run holds the mirror image's states (``summary.json`` says
     ``start.hand: left``): its replay maps them as mirrored, so the same states move the

@@ -50,6 +50,7 @@ from digiteyes.io.video import (
     open_capture_frames,
 )
 from digiteyes.kinematics import KinematicModel, State, load_model, resample_states
+from digiteyes.kinematics.scaling import model_of_size
 from digiteyes.synth import RenderOptions, render_views
 from digiteyes.synth.scenarios import build_scenario
 from digiteyes.trackers import FeatureTracker, FeatureTrackerOptions, warm_up
@@ -250,9 +251,12 @@ def replay_frames(run_dir: str | Path, model: KinematicModel, fps: float
     """The states of a finished run (``run_dir/states.csv``) with the frames of its
     ``overlay.mp4`` when there is one, paced at ``fps`` frames per second; mapped by
     :func:`mouse_mapping` of the run's first state (a full hand's palm mapping starts
-    from it; a left hand's run holds the mirror image's states, ``summary.json``)."""
+    from it; a left hand's run holds the mirror image's states, ``summary.json``), the
+    hand drawn at its size over the run (:attr:`~digiteyes.io.StateLog.median_hand_scale`:
+    a keypoint track's measured hand)."""
     folder = Path(run_dir)
     log = read_state_log(folder / "states.csv", model)
+    model = model_of_size(model, log.median_hand_scale)
     mapping = (mouse_mapping(model, log.states[0], mirrored=track_is_left_hand(folder))
                if len(log.states) else None)
     video_path = folder / "overlay.mp4"
