@@ -36,6 +36,7 @@ from digiteyes.apps.mouse_stream import (
 )
 from digiteyes.camera import Rig, load_rig
 from digiteyes.camera.default import default_camera
+from digiteyes.detect.side import TRACKED_SIDE
 from digiteyes.errors import DatasetError
 from digiteyes.io import open_video_frames
 from digiteyes.io.video import DEFAULT_CAMERA_FPS, DEFAULT_FPS, frame_rate, open_capture_frames
@@ -109,10 +110,11 @@ def footage_mouse_frames(model: KinematicModel, frames: Iterable[list[np.ndarray
         return
     rig = rig or Rig((default_camera(first[0].shape[1], first[0].shape[0]),))
     rig.check_images(first)
-    initialiser = AutoInitialiser(model, rig, detector)
+    initialiser = AutoInitialiser(model, rig, detector)  # any side: the start's decides
     initial, skipped, found = start_automatically(initialiser, chain([first], frames))
     if initialiser.last.sides() == {"left"}:
         initialiser, rig, found, initial = as_left_hand(initialiser, rig, found, initial)
+    initialiser.side = TRACKED_SIDE
     name = resolve_tracker(AUTO_TRACKER, True, detector, model)
     options = ({"detector": detector, "start_size": False, "iterations": MOUSE_FIT_ITERATIONS}
                if name == FOOTAGE_TRACKER else {})

@@ -289,7 +289,7 @@ def run_tracker(
                     _write_view(model_of_size(model, result.hand_scale), result.state, out,
                                 index, view, run, rig.mirrored)
                 bar.set_postfix(rms=f"{result.residual_rms_px:.2f} {run.residual_unit}",
-                                lost=run.n_lost)
+                                lost=run.n_lost, refresh=False)  # shown at tqdm's own pace
     except KeyboardInterrupt:
         run.interrupted = True
     finally:

@@ -30,6 +30,7 @@ from digiteyes.camera import Rig, load_rig
 from digiteyes.camera.default import DEFAULT_HFOV_DEG, default_camera
 from digiteyes.camera.mirror import mirror_images, mirrored_rig
 from digiteyes.camera.working_size import DEFAULT_MAX_SIDE, resize_images, working_rig
+from digiteyes.detect.side import TRACKED_SIDE
 from digiteyes.errors import CameraError, DatasetError, DigitEyesError
 from digiteyes.features import FeatureOptions
 from digiteyes.filters import OneEuroOptions
@@ -359,7 +360,10 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
     if auto or job.recover:
         from digiteyes.detect.initialiser import AutoInitialiser
 
-        initialiser = AutoInitialiser(model, rig, job.detector)
+        # the side is known unless the images start the run and --hand auto leaves it
+        # to the detector (then the start's hand decides it, below)
+        side = None if auto and job.hand == AUTO_HAND else TRACKED_SIDE
+        initialiser = AutoInitialiser(model, rig, job.detector, side=side)
         start_note["detector"] = initialiser.detector_class
     if auto:
         initial, skipped, frames = _search_start(initialiser, frames, job, total, say)
@@ -379,6 +383,7 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
         elif job.hand != AUTO_HAND and seen and job.hand not in seen:
             say(f"warning: the detector sees a {' and a '.join(sorted(seen))} hand, the run "
                 f"tracks a {job.hand} hand (--hand {sorted(seen)[0]} if that is the one)")
+        initialiser.side = TRACKED_SIDE  # re-detections keep to the started hand's side
         start_note["hand"] = "left" if rig.mirrored else "right"
     else:
         initial = np.asarray(source.initial)
@@ -484,12 +489,21 @@ def _search_start(initialiser: AutoInitialiser, frames: Iterator[list[np.ndarray
     from digiteyes.detect.initialiser import start_automatically
 
     bar = None
+    other = {"left": "right", "right": "left"}.get(job.hand)
+    hint = (f"; the detector sees a {other} hand, and --hand {job.hand} was asked for "
+            f"(--hand {other}, or auto to take the side it sees)") if other else ""
+    other_seen = False
 
     def searched(index: int) -> None:
-        nonlocal bar
+        nonlocal bar, other_seen
+        if not other_seen and initialiser.last is not None and initialiser.last.other_hands:
+            other_seen = True  # said once: why a visible hand does not start the run
+            say(f"--init auto: no {job.hand} hand in frame {index}{hint}")
         if bar is None:
-            say("--init auto: no hand in frame 0; searching the following frames"
-                if job.camera is None else "--init auto: waiting for a hand in view")
+            if job.camera is not None:
+                say("--init auto: waiting for a hand in view")
+            elif not other_seen:
+                say("--init auto: no hand in frame 0; searching the following frames")
             bar = tqdm(total=total, initial=1, unit="frame", desc="looking for a hand",
                        disable=not job.progress)
         else:
@@ -497,6 +511,8 @@ def _search_start(initialiser: AutoInitialiser, frames: Iterator[list[np.ndarray
 
     try:
         return start_automatically(initialiser, frames, job.init_frames, searched)
+    except DatasetError as error:
+        raise DatasetError(f"{error}{hint if other_seen else ''}") from None
     finally:
         if bar is not None:
             bar.close()
@@ -582,7 +598,8 @@ def as_left_hand(initialiser: AutoInitialiser, rig: Rig, frames: Iterator[list[n
 
     mirrored = mirrored_rig(rig)
     first = next(frames)
-    fresh = AutoInitialiser(initialiser.model, mirrored, initialiser.detector)
+    fresh = AutoInitialiser(initialiser.model, mirrored, initialiser.detector,
+                            side=TRACKED_SIDE)
     fitted = fresh(mirror_images(first))
     if fitted is None:
         return initialiser, rig, chain([first], frames), state

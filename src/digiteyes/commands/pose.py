@@ -51,6 +51,7 @@ def pose(images: tuple[Path, ...], output: Path, rig: Path | None, detector: str
         write_pose_csv,
         write_pose_json,
     )
+    from digiteyes.detect.side import TRACKED_SIDE
     from digiteyes.errors import DigitEyesError
     from digiteyes.kinematics import load_model
 
@@ -60,7 +61,7 @@ def pose(images: tuple[Path, ...], output: Path, rig: Path | None, detector: str
     if len(images) % per_set:
         raise DigitEyesError(f"{len(images)} image(s) for a rig of {per_set} cameras: give "
                              f"them {per_set} at a time")
-    det = make_detector(detector, model, classic_fallback=True)
+    det = make_detector(detector, model, classic_fallback=True, max_hands=2)
     output.mkdir(parents=True, exist_ok=True)
     options = FitOptions(scale=hand_scale)
     found = 0
@@ -74,11 +75,13 @@ def pose(images: tuple[Path, ...], output: Path, rig: Path | None, detector: str
             frames.append(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
         real = the_rig or Rig((default_camera(frames[0].shape[1], frames[0].shape[0], hfov),))
         cams = rig_for_hand(real, "right" if hand == "auto" else hand)
+        side = None if hand == "auto" else TRACKED_SIDE  # of several hands, the one asked for
         result = estimate_pose(mirror_images(frames) if cams.mirrored else frames, cams, det,
-                               model, options)
+                               model, options, side)
         if hand == "auto" and result.sides() == {"left"}:
             cams = mirrored_rig(real)
-            result = estimate_pose(mirror_images(frames), cams, det, model, options)
+            result = estimate_pose(mirror_images(frames), cams, det, model, options,
+                                   TRACKED_SIDE)
         stem = paths[0].stem
         write_pose_json(pose_to_json(result, cams, [str(p) for p in paths]),
                         output / f"{stem}.json")
@@ -88,6 +91,9 @@ def pose(images: tuple[Path, ...], output: Path, rig: Path | None, detector: str
         if result.fit is None:
             state = ("no hand" if result.fit_failure is None else
                      f"a detection no hand pose explains ({result.fit_failure})")
+            if result.other_hands:
+                state += (f" (only a hand of the other side: --hand "
+                          f"{'right' if hand == 'left' else 'left'}, or auto)")
         else:
             middle_mcp = real_keypoints(result.fit.keypoints_camera(cams[0]), cams)[9]
             state = (f"hand at {middle_mcp.round(0).tolist()} mm "

@@ -7,6 +7,7 @@
 * :mod:`~digiteyes.detect.classic` a detector with no learned parts (plain backgrounds);
 * :mod:`~digiteyes.detect.fallback` one detector, and another where the first finds none
   (what ``--init auto`` runs with MediaPipe installed);
+* :mod:`~digiteyes.detect.side` which of several detected hands is the tracked one;
 * :mod:`~digiteyes.detect.model_fit` the kinematic model fitted to keypoints.
 """
 

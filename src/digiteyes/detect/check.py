@@ -24,6 +24,7 @@ import numpy as np
 from digiteyes.camera import Rig
 from digiteyes.detect.hand21 import DIGITS, model_anchors
 from digiteyes.detect.pose import make_detector
+from digiteyes.detect.side import TRACKED_SIDE, SideFollower, pick_candidate
 from digiteyes.kinematics import KinematicModel, forward_kinematics
 
 DIGIT_KEYPOINTS = {digit: [1 + 4 * d + k for k in range(4)] for d, digit in enumerate(DIGITS)}
@@ -67,8 +68,8 @@ class DetectionCheck:
 
     def __post_init__(self) -> None:
         self._anchors = model_anchors(self.model)
-        self._detectors = [make_detector(self.detector, self.model, video=True)
-                           for _ in self.rig]
+        self._detectors = [SideFollower(lambda hands: make_detector(
+            self.detector, self.model, video=True, max_hands=hands)) for _ in self.rig]
 
     def __call__(self, index: int, images: Sequence[np.ndarray], state: np.ndarray
                  ) -> str | None:
@@ -96,8 +97,9 @@ class DetectionCheck:
                                                                                      points)
         worst: tuple[float, str] | None = None
         for detector, image, camera in zip(self._detectors, images, self.rig, strict=True):
-            found = detector.detect(image, camera)
-            here = worst_digit_gap(camera.project(world), found[0].keypoints) if found else None
+            projected = camera.project(world)
+            found = pick_candidate(detector.detect(image, camera), TRACKED_SIDE, projected)
+            here = worst_digit_gap(projected, found.keypoints) if found is not None else None
             if here is not None:
                 worst = here if worst is None else max(worst, here)
         self.seconds += time.perf_counter() - started

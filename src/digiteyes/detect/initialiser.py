@@ -25,6 +25,9 @@ from digiteyes.detect.pose import PoseResult, estimate_pose, make_detector
 from digiteyes.errors import DatasetError, DigitEyesError
 from digiteyes.kinematics import KinematicModel
 
+MAX_HANDS = 2
+"""Hands the detector returns at most, so that the one of the tracked side can be picked
+when a second hand is in view (:mod:`digiteyes.detect.side`)."""
 MIN_DETECTED_FRACTION = 0.5
 """A fit is accepted when at least this fraction of the 21 keypoints reprojects within
 ``max_error_px`` (a detector's wrong labelling leaves most keypoints far off)."""
@@ -42,6 +45,10 @@ class AutoInitialiser:
         :class:`~digiteyes.detect.fallback.FallbackDetector`; else classic), or any name
         of :data:`~digiteyes.detect.pose.DETECTORS` for that detector alone.
     max_error_px : reprojection error (px) a keypoint of an accepted fit stays within.
+    side : the side of the hand to fit where the images show several
+        (:mod:`digiteyes.detect.side`; in the images given, which a left hand's run
+        mirrors: ``"right"`` once the side is known); None (default) takes any, the most
+        confident.
     calls, found : how many times it ran and found a hand; ``seconds`` their total (s).
     last : the last :class:`PoseResult` (None before the first call).
     """
@@ -50,6 +57,7 @@ class AutoInitialiser:
     rig: Rig
     detector: str = "auto"
     max_error_px: float = 25.0
+    side: str | None = None
     calls: int = 0
     found: int = 0
     seconds: float = 0.0
@@ -57,7 +65,8 @@ class AutoInitialiser:
     _detector: object = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
-        self._detector = make_detector(self.detector, self.model, classic_fallback=True)
+        self._detector = make_detector(self.detector, self.model, classic_fallback=True,
+                                       max_hands=MAX_HANDS)
         self._options = FitOptions(fit_scale=False)
 
     @property
@@ -71,7 +80,7 @@ class AutoInitialiser:
         self.calls += 1
         try:
             result = estimate_pose(list(images), self.rig, self._detector, self.model,
-                                   self._options)
+                                   self._options, self.side)
         except DigitEyesError:  # detections no hand pose explains: no state, as no hand
             return None
         self.seconds += sum(result.seconds.values())

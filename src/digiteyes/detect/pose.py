@@ -20,6 +20,7 @@ from digiteyes.camera.mirror import unmirror_points
 from digiteyes.detect.candidate import HandCandidate, HandDetector
 from digiteyes.detect.hand21 import HAND21_NAMES
 from digiteyes.detect.model_fit import FitOptions, KeypointObservation, PoseFit, fit_keypoints
+from digiteyes.detect.side import is_other_hand, pick_candidate
 from digiteyes.errors import DigitEyesError
 from digiteyes.kinematics import KinematicModel
 
@@ -28,7 +29,8 @@ DETECTORS = ("auto", "mediapipe", "mediapipe-lite", "classic")
 
 
 def make_detector(name: str, model: KinematicModel | None = None,
-                  video: bool = False, classic_fallback: bool = False) -> HandDetector:
+                  video: bool = False, classic_fallback: bool = False,
+                  max_hands: int = 1) -> HandDetector:
     """``"mediapipe"`` (needs the extra; its full landmark network), ``"mediapipe-lite"``
     (its lite landmark network: faster, see docs/initialisation.md for what it costs),
     ``"classic"`` or ``"auto"`` (MediaPipe when installed, else classic). ``video``:
@@ -37,18 +39,20 @@ def make_detector(name: str, model: KinematicModel | None = None,
     ``classic_fallback``: ``"auto"`` with MediaPipe installed asks the classic detector
     in the images where MediaPipe finds no hand
     (:class:`~digiteyes.detect.fallback.FallbackDetector`); what ``track`` and ``pose``
-    use, not ``calibrate-hand``, which measures segments from joints a network located."""
+    use, not ``calibrate-hand``, which measures segments from joints a network located.
+    ``max_hands``: hands MediaPipe returns at most (the classic detector finds one); more
+    than one lets the caller pick the tracked hand (:mod:`digiteyes.detect.side`)."""
     from digiteyes.detect.classic import ClassicDetector
     from digiteyes.detect.fallback import FallbackDetector
     from digiteyes.detect.mediapipe_detector import MediaPipeDetector, mediapipe_available
 
     if name == "auto" and classic_fallback and mediapipe_available():
-        return FallbackDetector(make_detector("mediapipe", model, video),
+        return FallbackDetector(make_detector("mediapipe", model, video, max_hands=max_hands),
                                 ClassicDetector(model))
     if name == "auto":
         name = "mediapipe" if mediapipe_available() else "classic"
     if name in ("mediapipe", "mediapipe-lite"):
-        return MediaPipeDetector(max_hands=1, static_image_mode=not video,
+        return MediaPipeDetector(max_hands=max_hands, static_image_mode=not video,
                                  model_complexity=0 if name == "mediapipe-lite" else 1)
     if name == "classic":
         return ClassicDetector(model)
@@ -66,12 +70,14 @@ class PoseResult:
     seconds : ``{"detect": s, "fit": s}`` wall time.
     fit_failure : why the detections could not be fitted (None when they were, or when
         no camera found a hand).
+    other_hands : hands left out as the other side's (:mod:`digiteyes.detect.side`).
     """
 
     candidates: list[HandCandidate | None]
     fit: PoseFit | None
     seconds: dict[str, float]
     fit_failure: str | None = None
+    other_hands: int = 0
 
     def sides(self, mirrored: bool = False) -> set[str]:
         """The sides of the hand (``"right"``, ``"left"``) the detectors reported, in the
@@ -83,14 +89,18 @@ class PoseResult:
 
 
 def estimate_pose(images: Sequence[np.ndarray], rig: Rig, detector: HandDetector,
-                  model: KinematicModel, options: FitOptions | None = None) -> PoseResult:
-    """Detect the hand in each camera's image and fit ``model`` to all detections."""
+                  model: KinematicModel, options: FitOptions | None = None,
+                  side: str | None = None) -> PoseResult:
+    """Detect the hand in each camera's image and fit ``model`` to all detections. Of
+    several hands in an image the one of ``side`` is taken (None: any; the most confident
+    of them, :func:`~digiteyes.detect.side.pick_candidate`)."""
     rig.check_images(images)
     start = time.perf_counter()
-    candidates = []
+    candidates, other_hands = [], 0
     for image, camera in zip(images, rig, strict=True):
         found = detector.detect(image, camera)
-        candidates.append(found[0] if found else None)
+        candidates.append(pick_candidate(found, side))
+        other_hands += sum(side is not None and is_other_hand(c, side) for c in found)
     detected = time.perf_counter()
     observations = [KeypointObservation.of(c, cam)
                     for cam, c in zip(rig, candidates, strict=True) if c is not None]
@@ -102,7 +112,8 @@ def estimate_pose(images: Sequence[np.ndarray], rig: Rig, detector: HandDetector
         except DigitEyesError as error:  # keypoints no pose of the hand explains
             failure = str(error)
     return PoseResult(candidates, fit, {"detect": detected - start,
-                                        "fit": time.perf_counter() - detected}, failure)
+                                        "fit": time.perf_counter() - detected}, failure,
+                      other_hands)
 
 
 def real_candidates(result: PoseResult, rig: Rig) -> list[HandCandidate | None]:

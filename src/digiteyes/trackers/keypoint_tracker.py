@@ -69,12 +69,13 @@ from typing import ClassVar
 import numpy as np
 
 from digiteyes.camera import Camera, Rig
-from digiteyes.detect.candidate import HandCandidate
+from digiteyes.detect.candidate import HandCandidate, HandDetector
 from digiteyes.detect.hand21 import model_anchors
 from digiteyes.detect.hand_size import model_hand_length
 from digiteyes.detect.link_lengths import segment_lengths, triangulate
 from digiteyes.detect.model_fit import FitOptions, KeypointObservation, PoseFit, fit_keypoints
 from digiteyes.detect.pose import DETECTORS, make_detector
+from digiteyes.detect.side import TRACKED_SIDE, SideFollower, pick_candidate
 from digiteyes.errors import DigitEyesError
 from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import KinematicModel, forward_kinematics
@@ -231,8 +232,7 @@ class KeypointTracker:
                                     normalize=True)
         for detector in self._detectors:
             getattr(detector, "close", lambda: None)()
-        self._detectors = [make_detector(self.options.detector, self.model, video=True)
-                           for _ in self.rig]
+        self._detectors = [SideFollower(self._make_detector) for _ in self.rig]
         self.silhouette_loss.reset()
         self.loss_hold.reset()
         self._frame_index = 0
@@ -312,13 +312,15 @@ class KeypointTracker:
         timings["total"] = time.perf_counter() - start_total
         return self.loss_hold.apply(result)
 
+    def _make_detector(self, max_hands: int) -> HandDetector:
+        return make_detector(self.options.detector, self.model, video=True, max_hands=max_hands)
+
     def _nearest(self, found: list[HandCandidate], camera: Camera) -> HandCandidate | None:
-        """Of the hands a camera found, the one nearest the current estimate's keypoints."""
+        """Of the hands a camera found, the tracked one: not named the other side, nearest
+        the current estimate's keypoints (:func:`~digiteyes.detect.side.pick_candidate`)."""
         if len(found) <= 1:
             return found[0] if found else None
-        here = camera.project(self._keypoints_here())
-        return min(found, key=lambda c: float(np.mean(np.linalg.norm(c.keypoints - here,
-                                                                      axis=1))))
+        return pick_candidate(found, TRACKED_SIDE, camera.project(self._keypoints_here()))
 
     @property
     def _adapts_size(self) -> bool:

@@ -1,0 +1,190 @@
+"""Real-data benchmark: the real video with a second hand in view; is the asked hand tracked?
+
+Usage::
+
+    python benchmarks/real_two_hands.py [--data ../shared/data] [--frames N] [--json FILE]
+
+The real video (``real_video/human_hand_video.mp4``, a right hand) gets a second hand: in
+every frame ``t`` the hand of frame ``t + 150`` of the same video, mirrored (so a left hand)
+and moved :data:`SHIFT_PX` to the left, is pasted where it differs from the wall, inside
+the region MediaPipe's keypoints of that frame outline (the hand and its forearm). Both
+hands then move, each on its own. ``digiteyes track VIDEO --hand left`` and ``--hand
+right`` (:func:`digiteyes.track_job.run_track_job`, the keypoint tracker, automatic start,
+one core) should each follow their own hand. Per run: the share of frames whose tracked
+hand lies on the asked one (the worst digit's mean keypoint distance under half a palm
+length from MediaPipe's keypoints of that hand in the single-hand frames, still-image
+mode: machine output, not truth), the median and 90th percentile of that distance, the
+frames flagged lost, re-detections and frames per second.
+
+Without the data or the MediaPipe extra the script says so and exits with status 0.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _name in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_name] = "1"
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import cv2  # noqa: E402
+import numpy as np  # noqa: E402
+from real_video import DEFAULT_DATA, RESULTS, VIDEO, image_gaps  # noqa: E402
+
+from digiteyes.benchmarks._machine import machine_info  # noqa: E402
+from digiteyes.camera.default import DEFAULT_HFOV_DEG, default_camera  # noqa: E402
+from digiteyes.detect.mediapipe_detector import (  # noqa: E402
+    MediaPipeDetector,
+    mediapipe_available,
+)
+from digiteyes.io import VideoReader, read_state_log  # noqa: E402
+from digiteyes.io.video import VideoWriter  # noqa: E402
+from digiteyes.kinematics import load_model  # noqa: E402
+from digiteyes.track_job import AUTO, TrackJob, run_track_job  # noqa: E402
+
+LAG_FRAMES = 150
+"""The second hand is the video's hand this many frames later."""
+SHIFT_PX = -420
+"""How far the mirrored second hand is moved sideways (px; negative: to the left)."""
+PICTURE_FRAME = 300
+"""The frame ``--picture`` writes."""
+WALL_DIFFERENCE = 40
+"""Grey levels by which a pixel must differ from the wall's median colour to be pasted."""
+
+
+def read_frames(video: Path, frames: int | None) -> list[np.ndarray]:
+    with VideoReader(video) as reader:
+        return [image for i, image in enumerate(reader) if frames is None or i < frames]
+
+
+def single_hand_keypoints(images: list[np.ndarray]) -> np.ndarray:
+    """MediaPipe (still-image mode) on each frame: (T, 21, 2) px, NaN where no hand."""
+    detector = MediaPipeDetector(max_hands=1, static_image_mode=True)
+    out = np.full((len(images), 21, 2), np.nan)
+    for i, image in enumerate(images):
+        if found := detector.detect(image):
+            out[i] = found[0].keypoints
+    detector.close()
+    return out
+
+
+def hand_region(keypoints: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """(H, W) float mask: the keypoints' hull grown by a third of a palm length, and the
+    forearm (a thick line from the wrist away from the middle finger)."""
+    mask = np.zeros(shape, np.uint8)
+    if np.isnan(keypoints).any():
+        return mask.astype(np.float32)
+    palm = float(np.linalg.norm(keypoints[0] - keypoints[9]))
+    cv2.fillConvexPoly(mask, cv2.convexHull(keypoints.astype(np.int32)), 1)
+    size = int(0.35 * palm) | 1
+    mask = cv2.dilate(mask, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size)))
+    wrist, away = keypoints[0], (keypoints[0] - keypoints[9]) / max(palm, 1.0)
+    cv2.line(mask, tuple(wrist.astype(int)), tuple((wrist + 3 * palm * away).astype(int)), 1,
+             max(int(0.8 * palm), 1))
+    return mask.astype(np.float32)
+
+
+def paste_second_hand(images: list[np.ndarray], keypoints: np.ndarray
+                      ) -> tuple[list[np.ndarray], np.ndarray]:
+    """The frames with the second hand (module docstring) and its keypoints (T, 21, 2)."""
+    n = len(images)
+    height, width = images[0].shape[:2]
+    second = keypoints[(np.arange(n) + LAG_FRAMES) % n].copy()
+    second[..., 0] = width - 1 - second[..., 0] + SHIFT_PX
+    out = []
+    for t, base in enumerate(images):
+        other = np.roll(images[(t + LAG_FRAMES) % n][:, ::-1], SHIFT_PX, axis=1)
+        wall = np.median(other.reshape(-1, 3)[::97], axis=0)
+        differs = (np.abs(other.astype(np.int16) - wall.astype(np.int16)).max(axis=2)
+                   > WALL_DIFFERENCE).astype(np.uint8)
+        differs = cv2.morphologyEx(differs, cv2.MORPH_OPEN, np.ones((5, 5), np.uint8))
+        differs = cv2.morphologyEx(differs, cv2.MORPH_CLOSE, np.ones((9, 9), np.uint8))
+        alpha = cv2.GaussianBlur(differs.astype(np.float32) * hand_region(second[t], (height,
+                                                                                      width)),
+                                 (7, 7), 0)[..., None]
+        if SHIFT_PX < 0:
+            alpha[:, SHIFT_PX:] = 0  # what the roll wrapped round
+        out.append((alpha * other + (1 - alpha) * base).astype(np.uint8))
+    return out, second
+
+
+def measure(video: Path, hand: str, reference: np.ndarray, out_dir: Path) -> dict:
+    job = TrackJob((str(video),), str(out_dir), "hand", init_path=AUTO, overlay=False,
+                   progress=False, hand=hand, tracker_name="keypoints")
+    run = run_track_job(job)
+    summary = json.loads((out_dir / "summary.json").read_text(encoding="utf-8"))
+    model = load_model("hand")
+    log = read_state_log(out_dir / "states.csv", model)
+    first = summary["start"]["first_frame"]
+    found = {i: k for i, k in enumerate(reference) if not np.isnan(k).any()}
+    camera = default_camera(1280, 720, DEFAULT_HFOV_DEG)
+    if hand == "left":  # the run's states pose the mirror image's right hand
+        from digiteyes.camera.mirror import mirrored_camera
+
+        camera = mirrored_camera(camera)
+        found = {i: np.column_stack([1279 - k[:, 0], k[:, 1]]) for i, k in found.items()}
+    gaps = image_gaps(model, log.states, first, found, camera)
+    return {"hand": hand, "first_frame": first, "frames_tracked": run.n_frames,
+            "on_the_asked_hand": float(np.mean(gaps < 0.5)),
+            "gap_palm_lengths": {"median": float(np.median(gaps)),
+                                 "p90": float(np.percentile(gaps, 90)),
+                                 "frames": int(gaps.size)},
+            "lost_frames": run.n_lost, "re_detections": len(run.reinitialised_frames),
+            "tracker_fps": run.tracker_fps, "loop_fps": run.loop_fps}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", type=Path, default=DEFAULT_DATA)
+    parser.add_argument("--frames", type=int, default=None, help="only the first N frames")
+    parser.add_argument("--json", type=Path, default=RESULTS / "real_two_hands.json")
+    parser.add_argument("--picture", type=Path, default=None,
+                        help=f"also write frame {PICTURE_FRAME} of the two-hand video here, half "
+                             "size")
+    args = parser.parse_args(argv)
+    if not (args.data / VIDEO).is_file() or not mediapipe_available():
+        print(f"real_two_hands: needs {VIDEO} under {args.data} and the mediapipe extra; "
+              "skipped")
+        return 0
+    machine = machine_info()
+    images = read_frames(args.data / VIDEO, args.frames)
+    right = single_hand_keypoints(images)
+    composed, left = paste_second_hand(images, right)
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        video = Path(tmp) / "two_hands.mp4"
+        with VideoWriter(video, 30.0, codec="h264") as writer:
+            for image in composed:
+                writer.write(image)
+        if args.picture is not None:  # half size: a picture for the docs
+            half = cv2.resize(composed[min(PICTURE_FRAME, len(composed) - 1)], None, fx=0.5,
+                              fy=0.5, interpolation=cv2.INTER_AREA)
+            cv2.imwrite(str(args.picture), cv2.cvtColor(half, cv2.COLOR_RGB2BGR),
+                        [cv2.IMWRITE_JPEG_QUALITY, 85])
+        for hand, reference in (("right", right), ("left", left)):
+            rows.append(measure(video, hand, reference, Path(tmp) / hand))
+    result = {"benchmark": "real_two_hands", "machine": machine, "video": str(VIDEO),
+              "second_hand": {"lag_frames": LAG_FRAMES, "shift_px": SHIFT_PX,
+                              "mirrored": True},
+              "reference": "MediaPipe on the single-hand frames (still-image mode); machine "
+                           "output, not truth", "runs": rows}
+    args.json.parent.mkdir(parents=True, exist_ok=True)
+    args.json.write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
+    for row in rows:
+        gap = row["gap_palm_lengths"]
+        print(f"two hands, --hand {row['hand']}: on the asked hand in "
+              f"{100 * row['on_the_asked_hand']:.1f} % of {gap['frames']} frames (gap median "
+              f"{gap['median']:.2f}, 90th percentile {gap['p90']:.2f} palm lengths), "
+              f"{row['lost_frames']} lost, {row['re_detections']} re-detections, "
+              f"{row['tracker_fps']:.1f} frames/s (tracker), {row['loop_fps']:.1f} end to end")
+    print(f"-> {args.json}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
