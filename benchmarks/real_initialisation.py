@@ -27,7 +27,9 @@ Usage::
 2c. **InterHand2.6M** (4 annotated 334x512 images with 3D joints and their cameras):
    for each annotated hand (three right, three left; a left hand through the mirror image,
    as ``--hand left`` runs it), each detector's candidate nearest the hand's projected
-   joints (oracle association: three of the images show two hands),
+   joints (oracle association: three of the images show two hands) among those it does
+   not name the other side (:mod:`digiteyes.detect.side`, as ``pose --hand`` takes them;
+   until 27 Nov, ninth session, a detection of the other hand counted too),
    its 2D error, the one-camera fit's root-relative and root errors (default hand size),
    and MediaPipe's own 3D keypoints' root-relative error in the same run.
 3. **The real video** (621 frames, 1280x720, grey wall): detection rate per frame of both
@@ -70,6 +72,7 @@ from digiteyes.detect.link_lengths import (
 from digiteyes.detect.mediapipe_detector import mediapipe_available
 from digiteyes.detect.model_fit import FitOptions, KeypointObservation, fit_keypoints
 from digiteyes.detect.pose import estimate_pose, make_detector
+from digiteyes.detect.side import is_other_hand
 from digiteyes.io.video import VideoReader
 from digiteyes.kinematics.procrustes import kabsch
 from digiteyes.kinematics.scaling import scaled_model
@@ -98,8 +101,10 @@ order; the MediaPipe ones when the extra is installed."""
 
 
 def detectors(video: bool = False) -> dict:
-    return {name: make_detector(name, video=video) for name in NAMES
-            if name == "classic" or mediapipe_available()}
+    """The detectors of :data:`NAMES`; on single images asked for two hands, as ``pose``
+    asks, so that the hand of the annotated side can be told from the other one."""
+    return {name: make_detector(name, video=video, max_hands=1 if video else 2)
+            for name in NAMES if name == "classic" or mediapipe_available()}
 
 
 def stb_stage(data: Path, hand) -> dict | None:
@@ -269,7 +274,9 @@ def interhand_stage(data: Path, hand) -> dict | None:
             truth_px = camera.project(truth)
             label = f"{image['file_name']} ({side})"
             for name, det in detectors().items():
-                found = det.detect(view, camera)
+                # the annotated hand is a right one in ``view``: a detection the detector
+                # names the other side is the other hand (digiteyes.detect.side)
+                found = [c for c in det.detect(view, camera) if not is_other_hand(c)]
                 if not found:
                     rows[name].append({"image": label, "side": side, "detected": False})
                     continue
