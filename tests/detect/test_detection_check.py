@@ -22,7 +22,7 @@ class Seen:
     def __init__(self, model, state):
         self.model, self.state = model, state
 
-    def detect(self, image, camera=None):
+    def detect(self, image, camera=None, near=None):  # as a SideFollower
         if self.state is None:
             return []
         rows, points = model_anchors(self.model)

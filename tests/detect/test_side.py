@@ -38,6 +38,10 @@ def test_only_a_confident_naming_of_the_other_side_counts():
     assert not is_other_hand(candidate(0, "right"))
     assert not is_other_hand(candidate(0, None, 1.0))  # a detector that cannot tell
     assert is_other_hand(candidate(0, "right"), side="left")
+    # named left where the tracked hand is (within a palm length): the tracked hand misnamed
+    here = candidate(400).keypoints  # palm length (keypoint 0 to 9): about 100 px
+    assert not is_other_hand(candidate(430, "left", 0.99), near=here)
+    assert is_other_hand(candidate(700, "left", 0.99), near=here)
 
 
 def test_pick_keeps_to_the_side_then_to_the_nearest():
@@ -49,6 +53,7 @@ def test_pick_keeps_to_the_side_then_to_the_nearest():
     near = candidate(880).keypoints
     assert pick_candidate([right, far_right, left], near=near) is far_right
     assert pick_candidate([left, candidate(0, "left", 0.5)]).confidence == 0.5
+    assert pick_candidate([left], near=candidate(110).keypoints) is left  # misnamed
 
 
 class FakeDetector:

@@ -2,6 +2,7 @@
 finger) when a finger is wrong, on images of the independent flesh appearance; in the
 feature tracker and in every other registered tracker."""
 
+import cv2
 import numpy as np
 import pytest
 
@@ -30,6 +31,36 @@ def test_check_separates_a_wrong_finger(desk):
                               fg.mask(image))
     assert hidden.unexplained - right.unexplained > 0.08
 
+
+
+def test_foreground_away_from_the_hand_does_not_count(desk):
+    """A second hand-sized blob elsewhere on the backdrop (another hand, an arm) is no part
+    of this hand: the check at the right state reads the same with it; a pose that has
+    left the hand altogether still shows, as fingers drawn over the backdrop."""
+    from digiteyes.features.foreground import connected_to
+
+    model, rig, q, _, image, _ = desk
+    camera = rig.cameras[0]
+    kin = forward_kinematics(model, q)
+    fg = fit_foreground(image, model_labels(model, kin, camera))
+    mask = fg.mask(image)
+    hand = model_labels(model, kin, camera) >= 0
+    cols = np.nonzero(hand | mask)[1]
+    blob = np.zeros(mask.shape, np.uint8)  # a hand-sized blob right of the hand
+    centre = (int(cols.max()) + 40 + 70, mask.shape[0] // 2)
+    cv2.ellipse(blob, centre, (70, 140), 0.0, 0.0, 360.0, 1, -1)
+    assert centre[0] + 70 < mask.shape[1] and blob.sum() > 0.8 * hand.sum()
+    other = mask | blob.astype(bool)
+    kept = connected_to(other.astype(np.uint8), hand, 5)
+    assert np.array_equal(kept.astype(bool), mask)
+    alone, beside = (silhouette_check(model, kin, camera, m) for m in (mask, other))
+    assert beside.unexplained == pytest.approx(alone.unexplained)
+    assert beside.finger_outside == pytest.approx(alone.finger_outside)
+    # the whole hand drawn where only the second blob is: nothing explains it
+    moved = q.copy()
+    moved[4] += 2000.0  # palm x, mm: far off to the side
+    away = silhouette_check(model, forward_kinematics(model, moved), camera, other)
+    assert away.outside > 0.9
 
 def test_tracker_flag_silent_when_right_and_fires_when_a_finger_is_wrong(desk):
     model, rig, q, _, image, image_curled = desk

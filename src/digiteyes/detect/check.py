@@ -98,7 +98,8 @@ class DetectionCheck:
         worst: tuple[float, str] | None = None
         for detector, image, camera in zip(self._detectors, images, self.rig, strict=True):
             projected = camera.project(world)
-            found = pick_candidate(detector.detect(image, camera), TRACKED_SIDE, projected)
+            found = pick_candidate(detector.detect(image, camera, projected), TRACKED_SIDE,
+                                   projected)
             here = worst_digit_gap(projected, found.keypoints) if found is not None else None
             if here is not None:
                 worst = here if worst is None else max(worst, here)

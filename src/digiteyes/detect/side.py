@@ -12,8 +12,12 @@ A candidate is taken for the other hand only when the detector names the other s
 with a score of at least :data:`OTHER_SIDE_CONFIDENCE`: MediaPipe (in video mode) named
 the side of the real video's hand right in all 621 frames, and of the flesh renders' hand
 in 598 of 600 frames (desk pair, desk, egocentric and mouse views, 120 frames each); the
-two misnamed frames scored 0.52 and 0.54. A
-detector that cannot tell the side (the classic one) never names the other hand.
+two misnamed frames scored 0.52 and 0.54. But not always with a low score: it took the
+back-lit palm of the rendered webcam view for the back of a left hand with 0.99. So while
+tracking, where the tracked hand is known, a hand named the other side that lies where
+the tracked one is (within :data:`SAME_HAND_PALMS` palm lengths) is the tracked hand
+misnamed. A detector that cannot tell the side (the classic one) never names the other
+hand.
 
 :class:`SideFollower` keeps a video-mode detector on the tracked hand. MediaPipe in video
 mode follows the hands it found: looking for one hand it runs its palm detector only when
@@ -36,16 +40,28 @@ TRACKED_SIDE = "right"
 """The side of the tracked hand in the images a tracker sees (the model's side)."""
 OTHER_SIDE_CONFIDENCE = 0.8
 """Score at which a detector's naming of the other side is believed (module docstring)."""
+SAME_HAND_PALMS = 1.0
+"""A hand named the other side whose keypoints lie within this many palm lengths (wrist
+to middle MCP) of the tracked hand's, on average, is the tracked hand (module docstring)."""
 SWITCH_BACK_FRAMES = 30
 """Frames without the other hand after which :class:`SideFollower` looks for one hand
 again."""
 
 
-def is_other_hand(candidate: HandCandidate, side: str = TRACKED_SIDE) -> bool:
+def is_other_hand(candidate: HandCandidate, side: str = TRACKED_SIDE,
+                  near: np.ndarray | None = None) -> bool:
     """True when the detector names the side of ``candidate`` the other one than ``side``,
-    with a score of at least :data:`OTHER_SIDE_CONFIDENCE`."""
-    return (candidate.handedness is not None and candidate.handedness != side
-            and candidate.confidence >= OTHER_SIDE_CONFIDENCE)
+    with a score of at least :data:`OTHER_SIDE_CONFIDENCE`, and (given ``near``, the
+    tracked hand's 21 keypoints (21, 2) px) it lies more than :data:`SAME_HAND_PALMS` palm
+    lengths from them."""
+    if not (candidate.handedness is not None and candidate.handedness != side
+            and candidate.confidence >= OTHER_SIDE_CONFIDENCE):
+        return False
+    if near is None:
+        return True
+    palm = max(float(np.linalg.norm(near[0] - near[9])), 1.0)
+    gap = float(np.mean(np.linalg.norm(candidate.keypoints - near, axis=1)))
+    return gap > SAME_HAND_PALMS * palm
 
 
 def pick_candidate(found: Sequence[HandCandidate], side: str | None = TRACKED_SIDE,
@@ -53,7 +69,7 @@ def pick_candidate(found: Sequence[HandCandidate], side: str | None = TRACKED_SI
     """The tracked hand among a detector's candidates (best first): of those not named the
     other side, the one whose keypoints lie nearest ``near`` (21, 2) px, else the first.
     ``side`` None takes any side. None when none is left."""
-    pool = [c for c in found if side is None or not is_other_hand(c, side)]
+    pool = [c for c in found if side is None or not is_other_hand(c, side, near)]
     if not pool:
         return None
     if near is None:
@@ -81,20 +97,22 @@ class SideFollower:
         self.name = self._one.name
         self.locates_joints = getattr(self._one, "locates_joints", False)
 
-    def detect(self, image: np.ndarray, camera: Camera | None = None) -> list[HandCandidate]:
+    def detect(self, image: np.ndarray, camera: Camera | None = None,
+               near: np.ndarray | None = None) -> list[HandCandidate]:
         """The hands in ``image``, best first (the tracked one is for the caller to pick,
-        :func:`pick_candidate`). While the other hand is known to be in view (the detector
-        looking for two is in use) a candidate named the other side is that hand and is
-        left out, so a frame that shows only it shows no tracked hand."""
+        :func:`pick_candidate`); ``near``: the tracked hand's keypoints (21, 2) px, when
+        known (:func:`is_other_hand`). While the other hand is known to be in view (the
+        detector looking for two is in use) a candidate that is the other hand is left
+        out, so a frame that shows only it shows no tracked hand."""
         if not self.following_two:
             found = self._one.detect(image, camera)
-            if not found or not all(is_other_hand(c, self.side) for c in found):
+            if not found or not all(is_other_hand(c, self.side, near) for c in found):
                 return found
             self.following_two, self._without_other = True, 0
             if self._two is None:
                 self._two = self._make(2)
         found = self._two.detect(image, camera)
-        ours = [c for c in found if not is_other_hand(c, self.side)]
+        ours = [c for c in found if not is_other_hand(c, self.side, near)]
         self._without_other = 0 if len(ours) < len(found) else self._without_other + 1
         if self._without_other >= SWITCH_BACK_FRAMES:
             self.following_two = False
@@ -106,5 +124,6 @@ class SideFollower:
             getattr(detector, "close", lambda: None)()
 
 
-__all__ = ["OTHER_SIDE_CONFIDENCE", "SWITCH_BACK_FRAMES", "TRACKED_SIDE", "SideFollower",
+__all__ = ["OTHER_SIDE_CONFIDENCE", "SAME_HAND_PALMS", "SWITCH_BACK_FRAMES", "TRACKED_SIDE",
+           "SideFollower",
            "is_other_hand", "pick_candidate"]

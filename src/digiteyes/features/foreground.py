@@ -24,6 +24,12 @@ fleshier palm, tapered fingers, a 10 % size difference) stay inside:
 * per finger: the fraction of the finger's model pixels (its phalanges and tip) lying
   beyond ``tolerance_px`` of any foreground (a finger drawn over the backdrop).
 
+Only the foreground connected to the model's silhouette (grown by ``tolerance_px``)
+counts (:func:`connected_to`): another hand, or a person, elsewhere on the backdrop is
+no part of this hand, and as it moved it made the unexplained share move with it (a
+flesh render beside a second hand: 12 of 60 frames flagged lost for nothing). A pose
+that has left the hand altogether still shows, as fingers drawn over the backdrop.
+
 **Where an open digit would lie** (:func:`unexplained_where_open`): the share of the
 pixels a digit would cover if it were extended, beyond the estimate's silhouette, that
 are unexplained foreground. A finger the estimate has curled out of sight while the real
@@ -149,15 +155,35 @@ def digit_links(model: KinematicModel) -> dict[str, np.ndarray]:
     return {d: np.array(v) for d, v in out.items()}
 
 
+def connected_to(mask: np.ndarray, seed: np.ndarray, reach_px: int) -> np.ndarray:
+    """The parts of ``mask`` (H, W) uint8 connected (8-neighbourhood) to pixels within
+    ``reach_px`` of ``seed`` (H, W) bool: the hand's own foreground, without another
+    hand, an arm or a person elsewhere in the picture, which no pose of this hand
+    explains (module docstring). ``mask`` itself when it is one piece or none."""
+    count, parts = cv2.connectedComponents(mask, connectivity=8)
+    if count <= 2:
+        return mask
+    ys, xs = np.nonzero(seed)
+    if not len(ys):
+        return np.zeros_like(mask)
+    # the seed grown by reach_px, inside its own box (all that can touch it)
+    y0, x0 = max(ys.min() - reach_px, 0), max(xs.min() - reach_px, 0)
+    y1, x1 = ys.max() + reach_px + 1, xs.max() + reach_px + 1
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach_px + 1,) * 2)
+    grown = cv2.dilate(seed[y0:y1, x0:x1].astype(np.uint8), kernel)
+    touching = np.unique(parts[y0:y1, x0:x1][(grown > 0) & (mask[y0:y1, x0:x1] > 0)])
+    return np.isin(parts, touching[touching > 0]).astype(np.uint8)
+
+
 def silhouette_check(model: KinematicModel, kin: Kinematics, camera: Camera,
                      foreground: np.ndarray, tolerance_px: int = 5,
                      min_pixels: int = 150) -> SilhouetteCheck:
     """Compare the model drawn at the pose ``kin`` (one state) in ``camera`` with the
     ``foreground`` mask (H, W) bool of the same camera's image (module docstring)."""
     labels = model_labels(model, kin, camera)
+    fg = connected_to(foreground.astype(np.uint8), labels >= 0, tolerance_px)
     # everything below happens inside the box of both silhouettes grown by the
     # structuring elements' reach; outside it both are empty, so the counts are the same
-    fg = foreground.astype(np.uint8)
     u, v, w, h = cv2.boundingRect(fg | (labels >= 0).astype(np.uint8))
     pad = tolerance_px + 3
     rows = slice(max(v - pad, 0), v + h + pad)

@@ -68,7 +68,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from digiteyes.camera import Camera, Rig
+from digiteyes.camera import Rig
 from digiteyes.detect.candidate import HandCandidate, HandDetector
 from digiteyes.detect.hand21 import model_anchors
 from digiteyes.detect.hand_size import model_hand_length
@@ -258,9 +258,12 @@ class KeypointTracker:
         """Detect the hand in every camera and fit the model to its keypoints."""
         start_total, timings = start_step(self, frames)
         start = time.perf_counter()
-        candidates = [self._nearest(detector.detect(image, camera), camera)
-                      for detector, image, camera in zip(self._detectors, frames, self.rig,
-                                                         strict=True)]
+        here = self._keypoints_here()
+        candidates = []
+        for detector, image, camera in zip(self._detectors, frames, self.rig, strict=True):
+            near = camera.project(here)  # the tracked hand's keypoints in this camera
+            candidates.append(pick_candidate(detector.detect(image, camera, near),
+                                             TRACKED_SIDE, near))
         timings["detection"] = time.perf_counter() - start
         start = time.perf_counter()
         observations = [KeypointObservation.of(c, camera)
@@ -315,12 +318,6 @@ class KeypointTracker:
     def _make_detector(self, max_hands: int) -> HandDetector:
         return make_detector(self.options.detector, self.model, video=True, max_hands=max_hands)
 
-    def _nearest(self, found: list[HandCandidate], camera: Camera) -> HandCandidate | None:
-        """Of the hands a camera found, the tracked one: not named the other side, nearest
-        the current estimate's keypoints (:func:`~digiteyes.detect.side.pick_candidate`)."""
-        if len(found) <= 1:
-            return found[0] if found else None
-        return pick_candidate(found, TRACKED_SIDE, camera.project(self._keypoints_here()))
 
     @property
     def _adapts_size(self) -> bool:
