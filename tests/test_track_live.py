@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import json
 import socket
+import sys
 import threading
 import time
 from collections.abc import Sequence
@@ -499,6 +500,20 @@ def test_a_colour_video_of_the_flesh_hand_is_tracked_by_the_keypoint_tracker(tmp
         views[k].keypoints_2d[views[k].keypoint_names.index(f"{f}.tip")]))
         for k, row in enumerate(rows) for f in FINGERS]
     assert np.median(errors) < 12.0
+
+
+def test_footage_without_the_extra_says_what_it_costs_and_how_to_install(tmp_path, capsys,
+                                                                        monkeypatch):
+    """Without MediaPipe, ``--tracker auto`` on a video runs the feature tracker and says
+    why, what that costs on real footage and how to install the extra."""
+    monkeypatch.setitem(sys.modules, "mediapipe", None)  # import fails as if absent
+    camera, _, video = flesh_video(tmp_path, 2)
+    save_rig(Rig((camera,)), tmp_path / "rig.json")
+    assert main(["track", str(video), "--rig", str(tmp_path / "rig.json"), "-o",
+                 str(tmp_path / "out"), "--quiet", "--no-overlay"]) == 0
+    printed = capsys.readouterr().out
+    assert "tracker: features (--tracker auto: MediaPipe is not installed" in printed
+    assert 'pip install "digiteyes[mediapipe]"' in printed
 
 
 @pytest.mark.skipif(not mediapipe_available(), reason="optional extra digiteyes[mediapipe]")

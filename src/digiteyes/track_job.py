@@ -399,7 +399,8 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
     name = resolve_tracker(job.tracker_name, source.footage, job.detector, model, agrees)
     frames = chain(ahead, rest)
     if name != job.tracker_name:
-        say(f"tracker: {name} (--tracker auto: {_why_tracker(name, source.footage)})")
+        say(f"tracker: {name} (--tracker auto: "
+            f"{_why_tracker(name, source.footage, job.detector, model)})")
     tracker = create_tracker(name, model, rig,
                              **_tracker_options(job, model, name, source.footage))
     check = _detection_check(job, source.footage, name, model, rig)
@@ -473,12 +474,21 @@ def _transformed_input(job: TrackJob, rig: Rig, frames: Iterator[list[np.ndarray
     return rig, frames
 
 
-def _why_tracker(name: str, footage: bool) -> str:
-    """Why ``--tracker auto`` chose ``name`` (:func:`resolve_tracker`), for the log."""
+def _why_tracker(name: str, footage: bool, detector: str, model: KinematicModel) -> str:
+    """Why ``--tracker auto`` chose ``name`` (:func:`resolve_tracker`), for the log; on
+    footage without the MediaPipe extra, what it costs and how to install it."""
     if name == FOOTAGE_TRACKER:
         return ("footage with a learned detector" if footage else
                 "a dataset whose hand the detector finds where its start is")
-    return "a dataset" if not footage else "no learned detector or hand model"
+    if not footage:
+        return "a dataset"
+    if not has_hand21(model):
+        return "a model without the 21 hand keypoints"
+    if detector == "classic":
+        return "--detector classic"
+    return ('MediaPipe is not installed. On real footage the feature tracker drifts off '
+            'the hand within frames, the keypoint tracker stays on it '
+            '(docs/keypoint-tracker.md): pip install "digiteyes[mediapipe]"')
 
 
 def _search_start(initialiser: AutoInitialiser, frames: Iterator[list[np.ndarray]],

@@ -10,7 +10,9 @@ docs/appearance.md), side by side.
   of the middle finger's joints from the truth (rad; target 0.03), index joint-angle RMS
   (deg; target 3), mean fingertip error (mm; target 3), lost frames (target 0);
 * ``natural`` (Huang et al., 200 frames): mean fingertip error with two cameras (target
-  8 mm) and one (15 mm), lost frames;
+  8 mm) and one (15 mm), lost frames; with two cameras also with the silhouette finger
+  search on (``finger_search``, off by default: it costs the loss flag its recall on the
+  desk rows of ``bench accuracy``; docs/templates.md);
 * every run is made on :data:`SEEDS` renders that differ in their sensor noise
   (:data:`~digiteyes.benchmarks.tracker.NOISE_SIGMA` grey levels): a track that passes near
   a decision (a finger that can flip) ends differently with another draw of the noise, so
@@ -32,7 +34,7 @@ OpenCV and numba are held to one thread. ``digiteyes bench templates [--json FIL
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, fields
+from dataclasses import asdict, fields, replace
 
 import numpy as np
 
@@ -98,7 +100,7 @@ def track_scenario(name: str, n_cameras: int, n_frames: int | None,
     tip_error = np.linalg.norm(kt - ke, axis=2)  # (frames, tips)
     per_frame = tip_error.mean(axis=1)
     out = {"scenario": name, "tracker": tracker, "appearance": appearance,
-           "cameras": n_cameras, "seed": seed,
+           "cameras": n_cameras, "seed": seed, "finger_search": options.finger_search,
            "frames": len(truth),
            "iterations_per_frame": options.iterations_per_frame,
            "mean_tip_error_mm": float(tip_error.mean()),
@@ -166,15 +168,19 @@ def seed_mean(runs: list[dict]) -> dict:
 def run(json_path: str | None = None, quick: bool = False) -> dict:
     """Run the benchmark, print a table, optionally write JSON (see module docstring)."""
     options = LayeredTemplateOptions()
-    runs = [("two-finger-occlusion", 1, 30 if quick else None, "templates"),
-            ("two-finger-occlusion", 1, 30 if quick else None, "templates+features"),
-            ("natural", 2, 40 if quick else None, "templates"),
-            ("natural", 2, 40 if quick else None, "templates+features"),
-            ("natural", 1, 40 if quick else None, "templates")]
+    searching = replace(options, finger_search=True)
+    short = 40 if quick else None
+    runs = [("two-finger-occlusion", 1, 30 if quick else None, "templates", options),
+            ("two-finger-occlusion", 1, 30 if quick else None, "templates+features", options),
+            ("natural", 2, short, "templates", options),
+            ("natural", 2, short, "templates+features", options),
+            ("natural", 1, short, "templates", options),
+            ("natural", 2, short, "templates", searching),
+            ("natural", 2, short, "templates+features", searching)]
     seeds = SEEDS[:1] if quick else SEEDS
     with kernel_threads(1, 1):
-        tracking = [seed_mean([track_scenario(n, c, f, options, t, a, seed) for seed in seeds])
-                    for n, c, f, t in runs for a in APPEARANCES]
+        tracking = [seed_mean([track_scenario(n, c, f, o, t, a, seed) for seed in seeds])
+                    for n, c, f, t, o in runs for a in APPEARANCES]
         visibility = [visibility_agreement(n, 5 if quick else 30)
                       for n in ("two-finger-occlusion", "natural")]
     topts = options.templates
@@ -193,7 +199,8 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
     for t in tracking:
         low, high = min(t["per_seed"]["mean_tip_error_mm"]), max(
             t["per_seed"]["mean_tip_error_mm"])
-        lines.append(f"{t['scenario']:<21} {t['tracker']:<18} {t['appearance']:<10} "
+        label = t["tracker"] + (" +search" if t["finger_search"] else "")
+        lines.append(f"{t['scenario']:<21} {label:<18} {t['appearance']:<10} "
                      f"{t['cameras']:>4} "
                      f"{t['frames']:>6} "
                      f"{t['mean_tip_error_mm']:>7.2f} ({low:>6.2f}-{high:<6.2f}) "
@@ -204,7 +211,8 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
                      f"{t.get('middle_max_deviation_rad', float('nan')):>11.3f}")
     lines += ["", "ms per iteration: " + ", ".join(STAGES)]
     for t in tracking:
-        lines.append(f"{t['scenario']:<21} {t['tracker']:<18} {t['appearance']:<6} "
+        label = t["tracker"] + (" +search" if t["finger_search"] else "")
+        lines.append(f"{t['scenario']:<21} {label:<18} {t['appearance']:<6} "
                      f"{t['cameras']} cam: " + "  ".join(
             f"{t['ms_per_iteration'][s]:.2f}" for s in STAGES))
     lines += ["", "visibility order vs depth buffer"]
