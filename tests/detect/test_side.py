@@ -170,3 +170,23 @@ def test_pose_and_track_fit_the_hand_asked_for(two_hands, tmp_path, hand):
     tips = [key for key in rows[0] if key.endswith(".tip.u_px")]
     assert len(tips) == 5
     assert on_its_side(np.array([[float(row[key]) for key in tips] for row in rows]))
+
+
+@needs_mediapipe
+def test_a_run_for_the_other_side_waits_and_says_why(two_hands, tmp_path, capsys):
+    """Only the right hand in view and ``--hand left``: no start on it; the run says that
+    the detector sees a right hand and, with nothing else found, fails with that hint."""
+    frames = two_hands[:, :, two_hands.shape[2] // 2:]  # the right half: the right hand
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for i, frame in enumerate(frames):
+        cv2.imwrite(str(folder / f"frame_{i}.png"), cv2.cvtColor(frame, cv2.COLOR_RGB2BGR))
+    code = main(["track", str(folder), "--hand", "left", "--fps", "10", "--no-overlay",
+                 "--quiet", "-o", str(tmp_path / "out")])
+    printed = capsys.readouterr()
+    assert code != 0
+    assert "no left hand in frame 0; the detector sees a right hand" in printed.out
+    assert "--hand right, or auto" in printed.err
+    assert main(["pose", str(folder / "frame_0.png"), "--hand", "left",
+                 "-o", str(tmp_path / "pose")]) == 0
+    assert "only a hand of the other side" in capsys.readouterr().out
