@@ -166,3 +166,39 @@ def test_calibrate_hand_measures_the_stb_fingers_from_the_stereo_pair(tmp_path, 
     assert np.abs(error).mean() < 4.0 and np.abs(error).max() < 9.0
     nominal = model_lengths(load_model("hand"))  # the test can fail: Rehg's hand is larger
     assert np.abs(nominal - segment_lengths(truth)).mean() > 8.0
+
+
+@pytest.mark.skipif(not mediapipe_available(), reason="needs the mediapipe extra")
+@pytest.mark.parametrize("hand", ["left", "auto"])
+def test_calibrate_hand_mirrors_a_left_hand_itself(tmp_path, capsys, hand):
+    """The STB pair as it was filmed (a left hand, the real rig): ``--hand left``, and
+    ``auto`` from MediaPipe's side, measure it as the right hand of the mirror image, the
+    same segments as the images flipped by hand (the test above) within 0.5 mm; ``--hand
+    right`` finds no right hand and says so."""
+    import cv2
+
+    from digiteyes.camera import save_rig
+    from digiteyes.cli import main
+    from digiteyes.detect.link_lengths import model_lengths
+
+    paths = {}
+    for mirrored in (False, True):
+        rig = stb.stb_rig(DATA["camera"], mirrored=mirrored)
+        save_rig(rig, tmp_path / f"rig-{mirrored}.json")
+        paths[mirrored] = []
+        for cam, image in zip(rig, DATA["images"], strict=True):
+            paths[mirrored].append(tmp_path / f"{cam.name}-{mirrored}.png")
+            shown = np.ascontiguousarray(image[:, ::-1]) if mirrored else image
+            cv2.imwrite(str(paths[mirrored][-1]), cv2.cvtColor(shown, cv2.COLOR_RGB2BGR))
+    flipped, real = tmp_path / "flipped.dh", tmp_path / "real.dh"
+    assert main(["calibrate-hand", *map(str, paths[True]), "--rig",
+                 str(tmp_path / "rig-True.json"), "--hand", "right", "-o", str(flipped)]) == 0
+    assert main(["calibrate-hand", *map(str, paths[False]), "--rig",
+                 str(tmp_path / "rig-False.json"), "--hand", hand, "-o", str(real)]) == 0
+    assert "of a left hand" in capsys.readouterr().out
+    np.testing.assert_allclose(model_lengths(load_model(real)),
+                               model_lengths(load_model(flipped)), atol=0.5)
+    assert main(["calibrate-hand", *map(str, paths[False]), "--rig",
+                 str(tmp_path / "rig-False.json"), "--hand", "right", "-o",
+                 str(tmp_path / "wrong.dh")]) == 2
+    assert "no image set shows a right hand" in capsys.readouterr().err

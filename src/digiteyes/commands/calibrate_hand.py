@@ -6,6 +6,7 @@ from pathlib import Path
 
 import click
 
+from digiteyes.camera.mirror import HANDS
 from digiteyes.detect.pose import DETECTORS
 
 
@@ -26,18 +27,25 @@ from digiteyes.detect.pose import DETECTORS
 @click.option("--scale-only", is_flag=True,
               help="With a rig: keep the model's proportions (one global scale) instead of "
                    "measuring the 15 finger segments.")
+@click.option("--hand", type=click.Choice(("auto", *HANDS)), default="auto",
+              show_default=True,
+              help="The hand in the images (with a second hand in view, the one measured); "
+                   "a left hand is measured as the right hand of the mirror image; auto: "
+                   "the side the detector reports in the first image set.")
 def calibrate_hand(images: tuple[Path, ...], output: Path, rig: Path | None,
                    hand_length_mm: float | None, detector: str, model_name: str,
-                   scale_only: bool) -> None:
+                   scale_only: bool, hand: str) -> None:
     """Estimate the hand's scale from frames of an open hand seen by a calibrated stereo
     rig (and there its finger segments one by one), or from a measured hand length, and
     write the personal model file."""
     import cv2
 
     from digiteyes.camera import load_rig
+    from digiteyes.camera.mirror import mirror_images, rig_for_hand
     from digiteyes.detect.hand_size import measure_hand, scale_from_length, write_personal_model
     from digiteyes.detect.link_lengths import SEGMENT_NAMES, model_lengths
-    from digiteyes.detect.pose import make_detector
+    from digiteyes.detect.pose import estimate_pose, make_detector
+    from digiteyes.detect.side import TRACKED_SIDE
     from digiteyes.errors import DigitEyesError
     from digiteyes.kinematics import load_model
 
@@ -62,12 +70,20 @@ def calibrate_hand(images: tuple[Path, ...], output: Path, rig: Path | None,
                 raise DigitEyesError(f"{path}: not an image OpenCV can read")
             return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
-        det = make_detector(detector, model)
-        sets = ([read(p) for p in images[start:start + len(the_rig)]]
-                for start in range(0, len(images), len(the_rig)))
-        hand = measure_hand(sets, the_rig, det, model, segments=not scale_only)
-        scale, lengths = hand.scale, hand.lengths
-        how = f"{hand.frames} stereo frame(s), spread {100 * hand.spread:.1f} %"
+        det = make_detector(detector, model, max_hands=2)
+        sets = [[read(p) for p in images[start:start + len(the_rig)]]
+                for start in range(0, len(images), len(the_rig))]
+        if hand == "auto":  # the side of the first set's hand, right when it cannot tell
+            seen = estimate_pose(sets[0], the_rig, det, model).sides()
+            hand = "left" if seen == {"left"} else "right"
+        cameras = rig_for_hand(the_rig, hand)
+        if cameras.mirrored:
+            sets = [mirror_images(images) for images in sets]
+        measured = measure_hand(sets, cameras, det, model, segments=not scale_only,
+                                side=TRACKED_SIDE)
+        scale, lengths = measured.scale, measured.lengths
+        how = (f"{measured.frames} stereo frame(s) of a {hand} hand, spread "
+               f"{100 * measured.spread:.1f} %")
         if not scale_only and lengths is None:
             click.echo(f"the {det.name} detector places its keypoints with a model, so it "
                        "cannot measure finger segments: one global scale is kept (install "
@@ -77,7 +93,7 @@ def calibrate_hand(images: tuple[Path, ...], output: Path, rig: Path | None,
             nominal = scale * model_lengths(model)
             click.echo(f"{'segment':<18} {'scaled model':>12} {'measured':>9} {'frames':>6}")
             for name, ours, theirs, n in zip(SEGMENT_NAMES, nominal, lengths,
-                                             hand.segment_frames, strict=True):
+                                             measured.segment_frames, strict=True):
                 click.echo(f"{name:<18} {ours:>9.1f} mm {theirs:>6.1f} mm {n:>6d}")
     write_personal_model(model, scale, output, name=output.stem, lengths=lengths)
     click.echo(f"hand scale {scale:.3f} ({how}); wrote {output}")

@@ -84,19 +84,26 @@ class HandMeasurement:
 
 def measure_hand(image_sets: Iterable[Sequence[np.ndarray]], rig: Rig,
                  detector: HandDetector, model: KinematicModel,
-                 segments: bool = True) -> HandMeasurement:
+                 segments: bool = True, side: str | None = None) -> HandMeasurement:
     """Measure the hand in image sets (one image per camera of ``rig``, at the same moment):
     the scale of the model fitted to each set's detections, and, with ``segments`` and a
     detector that locates joints (``detector.locates_joints``), the finger segments of
-    the keypoints triangulated in each set seen by two or more cameras. Raises
-    :class:`DigitEyesError` when no set gives a fitted scale or a segment is never seen."""
-    fits, points = [], []
+    the keypoints triangulated in each set seen by two or more cameras. ``side``: of
+    several hands in an image, the one of that side (:mod:`digiteyes.detect.side`; None:
+    the most confident). Raises :class:`DigitEyesError` when no set gives a fitted scale
+    or a segment is never seen."""
+    fits, points, other_sides = [], [], 0
     for images in image_sets:
-        result = estimate_pose(list(images), rig, detector, model)
+        result = estimate_pose(list(images), rig, detector, model, side=side)
         fits.append(result.fit)
+        other_sides += result.other_hands > 0
         seen = [None if c is None else c.keypoints for c in result.candidates]
         if sum(k is not None for k in seen) >= 2:
             points.append(triangulate(rig, seen))
+    if other_sides and all(fit is None for fit in fits):
+        raise DigitEyesError(f"no image set shows a {side} hand in the images measured; the "
+                             f"detector saw a hand of the other side in {other_sides} "
+                             "(calibrate-hand --hand: the side of the hand in the images)")
     scale, spread, count = scale_from_fits(fits)
     if not (segments and detector.locates_joints):
         return HandMeasurement(scale, spread, count, None, None)
