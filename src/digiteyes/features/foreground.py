@@ -171,8 +171,10 @@ def connected_to(mask: np.ndarray, seed: np.ndarray, reach_px: int) -> np.ndarra
     y1, x1 = ys.max() + reach_px + 1, xs.max() + reach_px + 1
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach_px + 1,) * 2)
     grown = cv2.dilate(seed[y0:y1, x0:x1].astype(np.uint8), kernel)
-    touching = np.unique(parts[y0:y1, x0:x1][(grown > 0) & (mask[y0:y1, x0:x1] > 0)])
-    return np.isin(parts, touching[touching > 0]).astype(np.uint8)
+    keep = np.zeros(count, np.uint8)  # a lookup per component: 1 where it touches
+    keep[parts[y0:y1, x0:x1][(grown > 0) & (mask[y0:y1, x0:x1] > 0)]] = 1
+    keep[0] = 0  # the backdrop
+    return keep[parts]
 
 
 def silhouette_check(model: KinematicModel, kin: Kinematics, camera: Camera,
