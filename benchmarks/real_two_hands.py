@@ -27,25 +27,24 @@ for _name in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "M
     os.environ[_name] = "1"
 
 import argparse  # noqa: E402
-import json  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
-from real_video import DEFAULT_DATA, RESULTS, VIDEO, image_gaps  # noqa: E402
+from footage_runs import (  # noqa: E402
+    read_frames,
+    save_result,
+    score_line,
+    single_hand_keypoints,
+    track_and_score,
+    write_video,
+)
+from real_video import DEFAULT_DATA, RESULTS, VIDEO  # noqa: E402
 
 from digiteyes.benchmarks._machine import machine_info  # noqa: E402
-from digiteyes.camera.default import DEFAULT_HFOV_DEG, default_camera  # noqa: E402
-from digiteyes.detect.mediapipe_detector import (  # noqa: E402
-    MediaPipeDetector,
-    mediapipe_available,
-)
-from digiteyes.io import VideoReader, read_state_log  # noqa: E402
-from digiteyes.io.video import VideoWriter  # noqa: E402
-from digiteyes.kinematics import load_model  # noqa: E402
-from digiteyes.track_job import AUTO, TrackJob, run_track_job  # noqa: E402
+from digiteyes.detect.mediapipe_detector import mediapipe_available  # noqa: E402
 
 LAG_FRAMES = 150
 """The second hand is the video's hand this many frames later."""
@@ -55,22 +54,6 @@ PICTURE_FRAME = 300
 """The frame ``--picture`` writes."""
 WALL_DIFFERENCE = 40
 """Grey levels by which a pixel must differ from the wall's median colour to be pasted."""
-
-
-def read_frames(video: Path, frames: int | None) -> list[np.ndarray]:
-    with VideoReader(video) as reader:
-        return [image for i, image in enumerate(reader) if frames is None or i < frames]
-
-
-def single_hand_keypoints(images: list[np.ndarray]) -> np.ndarray:
-    """MediaPipe (still-image mode) on each frame: (T, 21, 2) px, NaN where no hand."""
-    detector = MediaPipeDetector(max_hands=1, static_image_mode=True)
-    out = np.full((len(images), 21, 2), np.nan)
-    for i, image in enumerate(images):
-        if found := detector.detect(image):
-            out[i] = found[0].keypoints
-    detector.close()
-    return out
 
 
 def hand_region(keypoints: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
@@ -113,31 +96,6 @@ def paste_second_hand(images: list[np.ndarray], keypoints: np.ndarray
     return out, second
 
 
-def measure(video: Path, hand: str, reference: np.ndarray, out_dir: Path) -> dict:
-    job = TrackJob((str(video),), str(out_dir), "hand", init_path=AUTO, overlay=False,
-                   progress=False, hand=hand, tracker_name="keypoints")
-    run = run_track_job(job)
-    summary = json.loads((out_dir / "summary.json").read_text(encoding="utf-8"))
-    model = load_model("hand")
-    log = read_state_log(out_dir / "states.csv", model)
-    first = summary["start"]["first_frame"]
-    found = {i: k for i, k in enumerate(reference) if not np.isnan(k).any()}
-    camera = default_camera(1280, 720, DEFAULT_HFOV_DEG)
-    if hand == "left":  # the run's states pose the mirror image's right hand
-        from digiteyes.camera.mirror import mirrored_camera
-
-        camera = mirrored_camera(camera)
-        found = {i: np.column_stack([1279 - k[:, 0], k[:, 1]]) for i, k in found.items()}
-    gaps = image_gaps(model, log.states, first, found, camera)
-    return {"hand": hand, "first_frame": first, "frames_tracked": run.n_frames,
-            "on_the_asked_hand": float(np.mean(gaps < 0.5)),
-            "gap_palm_lengths": {"median": float(np.median(gaps)),
-                                 "p90": float(np.percentile(gaps, 90)),
-                                 "frames": int(gaps.size)},
-            "lost_frames": run.n_lost, "re_detections": len(run.reinitialised_frames),
-            "tracker_fps": run.tracker_fps, "loop_fps": run.loop_fps}
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=DEFAULT_DATA)
@@ -157,31 +115,23 @@ def main(argv: list[str] | None = None) -> int:
     composed, left = paste_second_hand(images, right)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        video = Path(tmp) / "two_hands.mp4"
-        with VideoWriter(video, 30.0, codec="h264") as writer:
-            for image in composed:
-                writer.write(image)
+        video = write_video(composed, Path(tmp) / "two_hands.mp4")
         if args.picture is not None:  # half size: a picture for the docs
             half = cv2.resize(composed[min(PICTURE_FRAME, len(composed) - 1)], None, fx=0.5,
                               fy=0.5, interpolation=cv2.INTER_AREA)
             cv2.imwrite(str(args.picture), cv2.cvtColor(half, cv2.COLOR_RGB2BGR),
                         [cv2.IMWRITE_JPEG_QUALITY, 85])
         for hand, reference in (("right", right), ("left", left)):
-            rows.append(measure(video, hand, reference, Path(tmp) / hand))
+            rows.append({"hand": hand} | track_and_score(video, Path(tmp) / hand, reference,
+                                                         hand))
     result = {"benchmark": "real_two_hands", "machine": machine, "video": str(VIDEO),
               "second_hand": {"lag_frames": LAG_FRAMES, "shift_px": SHIFT_PX,
                               "mirrored": True},
               "reference": "MediaPipe on the single-hand frames (still-image mode); machine "
                            "output, not truth", "runs": rows}
-    args.json.parent.mkdir(parents=True, exist_ok=True)
-    args.json.write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
+    save_result(result, args.json)
     for row in rows:
-        gap = row["gap_palm_lengths"]
-        print(f"two hands, --hand {row['hand']}: on the asked hand in "
-              f"{100 * row['on_the_asked_hand']:.1f} % of {gap['frames']} frames (gap median "
-              f"{gap['median']:.2f}, 90th percentile {gap['p90']:.2f} palm lengths), "
-              f"{row['lost_frames']} lost, {row['re_detections']} re-detections, "
-              f"{row['tracker_fps']:.1f} frames/s (tracker), {row['loop_fps']:.1f} end to end")
+        print(f"two hands, --hand {row['hand']}: {score_line(row)}")
     print(f"-> {args.json}")
     return 0
 

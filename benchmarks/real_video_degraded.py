@@ -25,7 +25,6 @@ for _name in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "M
     os.environ[_name] = "1"
 
 import argparse  # noqa: E402
-import json  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 from collections.abc import Callable  # noqa: E402
@@ -33,16 +32,18 @@ from pathlib import Path  # noqa: E402
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
-from real_two_hands import read_frames, single_hand_keypoints  # noqa: E402
-from real_video import DEFAULT_DATA, RESULTS, VIDEO, image_gaps  # noqa: E402
+from footage_runs import (  # noqa: E402
+    read_frames,
+    save_result,
+    score_line,
+    single_hand_keypoints,
+    track_and_score,
+    write_video,
+)
+from real_video import DEFAULT_DATA, RESULTS, VIDEO  # noqa: E402
 
 from digiteyes.benchmarks._machine import machine_info  # noqa: E402
-from digiteyes.camera.default import DEFAULT_HFOV_DEG, default_camera  # noqa: E402
 from digiteyes.detect.mediapipe_detector import mediapipe_available  # noqa: E402
-from digiteyes.io import read_state_log  # noqa: E402
-from digiteyes.io.video import VideoWriter  # noqa: E402
-from digiteyes.kinematics import load_model  # noqa: E402
-from digiteyes.track_job import AUTO, TrackJob, run_track_job  # noqa: E402
 
 SMALL_SIDE = 320
 """Width (px) of the ``small`` version (the video's 1280 scaled by a quarter)."""
@@ -92,30 +93,15 @@ DEGRADATIONS: dict[str, Callable[[list[np.ndarray]], list[np.ndarray]]] = {
 """The versions tracked, by name (``original``: the video as it is)."""
 
 
-def measure(name: str, frames: list[np.ndarray], reference: np.ndarray, tmp: Path) -> dict:
-    video = tmp / f"{name}.mp4"
-    with VideoWriter(video, 30.0, codec="h264") as writer:
-        for image in frames:
-            writer.write(image)
-    out = tmp / name
-    run = run_track_job(TrackJob((str(video),), str(out), "hand", init_path=AUTO,
-                                 overlay=False, progress=False, tracker_name="keypoints"))
-    summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
-    model = load_model("hand")
-    log = read_state_log(out / "states.csv", model)
-    height, width = frames[0].shape[:2]
-    scale = width / 1280.0  # the reference's keypoints are the original frames' pixels
-    found = {i: k * scale for i, k in enumerate(reference) if not np.isnan(k).any()}
-    gaps = image_gaps(model, log.states, summary["start"]["first_frame"], found,
-                      default_camera(width, height, DEFAULT_HFOV_DEG))
-    return {"version": name, "size": [width, height], "frames_tracked": run.n_frames,
-            "first_frame": summary["start"]["first_frame"],
-            "on_the_hand": float(np.mean(gaps < 0.5)),
-            "gap_palm_lengths": {"median": float(np.median(gaps)),
-                                 "p90": float(np.percentile(gaps, 90)),
-                                 "frames": int(gaps.size)},
-            "lost_frames": run.n_lost, "re_detections": len(run.reinitialised_frames),
-            "tracker_fps": run.tracker_fps, "loop_fps": run.loop_fps}
+def measure(name: str, frames: list[np.ndarray], reference: np.ndarray, width: int,
+            tmp: Path) -> dict:
+    """Track the version ``name`` of the video (``frames``) and score it against
+    ``reference``, the keypoints (px) of the original frames ``width`` px wide, scaled to
+    the version's size (pixel centres at integers)."""
+    scale = frames[0].shape[1] / width
+    video = write_video(frames, tmp / f"{name}.mp4")
+    return {"version": name} | track_and_score(video, tmp / name,
+                                               (reference + 0.5) * scale - 0.5)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -132,20 +118,14 @@ def main(argv: list[str] | None = None) -> int:
     frames = read_frames(args.data / VIDEO, args.frames)
     reference = single_hand_keypoints(frames)
     with tempfile.TemporaryDirectory() as tmp:
-        rows = [measure(name, degrade(frames), reference, Path(tmp))
+        rows = [measure(name, degrade(frames), reference, frames[0].shape[1], Path(tmp))
                 for name, degrade in DEGRADATIONS.items()]
     result = {"benchmark": "real_video_degraded", "machine": machine, "video": str(VIDEO),
               "reference": "MediaPipe on the original frames (still-image mode); machine "
                            "output, not truth", "runs": rows}
-    args.json.parent.mkdir(parents=True, exist_ok=True)
-    args.json.write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
+    save_result(result, args.json)
     for row in rows:
-        gap = row["gap_palm_lengths"]
-        print(f"{row['version']:<10} {row['size'][0]}x{row['size'][1]}: on the hand in "
-              f"{100 * row['on_the_hand']:.1f} % of {gap['frames']} frames (gap median "
-              f"{gap['median']:.2f}, 90th percentile {gap['p90']:.2f} palm lengths), "
-              f"{row['lost_frames']} lost, {row['re_detections']} re-detections, "
-              f"{row['tracker_fps']:.1f} frames/s (tracker), {row['loop_fps']:.1f} end to end")
+        print(f"{row['version']:<10} {row['size'][0]}x{row['size'][1]}: {score_line(row)}")
     print(f"-> {args.json}")
     return 0
 
