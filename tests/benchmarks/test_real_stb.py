@@ -201,4 +201,4 @@ def test_calibrate_hand_mirrors_a_left_hand_itself(tmp_path, capsys, hand):
     assert main(["calibrate-hand", *map(str, paths[False]), "--rig",
                  str(tmp_path / "rig-False.json"), "--hand", "right", "-o",
                  str(tmp_path / "wrong.dh")]) == 2
-    assert "no image set shows a right hand" in capsys.readouterr().err
+    assert "no image set shows a hand of the side asked for" in capsys.readouterr().err

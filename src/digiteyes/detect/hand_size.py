@@ -101,9 +101,9 @@ def measure_hand(image_sets: Iterable[Sequence[np.ndarray]], rig: Rig,
         if sum(k is not None for k in seen) >= 2:
             points.append(triangulate(rig, seen))
     if other_sides and all(fit is None for fit in fits):
-        raise DigitEyesError(f"no image set shows a {side} hand in the images measured; the "
-                             f"detector saw a hand of the other side in {other_sides} "
-                             "(calibrate-hand --hand: the side of the hand in the images)")
+        raise DigitEyesError(f"no image set shows a hand of the side asked for; the detector "
+                             f"saw one of the other side in {other_sides} (calibrate-hand "
+                             "--hand: the side of the hand in the images)")
     scale, spread, count = scale_from_fits(fits)
     if not (segments and detector.locates_joints):
         return HandMeasurement(scale, spread, count, None, None)
