@@ -62,6 +62,33 @@ def test_foreground_away_from_the_hand_does_not_count(desk):
     away = silhouette_check(model, forward_kinematics(model, moved), camera, other)
     assert away.outside > 0.9
 
+
+def test_large_images_are_checked_at_the_check_size(desk):
+    """Footage wider than ``CHECK_MAX_SIDE`` is checked resized, with the cameras for the
+    resized images: the same frames shown twice as large give the same verdicts, within
+    what the resampling moves."""
+    from digiteyes.camera import Rig
+    from digiteyes.camera.working_size import resized_camera
+    from digiteyes.trackers.silhouette_loss import CHECK_MAX_SIDE
+
+    model, rig, q, _, image, image_curled = desk
+    camera = rig.cameras[0]
+    assert max(camera.width, camera.height) <= CHECK_MAX_SIDE
+    large = Rig((resized_camera(camera, 2 * camera.width, 2 * camera.height),))
+
+    def scaled(im):
+        return cv2.resize(im, (2 * im.shape[1], 2 * im.shape[0]),
+                          interpolation=cv2.INTER_LINEAR)
+
+    for the_rig, images in ((rig, (image, image_curled)),
+                            (large, (scaled(image), scaled(image_curled)))):
+        rule = SilhouetteLoss(model, the_rig)
+        right = rule.check([images[0]], q, q)
+        assert not right.reasons
+        wrong = rule.check([images[1]], q, q)  # the hand curled its index, the state not
+        assert wrong.reasons and wrong.finger_lost["index"]
+        assert rule._rig[0].width == camera.width  # checked at the small size
+
 def test_tracker_flag_silent_when_right_and_fires_when_a_finger_is_wrong(desk):
     model, rig, q, _, image, image_curled = desk
     tracker = FeatureTracker(model, rig, FeatureTrackerOptions(iterations_per_frame=2))

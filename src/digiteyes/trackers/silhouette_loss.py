@@ -42,6 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from digiteyes.camera import Rig
+from digiteyes.camera.working_size import resize_images, resized_camera, working_size
 from digiteyes.errors import DigitEyesError
 from digiteyes.features.foreground import (
     Foreground,
@@ -56,6 +57,12 @@ from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import KinematicModel, Kinematics, forward_kinematics
 from digiteyes.kinematics.anatomy import DIGITS, open_digits
 
+CHECK_MAX_SIDE = 640
+"""Longer side (px) of the images the rule works on: larger images (1280x720 footage) are
+checked at this size, with the cameras for the resized images. The rule's pixel
+tolerance was chosen on 640x480 renders, and a full-size check of 1280x720 footage cost
+4.2 ms a frame (rasterising the model, mostly), a fifth of the keypoint tracker's
+frame."""
 TOLERANCE_PX = 5
 """Default distance (px) within which the two silhouettes may differ."""
 MAX_UNEXPLAINED = 0.08
@@ -77,7 +84,8 @@ class SilhouetteLossOptions:
     inherits them, so ``--option silhouette_check=false`` works for any tracker).
 
     silhouette_check : apply the rule (it needs a plain backdrop and a static camera).
-    silhouette_tolerance_px : silhouette differences within this distance are ignored, px.
+    silhouette_tolerance_px : silhouette differences within this distance are ignored, px
+        of the checked images (at most :data:`CHECK_MAX_SIDE` wide).
     max_unexplained, max_finger_outside : the thresholds (fractions, excess over the first
         frame).
     max_hidden_unexplained : the hidden-digit threshold (a fraction; 1 turns the rule off).
@@ -113,7 +121,8 @@ class SilhouetteLoss:
     Parameters
     ----------
     model, rig : the tracking model and its cameras.
-    tolerance_px : silhouette differences within this distance are ignored, px.
+    tolerance_px : silhouette differences within this distance are ignored, px of the
+        checked images (at most :data:`CHECK_MAX_SIDE` wide).
     max_unexplained, max_finger_outside : the thresholds (fractions, excess over the
         first frame).
     max_hidden_unexplained : the hidden-digit threshold (a fraction in (0, 1]; 1 turns
@@ -141,6 +150,9 @@ class SilhouetteLoss:
             raise DigitEyesError(f"max_hidden_unexplained must lie in (0, 1], got "
                                  f"{max_hidden_unexplained!r}")
         self.model, self.rig = model, rig
+        self._rig = Rig(tuple(resized_camera(c, *working_size(c.width, c.height,
+                                                               CHECK_MAX_SIDE)) for c in rig))
+        """The cameras of the images the rule works on (:data:`CHECK_MAX_SIDE`)."""
         self.tolerance_px = tolerance_px
         self.max_unexplained = max_unexplained
         self.max_finger_outside = max_finger_outside
@@ -174,10 +186,11 @@ class SilhouetteLoss:
         started from (used on the first frame after a reset: the foreground is fitted,
         and the baselines measured, at that state, so that an estimate already wrong in
         the first frame is not taken as the norm)."""
+        images = resize_images(images, self._rig)
         if self.foreground is None:
             kin0 = forward_kinematics(self.model, reference)
             self.foreground = [fit_foreground(image, model_labels(self.model, kin0, camera))
-                               for image, camera in zip(images, self.rig, strict=True)]
+                               for image, camera in zip(images, self._rig, strict=True)]
         if self._unexplained_baseline is None:
             baseline = self._checks(images, forward_kinematics(self.model, reference))
             self._unexplained_baseline = [c.unexplained for c in baseline]
@@ -205,7 +218,8 @@ class SilhouetteLoss:
         pixels are left unexplained), as it does from the mean over the fingers seen."""
         if not self.foreground or all(fg is None for fg in self.foreground):
             return None
-        masks = self._masks([prepare_image(image) for image in images])
+        masks = self._masks(resize_images([prepare_image(image) for image in images],
+                                          self._rig))
         scores = []
         for state in states:
             checks = self._checks_masks(masks, forward_kinematics(self.model, state))
@@ -224,7 +238,7 @@ class SilhouetteLoss:
     def _checks_masks(self, masks: list[np.ndarray | None], kin: Kinematics
                       ) -> list[SilhouetteCheck]:
         return [silhouette_check(self.model, kin, camera, mask, self.tolerance_px)
-                for mask, camera in zip(masks, self.rig, strict=True) if mask is not None]
+                for mask, camera in zip(masks, self._rig, strict=True) if mask is not None]
 
     def _checks(self, images: Sequence[np.ndarray], kin: Kinematics) -> list[SilhouetteCheck]:
         """The silhouette comparison in every camera whose foreground could be fitted."""
@@ -232,7 +246,7 @@ class SilhouetteLoss:
 
     def _checked_cameras(self) -> list:
         """The cameras whose foreground could be fitted (the order of the checks)."""
-        return [camera for camera, fg in zip(self.rig, self.foreground, strict=True)
+        return [camera for camera, fg in zip(self._rig, self.foreground, strict=True)
                 if fg is not None]
 
     def hidden_digits(self, checks: Sequence[SilhouetteCheck]) -> list[str]:
