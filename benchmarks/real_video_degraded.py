@@ -6,13 +6,13 @@ Usage::
 
 The real video (``real_video/human_hand_video.mp4``, 1280x720) is degraded in the ways
 footage from users is (:data:`DEGRADATIONS`): dim and noisy, motion-blurred, small,
-crossed by an occluder, compressed hard. Each version is tracked as ``digiteyes track
-VIDEO`` runs it (:func:`digiteyes.track_job.run_track_job`: automatic start, the keypoint
-tracker, recovery; one core). Per version: the share of frames whose tracked hand lies
-on the hand (the worst digit's mean keypoint distance under half a palm length from
-MediaPipe's keypoints of the *original* frame, still-image mode: machine output, not
-truth), the median and 90th percentile of that distance, frames flagged lost,
-re-detections and frames per second.
+crossed by an occluder, compressed hard, fast (every third frame only). Each version is
+tracked as ``digiteyes track VIDEO`` runs it (:func:`digiteyes.track_job.run_track_job`:
+automatic start, the keypoint tracker, recovery; one core). Per version: the share of
+frames whose tracked hand lies on the hand (the worst digit's mean keypoint distance
+under half a palm length from MediaPipe's keypoints of the *original* frame, still-image
+mode: machine output, not truth), the median and 90th percentile of that distance,
+frames flagged lost, re-detections and frames per second.
 
 Without the data or the MediaPipe extra the script says so and exits with status 0.
 """
@@ -47,6 +47,8 @@ from digiteyes.detect.mediapipe_detector import mediapipe_available  # noqa: E40
 
 SMALL_SIDE = 320
 """Width (px) of the ``small`` version (the video's 1280 scaled by a quarter)."""
+FAST_STEP = 3
+"""The ``fast`` version keeps every this-many-th frame."""
 
 
 def dim(frames: list[np.ndarray]) -> list[np.ndarray]:
@@ -87,10 +89,18 @@ def compressed(frames: list[np.ndarray]) -> list[np.ndarray]:
                          cv2.IMREAD_UNCHANGED) for f in frames]
 
 
+def fast(frames: list[np.ndarray]) -> list[np.ndarray]:
+    """Every :data:`FAST_STEP`-th frame: the hand moves three times as far between frames
+    (the same motion three times as fast, or filmed at 10 frames/s)."""
+    return frames[::FAST_STEP]
+
+
 DEGRADATIONS: dict[str, Callable[[list[np.ndarray]], list[np.ndarray]]] = {
     "original": list, "dim": dim, "blurred": blurred, "small": small, "occluded": occluded,
-    "compressed": compressed}
+    "compressed": compressed, "fast": fast}
 """The versions tracked, by name (``original``: the video as it is)."""
+STEPS = {"fast": FAST_STEP}
+"""The versions that keep every n-th frame only, and n (their reference keeps the same)."""
 
 
 def measure(name: str, frames: list[np.ndarray], reference: np.ndarray, width: int,
@@ -118,7 +128,8 @@ def main(argv: list[str] | None = None) -> int:
     frames = read_frames(args.data / VIDEO, args.frames)
     reference = single_hand_keypoints(frames)
     with tempfile.TemporaryDirectory() as tmp:
-        rows = [measure(name, degrade(frames), reference, frames[0].shape[1], Path(tmp))
+        rows = [measure(name, degrade(frames), reference[::STEPS.get(name, 1)],
+                        frames[0].shape[1], Path(tmp))
                 for name, degrade in DEGRADATIONS.items()]
     result = {"benchmark": "real_video_degraded", "machine": machine, "video": str(VIDEO),
               "reference": "MediaPipe on the original frames (still-image mode); machine "
