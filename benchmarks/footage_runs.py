@@ -10,15 +10,16 @@ output, not truth.
 
 from __future__ import annotations
 
+import argparse
 import json
 from pathlib import Path
 
 import numpy as np
-from real_video import image_gaps
+from real_video import DEFAULT_DATA, RESULTS, VIDEO, image_gaps
 
 from digiteyes.camera.default import DEFAULT_HFOV_DEG, default_camera
 from digiteyes.camera.mirror import mirrored_camera, unmirror_pixels
-from digiteyes.detect.mediapipe_detector import MediaPipeDetector
+from digiteyes.detect.mediapipe_detector import MediaPipeDetector, mediapipe_available
 from digiteyes.io import VideoReader, read_state_log
 from digiteyes.io.video import VideoWriter
 from digiteyes.kinematics import load_model
@@ -26,6 +27,24 @@ from digiteyes.track_job import AUTO, TrackJob, run_track_job
 
 ON_THE_HAND = 0.5
 """A frame is on the hand when its worst digit is within this many palm lengths."""
+
+
+def footage_parser(description: str, name: str) -> argparse.ArgumentParser:
+    """The options every footage benchmark takes: ``--data``, ``--frames`` and ``--json``
+    (default ``results/NAME.json``)."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--data", type=Path, default=DEFAULT_DATA)
+    parser.add_argument("--frames", type=int, default=None, help="only the first N frames")
+    parser.add_argument("--json", type=Path, default=RESULTS / f"{name}.json")
+    return parser
+
+
+def can_run(data: Path, name: str) -> bool:
+    """Whether the real video and the MediaPipe extra are there; says so when not."""
+    if (data / VIDEO).is_file() and mediapipe_available():
+        return True
+    print(f"{name}: needs {VIDEO} under {data} and the mediapipe extra; skipped")
+    return False
 
 
 def read_frames(video: Path, frames: int | None) -> list[np.ndarray]:

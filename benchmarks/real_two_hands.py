@@ -26,7 +26,6 @@ import os
 for _name in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_name] = "1"
 
-import argparse  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -34,6 +33,8 @@ from pathlib import Path  # noqa: E402
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 from footage_runs import (  # noqa: E402
+    can_run,
+    footage_parser,
     read_frames,
     save_result,
     score_line,
@@ -41,10 +42,9 @@ from footage_runs import (  # noqa: E402
     track_and_score,
     write_video,
 )
-from real_video import DEFAULT_DATA, RESULTS, VIDEO  # noqa: E402
+from real_video import VIDEO  # noqa: E402
 
 from digiteyes.benchmarks._machine import machine_info  # noqa: E402
-from digiteyes.detect.mediapipe_detector import mediapipe_available  # noqa: E402
 
 LAG_FRAMES = 150
 """The second hand is the video's hand this many frames later."""
@@ -97,17 +97,12 @@ def paste_second_hand(images: list[np.ndarray], keypoints: np.ndarray
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--data", type=Path, default=DEFAULT_DATA)
-    parser.add_argument("--frames", type=int, default=None, help="only the first N frames")
-    parser.add_argument("--json", type=Path, default=RESULTS / "real_two_hands.json")
+    parser = footage_parser(__doc__.splitlines()[0], "real_two_hands")
     parser.add_argument("--picture", type=Path, default=None,
                         help=f"also write frame {PICTURE_FRAME} of the two-hand video here, half "
                              "size")
     args = parser.parse_args(argv)
-    if not (args.data / VIDEO).is_file() or not mediapipe_available():
-        print(f"real_two_hands: needs {VIDEO} under {args.data} and the mediapipe extra; "
-              "skipped")
+    if not can_run(args.data, "real_two_hands"):
         return 0
     machine = machine_info()
     images = read_frames(args.data / VIDEO, args.frames)

@@ -24,7 +24,6 @@ import os
 for _name in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_name] = "1"
 
-import argparse  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 from collections.abc import Callable  # noqa: E402
@@ -33,6 +32,8 @@ from pathlib import Path  # noqa: E402
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 from footage_runs import (  # noqa: E402
+    can_run,
+    footage_parser,
     read_frames,
     save_result,
     score_line,
@@ -40,10 +41,9 @@ from footage_runs import (  # noqa: E402
     track_and_score,
     write_video,
 )
-from real_video import DEFAULT_DATA, RESULTS, VIDEO  # noqa: E402
+from real_video import VIDEO  # noqa: E402
 
 from digiteyes.benchmarks._machine import machine_info  # noqa: E402
-from digiteyes.detect.mediapipe_detector import mediapipe_available  # noqa: E402
 
 SMALL_SIDE = 320
 """Width (px) of the ``small`` version (the video's 1280 scaled by a quarter)."""
@@ -115,14 +115,8 @@ def measure(name: str, frames: list[np.ndarray], reference: np.ndarray, width: i
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--data", type=Path, default=DEFAULT_DATA)
-    parser.add_argument("--frames", type=int, default=None, help="only the first N frames")
-    parser.add_argument("--json", type=Path, default=RESULTS / "real_video_degraded.json")
-    args = parser.parse_args(argv)
-    if not (args.data / VIDEO).is_file() or not mediapipe_available():
-        print(f"real_video_degraded: needs {VIDEO} under {args.data} and the mediapipe "
-              "extra; skipped")
+    args = footage_parser(__doc__.splitlines()[0], "real_video_degraded").parse_args(argv)
+    if not can_run(args.data, "real_video_degraded"):
         return 0
     machine = machine_info()
     frames = read_frames(args.data / VIDEO, args.frames)

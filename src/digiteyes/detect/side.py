@@ -60,8 +60,7 @@ def is_other_hand(candidate: HandCandidate, side: str = TRACKED_SIDE,
     if near is None:
         return True
     palm = max(float(np.linalg.norm(near[0] - near[9])), 1.0)
-    gap = float(np.mean(np.linalg.norm(candidate.keypoints - near, axis=1)))
-    return gap > SAME_HAND_PALMS * palm
+    return _mean_distance(candidate, near) > SAME_HAND_PALMS * palm
 
 
 def pick_candidate(found: Sequence[HandCandidate], side: str | None = TRACKED_SIDE,
@@ -74,7 +73,12 @@ def pick_candidate(found: Sequence[HandCandidate], side: str | None = TRACKED_SI
         return None
     if near is None:
         return pool[0]
-    return min(pool, key=lambda c: float(np.mean(np.linalg.norm(c.keypoints - near, axis=1))))
+    return min(pool, key=lambda c: _mean_distance(c, near))
+
+
+def _mean_distance(candidate: HandCandidate, keypoints: np.ndarray) -> float:
+    """Mean distance (px) of the candidate's 21 keypoints from ``keypoints`` (21, 2)."""
+    return float(np.mean(np.linalg.norm(candidate.keypoints - keypoints, axis=1)))
 
 
 class SideFollower:

@@ -223,6 +223,8 @@ class KeypointTracker:
         self.silhouette_loss = SilhouetteLoss.from_options(model, rig, self.options)
         self.loss_hold = LossHold(self.options.hold_lost_frames)
         self.state: np.ndarray | None = None
+        self._here = np.zeros((21, 3))
+        """The 21 keypoints (mm) of the estimate the current frame starts from."""
         self._frame_index = 0
 
     def reset(self, initial_state: np.ndarray) -> None:
@@ -258,7 +260,7 @@ class KeypointTracker:
         """Detect the hand in every camera and fit the model to its keypoints."""
         start_total, timings = start_step(self, frames)
         start = time.perf_counter()
-        here = self._keypoints_here()
+        self._here = here = self._keypoints_here()  # the estimate this frame starts from
         candidates = []
         for detector, image, camera in zip(self._detectors, frames, self.rig, strict=True):
             near = camera.project(here)  # the tracked hand's keypoints in this camera
@@ -432,9 +434,8 @@ class KeypointTracker:
 
     def _near(self, fit: PoseFit) -> bool:
         """Whether ``fit`` keeps the hand within ``max_jump`` hand lengths per frame since
-        the last fit taken (keypoints' centroid, mm)."""
-        here = self._keypoints_here().mean(axis=0)
-        jump = float(np.linalg.norm(fit.keypoints_world.mean(axis=0) - here))
+        the last fit taken (keypoints' centroid, mm; from the frame's start estimate)."""
+        jump = float(np.linalg.norm(fit.keypoints_world.mean(axis=0) - self._here.mean(axis=0)))
         frames = min(self._since_fit, JUMP_FRAMES)
         return jump <= self.options.max_jump * self._hand_length * frames
 
