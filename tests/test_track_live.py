@@ -530,11 +530,12 @@ def test_auto_takes_the_keypoint_tracker_only_for_datasets_the_detector_sees(tmp
         assert f"tracker: {expected}" in printed
         summary = json.loads((out / "summary.json").read_text())
         assert summary["tracker"] == expected
-        # the keypoint tracker records the hand's scale (two cameras: the model's size at
-        # the start, then measured on-line, per frame in states.csv, the last in the summary)
-        assert summary["start"].get("hand_scale") == (1.0 if expected == "keypoints" else None)
+        # both trackers record the hand's scale (the keypoint tracker with two cameras: the
+        # model's size at the start, then measured on-line; the feature tracker: measured
+        # at the dataset's start, the model's size here), per frame in states.csv
+        assert summary["start"].get("hand_scale") == 1.0
         header = (out / "states.csv").read_text().splitlines()[0].split(",")
-        assert ("hand_scale" in header) == (expected == "keypoints")
+        assert "hand_scale" in header
         # the model it ran with, beside the log, for export and replay
         assert model_from_file(out / "model.dh").state_names == tuple(header[
             len(header) - len(open_sequence(data).model.state_names):])
@@ -549,8 +550,8 @@ def test_auto_takes_the_keypoint_tracker_only_for_datasets_the_detector_sees(tmp
             assert model_hand_length(measured) == pytest.approx(
                 summary["hand_scale"] * model_hand_length(model), rel=1e-4)
             assert "hand-measured.dh" in printed
-        else:
-            assert summary["hand_scale"] is None
+        else:  # measured at the model's size: no personal model written
+            assert summary["hand_scale"] == 1.0
             assert not (out / "hand-measured.dh").exists()
 
 

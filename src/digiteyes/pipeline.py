@@ -10,7 +10,8 @@ This is the layer between :mod:`digiteyes.io` (frames in, logs out) and
   report Fig. 4; :mod:`digiteyes.viz.track_overlay`), cameras side by side (H.264,
   :data:`OVERLAY_CRF`, :data:`OVERLAY_PRESET`);
 * ``views/estimate-NNNNNN.png``: the estimated model rendered from another viewpoint
-  (thesis Fig. 4.6) every ``views_every`` frames and at the last frame;
+  (thesis Fig. 4.6) every ``views_every`` frames and at the last frame, drawn after the
+  loop (a 30 ms rendering every 50 frames would stall a live stream);
 * ``trajectory-palm.png`` and ``trajectory-joints.png``: the estimated palm pose and the
   index and thumb joint angles over time (thesis Figs. 4.7, 4.8);
 * ``summary.json``: the tracker, the frame rate of the input (``fps``, which
@@ -245,6 +246,7 @@ def run_tracker(
                       stages=stages, residual_unit=residual_unit(tracker),
                       stage_seconds=dict.fromkeys(stages, 0.0))
     states: list[np.ndarray] = []
+    viewed: list[tuple[int, np.ndarray, float]] = []  # (frame, state, hand scale) of views/
     frames = iter(frames)
     first = next(frames, None)
     if first is not None:
@@ -286,8 +288,7 @@ def run_tracker(
                 if video is not None:
                     video.write(overlay_image(images, result, rig, model))
                 if views_every and index % views_every == views_every - 1:
-                    _write_view(model_of_size(model, result.hand_scale), result.state, out,
-                                index, view, run, rig.mirrored)
+                    viewed.append((index, result.state, result.hand_scale))
                 bar.set_postfix(rms=f"{result.residual_rms_px:.2f} {run.residual_unit}",
                                 lost=run.n_lost, refresh=False)  # shown at tqdm's own pace
     except KeyboardInterrupt:
@@ -305,8 +306,10 @@ def run_tracker(
     if states:
         last = first_index + run.n_frames - 1
         if not (views_every and last % views_every == views_every - 1):
-            _write_view(model_of_size(model, run.hand_scale or 1.0), states[-1], out, last,
-                        view, run, rig.mirrored)
+            viewed.append((last, states[-1], run.hand_scale or 1.0))
+        for index, state, scale in viewed:  # after the loop: no stall in a live stream
+            _write_view(model_of_size(model, scale), state, out, index, view, run,
+                        rig.mirrored)
         run.files.update(write_trajectory_plots(model, np.array(states), out))
     run.wall_seconds = time.perf_counter() - started
     summary = out / "summary.json"

@@ -307,11 +307,13 @@ def has_hand21(model: KinematicModel) -> bool:
 
 
 def _tracker_options(job: TrackJob, model: KinematicModel, name: str,
-                     footage: bool) -> dict[str, object]:
+                     footage: bool, auto: bool) -> dict[str, object]:
     """The options of tracker ``name``: the job's ``--option`` pairs over the flags. The
-    keypoint tracker reads the hand's size from a dataset's start (its true state), not
-    from footage's, which the images gave (from the model's size) or the user placed by
-    eye (``--init FILE``); there the model's (or a personal model's) size stays
+    keypoint and feature trackers read the hand's size from a dataset's start (its true
+    state), not from footage's, which the images gave (from the model's size) or the user
+    placed by eye (``--init FILE``), nor from a start fitted to a dataset's images
+    (``auto``; the keypoint tracker, which holds the palm where that fit put it, keeps
+    reading it there); the model's (or a personal model's) size then stays
     (``--option start_size=true`` overrides)."""
     options = dict(job.options)
     if name == FOOTAGE_TRACKER:
@@ -321,6 +323,8 @@ def _tracker_options(job: TrackJob, model: KinematicModel, name: str,
     if name == DEFAULT_TRACKER:
         flags = tracker_options(job.iterations, job.window, job.links, model, job.robust,
                                 job.prediction, job.shading)
+        if footage or auto:
+            options.setdefault("start_size", False)
         options = {**vars(flags), **options}
     return options
 
@@ -402,7 +406,7 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
         say(f"tracker: {name} (--tracker auto: "
             f"{_why_tracker(name, source.footage, job.detector, model)})")
     tracker = create_tracker(name, model, rig,
-                             **_tracker_options(job, model, name, source.footage))
+                             **_tracker_options(job, model, name, source.footage, auto))
     check = _detection_check(job, source.footage, name, model, rig)
     out = Path(job.output)
     out.mkdir(parents=True, exist_ok=True)

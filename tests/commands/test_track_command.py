@@ -196,3 +196,47 @@ def test_model_show_and_errors(capsys):
     assert "q9   index.pip" in text and "28 states" in text
     assert main(["model", "show", "no-such-model"]) == 2
     assert "no shipped model" in one_line_error(capsys)
+
+
+def test_track_measures_the_size_of_a_smaller_hand_from_the_datasets_start(tmp_path, capsys):
+    """A dataset of a hand 0.9 times the model's size: the feature tracker measures the
+    size at the dataset's (true) start and logs it; ``--option start_size=false`` keeps
+    the model's size and tracks the fingertips worse; from a video (footage, ``--init
+    FILE``) the size is not measured."""
+    folder = tmp_path / "small"
+    assert main(["render", "whole-hand", "-o", str(folder), "--frames", "4",
+                 "--hand-scale", "0.9"]) == 0
+    seq = open_sequence(folder)
+    tips = [i for i, n in enumerate(seq.truth.keypoint_names) if n.endswith(".tip")]
+    from digiteyes.kinematics.keypoints import hand_keypoints
+
+    errors = {}
+    for name, extra in (("sized", []), ("fixed", ["--option", "start_size=false"])):
+        out = tmp_path / name
+        assert main(["track", str(folder), "-o", str(out), "--quiet", "--no-overlay",
+                     *extra]) == 0
+        log = read_state_log(out / "states.csv", seq.model)
+        summary = json.loads((out / "summary.json").read_text())
+        if name == "sized":
+            assert np.allclose(log.hand_scale, log.hand_scale[0])
+            assert summary["hand_scale"] == pytest.approx(0.9, abs=0.021)
+            assert (out / "hand-measured.dh").exists()
+        else:
+            assert np.allclose(log.hand_scale, 1.0) and summary["hand_scale"] is None
+        estimated = hand_keypoints(seq.model, log.states, log.hand_scale)[1]
+        errors[name] = np.linalg.norm(estimated[:, tips] - seq.truth.keypoints_3d[:, tips],
+                                      axis=-1).mean()
+    assert errors["sized"] < 3.0 < 2.0 * errors["sized"] < errors["fixed"], errors
+    videos = []
+    for c, name in enumerate(seq.camera_names):
+        path = tmp_path / f"{name}.mkv"
+        with VideoWriter(path, seq.fps, codec="ffv1") as writer:
+            for images in seq:
+                writer.write(images[c])
+        videos.append(str(path))
+    State(seq.model, seq.initial_state).save_json(tmp_path / "init.json")
+    out = tmp_path / "video"
+    assert main(["track", *videos, "--tracker", "features", "--rig",
+                 str(folder / "rig.json"), "--init", str(tmp_path / "init.json"), "-o",
+                 str(out), "--quiet", "--no-overlay"]) == 0
+    assert json.loads((out / "summary.json").read_text())["hand_scale"] is None

@@ -39,6 +39,10 @@ def rig() -> Rig:
 
 @pytest.fixture(scope="module")
 def true_states() -> np.ndarray:
+    return palm_down_states()
+
+
+def palm_down_states() -> np.ndarray:
     """A right hand palm-down on a table (world z up), fingers spread and slightly bent;
     over 20 frames the index finger flexes (MCP +34 deg, PIP +29 deg) while the palm
     slides 20 mm along x and 10 mm along y."""

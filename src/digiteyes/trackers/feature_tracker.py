@@ -55,6 +55,7 @@ from digiteyes.kinematics import (
     forward_kinematics,
     validate_state,
 )
+from digiteyes.kinematics.scaling import scaled_model
 from digiteyes.solvers import (
     GaussNewtonOptions,
     SolverSummary,
@@ -64,6 +65,7 @@ from digiteyes.solvers import (
 from digiteyes.solvers.options import DAMPINGS, Damping
 from digiteyes.solvers.robust import ROBUST_LOSSES, RobustLoss
 from digiteyes.trackers.base import TrackResult, start_step
+from digiteyes.trackers.feature_size import feature_evaluation, start_size
 from digiteyes.trackers.finger_search import FingerRecovery, FingerSearchOptions
 from digiteyes.trackers.loss_hold import LOCAL_HOLD_FRAMES, LossHold, LossHoldOptions
 from digiteyes.trackers.parameterisation import StateParameterisation
@@ -123,6 +125,13 @@ class FeatureTrackerOptions(SilhouetteLossOptions, LossHoldOptions, FingerSearch
         :meth:`FeatureTracker.restart`. Several cameras see depth by themselves, and
         there the fitted widths made the track worse (docs/features.md, "Width
         calibration").
+    start_size : on the first frame of a track, measure the hand's size at the start
+        state from its features and track a model of that size
+        (:mod:`digiteyes.trackers.feature_size`; models with a pose base). The start must
+        be the hand's pose (a dataset's state): ``digiteyes track`` turns it off for a
+        start fitted from the images or placed by eye on footage. Kept through a
+        :meth:`FeatureTracker.restart`; results carry the size as
+        :attr:`~digiteyes.trackers.TrackResult.hand_scale`.
     conditioning : weights of ``S`` for (quaternion/rotation, translation, joint angle),
         thesis eq. 2.22 and Table 4.2: 1, 10, 1000 (px^2 per squared step unit).
     use_conditioning : False drops ``S`` (plain Gauss-Newton; an ablation).
@@ -186,6 +195,7 @@ class FeatureTrackerOptions(SilhouetteLossOptions, LossHoldOptions, FingerSearch
     width_weight: float = 1.0
     max_width_error: float = 0.15
     fit_widths: bool = True
+    start_size: bool = True
     conditioning: tuple[float, float, float] = (1.0, 10.0, 1000.0)
     use_conditioning: bool = True
     shading_correction: bool = True
@@ -435,12 +445,36 @@ class FeatureTracker:
 
     def __init__(self, model: KinematicModel, rig: Rig,
                  options: FeatureTrackerOptions | None = None) -> None:
-        self.model = model
+        self.nominal_model = model
         self.rig = rig
         self.options = FeatureTrackerOptions() if options is None else options
         opts = self.options
         self.link_names, self.tip_names = self._split_features(model, opts.links)
         self.n_features = (len(self.link_names) + len(self.tip_names)) * len(rig)
+        self.scale: float | None = (1.0 if opts.start_size and model.base_state is not None
+                                    else None)
+        """The size of the tracked hand relative to ``nominal_model`` (``start_size``;
+        None when the tracker does not size the hand)."""
+        self._build(model)
+        self._rms_history: deque[float] = deque(maxlen=opts.growth_frames)
+        self._frame_index = 0
+        self.state: np.ndarray | None = None
+        self.shading: ShadingModel | None = None
+        self.edge_bias: list[EdgeBias] = []
+        self.loss_hold = LossHold(opts.hold_lost_frames)
+        self._invalid_baseline: float | None = None
+        self.radius_scale: np.ndarray | None = None
+        """Per link, the factor on its radius fitted on the first frame (``fit_widths``;
+        None before it, or when the start did not fit the image)."""
+        self._widths_tried = False
+        self._size_tried = False
+
+    def _build(self, model: KinematicModel) -> None:
+        """Everything that depends on the tracked model (``model``: the model file's or
+        the measured size's): the step form, the solver's conditioning, the prediction,
+        the silhouette rule and the finger search."""
+        opts = self.options
+        self.model = model
         self.parameterisation = StateParameterisation(model, opts.form, opts.clip_to_limits)
         conditioning = None
         if opts.use_conditioning:
@@ -450,19 +484,8 @@ class FeatureTracker:
             damping=opts.damping, robust_loss=opts.robust_loss,
             scale_px=opts.robust_scale_px, step_tolerance=0.0, cost_tolerance=0.0)
         self.predictor = StatePredictor(model, opts.prediction, opts.clip_to_limits)
-        self._rms_history: deque[float] = deque(maxlen=opts.growth_frames)
-        self._frame_index = 0
-        self.state: np.ndarray | None = None
-        self.shading: ShadingModel | None = None
-        self.edge_bias: list[EdgeBias] = []
-        self.silhouette_loss = SilhouetteLoss.from_options(model, rig, opts)
+        self.silhouette_loss = SilhouetteLoss.from_options(model, self.rig, opts)
         self.finger_recovery = FingerRecovery(model, self.silhouette_loss, opts)
-        self.loss_hold = LossHold(opts.hold_lost_frames)
-        self._invalid_baseline: float | None = None
-        self.radius_scale: np.ndarray | None = None
-        """Per link, the factor on its radius fitted on the first frame (``fit_widths``;
-        None before it, or when the start did not fit the image)."""
-        self._widths_tried = False
 
     @staticmethod
     def _split_features(model: KinematicModel, names: tuple[str, ...] | None
@@ -494,6 +517,9 @@ class FeatureTracker:
         one (:func:`~digiteyes.features.appearance.fit_shading`) on the first frame at
         ``initial_state``, which must therefore show the model where it is."""
         q = np.asarray(getattr(initial_state, "q", initial_state), dtype=float)
+        if self.scale is not None and self.scale != 1.0:  # a new track: size unknown again
+            self.scale = 1.0
+            self._build(self.nominal_model)
         if q.shape != (self.model.n_q,):
             raise StateError(
                 f"initial state must hold {self.model.n_q} numbers for model "
@@ -512,16 +538,22 @@ class FeatureTracker:
         self._invalid_baseline = None
         self.radius_scale = None
         self._widths_tried = False
+        self._size_tried = False
 
     def restart(self, state: np.ndarray) -> None:
         """Continue the same scene from ``state`` (n_q,) after a re-detection: the motion
         history is dropped and the silhouette baselines are taken anew at ``state``, but
-        the shading model, its backdrop, the foreground colours and the link widths of the
-        first frame stay, so a recovery costs no refit."""
+        the shading model, its backdrop, the foreground colours, the link widths and the
+        hand's size of the first frame stay, so a recovery costs no refit."""
         foreground, radius_scale = self.silhouette_loss.foreground, self.radius_scale
+        scale, model = self.scale, self.model
         self.reset(state, shading=self.shading)
+        if scale is not None and scale != 1.0:
+            self.scale = scale
+            self._build(model)
+            self.predictor.reset(self.state)
         self.silhouette_loss.foreground = foreground
-        self.radius_scale, self._widths_tried = radius_scale, True
+        self.radius_scale, self._widths_tried, self._size_tried = radius_scale, True, True
 
     def step(self, frames: Sequence[np.ndarray]) -> TrackResult:
         """Estimate the state for one set of frames (one image per camera, rig order).
@@ -542,6 +574,10 @@ class FeatureTracker:
             start = time.perf_counter()
             self._predict_edge_bias(images, predicted)
             timings["shading"] = time.perf_counter() - start
+        if self.scale is not None and not self._size_tried:
+            start = time.perf_counter()
+            self._measure_size(images, predicted)
+            timings["feature_detection"] += time.perf_counter() - start
         if (not self._widths_tried and self.options.fit_widths and len(self.rig) == 1
                 and self.options.width_weight > 0):
             start = time.perf_counter()
@@ -595,6 +631,29 @@ class FeatureTracker:
             return None
         return (found, summary, problem.evaluation_at(found),
                 self.silhouette_loss.check(images, found, predicted), moved)
+
+    def start_size_at(self, images: list[np.ndarray], q: np.ndarray) -> float:
+        """The size of the hand in ``images`` (one prepared grey float32 image per camera,
+        :func:`~digiteyes.features.slices.prepare_image`) relative to the model file,
+        measured at its known state ``q`` (n_q,; translation in mm) by
+        :func:`~digiteyes.trackers.feature_size.start_size` from the tracker's features
+        (no width rows: they measure how thick the fingers look, not how long)."""
+        opts = self.options
+        evaluate = feature_evaluation(self.rig, images, q, opts.features, self.link_names,
+                                      self.tip_names, opts.axis_points)
+        return start_size(self.nominal_model, evaluate, self.n_features, opts.robust_loss,
+                          opts.robust_scale_px)
+
+    def _measure_size(self, images: list[np.ndarray], q: np.ndarray) -> None:
+        """On the first frame: the hand's size at the start state ``q``
+        (:meth:`start_size_at`); a size other than the model file's rebuilds the tracker
+        on a model of that size."""
+        self._size_tried = True
+        scale = self.start_size_at(images, q)
+        if scale != self.scale:
+            self.scale = scale
+            self._build(scaled_model(self.nominal_model, scale, name=self.nominal_model.name))
+            self.predictor.reset(q)
 
     def _fit_widths(self, images: list[np.ndarray], q: np.ndarray) -> np.ndarray | None:
         """Each link's radius factor from the features measured at ``q`` (the start of
@@ -653,7 +712,8 @@ class FeatureTracker:
             state=q, cost=summary.cost_final, residual_rms_px=rms, lost=bool(reasons),
             loss_reason="; ".join(reasons), iterations=summary.iterations,
             predicted_state=predicted, frame_index=self._frame_index, timings=timings,
-            finger_lost=finger_lost, details=details)
+            finger_lost=finger_lost, details=details,
+            hand_scale=1.0 if self.scale is None else self.scale)
 
 
 def track_loss_reasons(rms: float, n_valid: int, n_features: int, previous_rms: Sequence[float],

@@ -1,0 +1,127 @@
+"""The hand's size from the first frame's features, at a known start state.
+
+A track that starts from the hand's true pose (a dataset's initial state, measured with
+the images) knows where the palm is, so the projected finger lengths and positions set
+the hand's size even in one camera: a model ``s`` times the model file's size
+(:func:`~digiteyes.kinematics.scaling.scaled_model`, scaled about its base) posed at the
+start puts the joints and fingertips where the image shows them only at the hand's own
+``s``. The size is the one of :data:`START_SCALES` whose feature cost at the start state
+is least. The cost is the feature residuals' (thesis Sec. 2.5; no link-width rows: the
+widths say how thick the fingers are drawn, not how long they are) plus, for every
+requested feature that finds no edge in its window, the cost of a residual of
+:data:`INVALID_RESIDUAL_PX`: without it a size whose features miss their windows would
+look cheap.
+
+Measured on the first frames of the accuracy table's renders (docs/features.md, "The
+hand's size"): the model file's size and 0.9 of it are found to the grid step on our
+drawing; on the independent flesh hand within 0.06 of either, which is why a size other
+than the model file's must explain the frame markedly better (:data:`MIN_GAIN`).
+
+A start fitted from the images (``--init auto``) has the depth the fit assumed for the
+model's size: one camera cannot tell a larger hand further away, so ``digiteyes track``
+measures the size only from a given start (:func:`digiteyes.track_job`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from digiteyes.camera import Rig
+from digiteyes.features import FeatureOptions, feature_residuals, measure_features
+from digiteyes.kinematics import KinematicModel, forward_kinematics
+from digiteyes.kinematics.scaling import scaled_model
+from digiteyes.solvers.robust import RobustLoss, robust_cost
+
+START_SCALES = np.round(np.linspace(0.8, 1.2, 21), 2)
+"""Hand sizes tried on the first frame, relative to the model file (adult hand lengths
+spread by about 8 % about their mean; the grid covers two and a half spreads)."""
+INVALID_RESIDUAL_PX = 10.0
+"""A requested feature without an edge in its window costs what a residual of this many
+pixels costs (half the default search window)."""
+MIN_GAIN = 0.25
+"""A size other than the model file's is taken only when its cost is at least this
+fraction below the cost at the model file's size: on a hand drawn unlike the model the
+cost's minimum moves by itself (the flesh hand of the model's size measured 0.94-1.04,
+9-17 % below the cost at 1), while a hand of another size shows a clear minimum (0.9 of
+the size: 41-72 % below on the flesh hand, 76-100 % on our drawing)."""
+
+
+FeatureEvaluation = Callable[[KinematicModel], tuple[np.ndarray, int]]
+"""The feature residuals (px) at the start state of a model of the hand, and how many of
+the requested features found an edge (:func:`feature_evaluation`)."""
+
+
+def feature_evaluation(rig: Rig, images: Sequence[np.ndarray], q: np.ndarray,
+                       features: FeatureOptions, link_names: Sequence[str],
+                       tip_names: Sequence[str], axis_points: int = 2) -> FeatureEvaluation:
+    """The :data:`FeatureEvaluation` of state ``q`` (n_q,; translation in mm) in
+    ``images`` (one prepared grey image per camera,
+    :func:`~digiteyes.features.slices.prepare_image`, float32; rig order): the line and
+    tip residuals of the feature tracker (thesis Sec. 2.5, no width rows) of the links
+    and tips named."""
+
+    def evaluate(model: KinematicModel) -> tuple[np.ndarray, int]:
+        kin = forward_kinematics(model, q)
+        residuals, n_valid = [], 0
+        for camera, image in zip(rig, images, strict=True):
+            measured = measure_features(image, camera, model, kin, features, link_names,
+                                        tip_names)
+            r, _, _ = feature_residuals(measured, camera, kin, jacobian=False,
+                                        axis_points=axis_points)
+            residuals.append(r)
+            n_valid += measured.n_valid
+        return np.concatenate(residuals), n_valid
+
+    return evaluate
+
+
+def start_size_costs(model: KinematicModel, evaluate: FeatureEvaluation, n_requested: int,
+                     loss: RobustLoss | None, scale_px: float,
+                     scales: np.ndarray = START_SCALES) -> np.ndarray:
+    """The cost (module docstring) of the hand ``scale`` times the size of ``model`` for
+    each of ``scales`` (S,): the robust cost (``loss``, ``scale_px``) of the residuals
+    ``evaluate`` gives for :func:`~digiteyes.kinematics.scaling.scaled_model` of that
+    size, plus :data:`INVALID_RESIDUAL_PX`'s cost for each of the ``n_requested``
+    features it did not find."""
+    invalid_cost = float(robust_cost(np.array([INVALID_RESIDUAL_PX]), loss, scale_px)[0])
+    costs = np.empty(len(scales))
+    for i, scale in enumerate(scales):
+        residuals, n_valid = evaluate(scaled_model(model, float(scale), name=model.name))
+        costs[i] = (float(robust_cost(residuals, loss, scale_px).sum())
+                    + (n_requested - n_valid) * invalid_cost)
+    return costs
+
+
+def start_size(model: KinematicModel, evaluate: FeatureEvaluation, n_requested: int,
+               loss: RobustLoss | None, scale_px: float) -> float:
+    """The hand's size relative to ``model``: the one of :data:`START_SCALES` that explains
+    the first frame's features best (:func:`start_size_costs`), refined to the vertex of
+    the parabola through its neighbours, when it beats the model file's size by
+    :data:`MIN_GAIN`; else 1."""
+    costs = start_size_costs(model, evaluate, n_requested, loss, scale_px)
+    best = int(np.argmin(costs))
+    at_one = float(costs[int(np.argmin(np.abs(START_SCALES - 1.0)))])
+    if not costs[best] <= (1.0 - MIN_GAIN) * at_one:
+        return 1.0
+    return _vertex(START_SCALES, costs, best)
+
+
+def _vertex(scales: np.ndarray, costs: np.ndarray, best: int) -> float:
+    """The minimum of the parabola through the grid's least cost ``best`` and its two
+    neighbours (within half a grid step of ``scales[best]``; the grid point itself at
+    either end of the grid or where the three do not curve upwards)."""
+    if not 0 < best < len(scales) - 1:
+        return float(scales[best])
+    left, middle, right = costs[best - 1], costs[best], costs[best + 1]
+    curvature = left - 2.0 * middle + right
+    if not curvature > 0 or not np.isfinite(curvature):
+        return float(scales[best])
+    step = float(scales[best + 1] - scales[best])
+    offset = float(np.clip(0.5 * (left - right) / curvature, -0.5, 0.5))
+    return float(scales[best]) + offset * step
+
+
+__all__ = ["INVALID_RESIDUAL_PX", "MIN_GAIN", "START_SCALES", "FeatureEvaluation",
+           "feature_evaluation", "start_size", "start_size_costs"]

@@ -1,0 +1,115 @@
+"""The feature tracker measures the hand's size on the first frame (start_size)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from digiteyes.camera import Rig
+from digiteyes.detect.hand_size import model_hand_length
+from digiteyes.features.slices import prepare_image
+from digiteyes.kinematics import forward_kinematics, load_model
+from digiteyes.kinematics.scaling import model_of_size
+from digiteyes.synth import RenderOptions, render_views
+from digiteyes.trackers import FeatureTracker, FeatureTrackerOptions, feature_size
+from digiteyes.trackers.feature_size import MIN_GAIN, START_SCALES, start_size
+
+from .test_feature_tracker import N_FRAMES, palm_down_states, table_camera
+
+HAND = load_model("hand")
+
+
+@pytest.fixture(scope="module")
+def rig() -> Rig:
+    return Rig((table_camera("left", -40.0), table_camera("right", 40.0)))
+
+
+@pytest.fixture(scope="module")
+def true_states() -> np.ndarray:
+    return palm_down_states()
+
+
+
+
+def render(size: float, rig: Rig, states: np.ndarray) -> list[list[np.ndarray]]:
+    """The frames of a hand ``size`` times the model's size (noise 2 grey levels)."""
+    hand = model_of_size(HAND, size)
+    options = RenderOptions(noise_sigma=2.0)
+    return [[view.image for view in render_views(hand, q, rig, options, rng=k)]
+            for k, q in enumerate(states)]
+
+
+def prepared(images: list[np.ndarray]) -> list[np.ndarray]:
+    return [prepare_image(image).astype(np.float32) for image in images]
+
+
+@pytest.mark.parametrize("size", [0.9, 1.0, 1.1])
+@pytest.mark.parametrize("cameras", [(0, 1), (0,)])
+def test_the_size_of_the_first_frame_is_found(rig, true_states, size, cameras):
+    sub = Rig(tuple(rig[c] for c in cameras))
+    images = [render_views(model_of_size(HAND, size), true_states[0], sub,
+                           RenderOptions(noise_sigma=2.0), rng=0)[k].image
+              for k in range(len(sub))]
+    found = FeatureTracker(HAND, sub).start_size_at(prepared(images), true_states[0])
+    assert found == pytest.approx(size, abs=0.021)
+
+
+def test_a_size_must_beat_the_model_files_clearly(monkeypatch):
+    one = int(np.argmin(np.abs(START_SCALES - 1.0)))
+    costs = np.full(len(START_SCALES), 100.0)
+    costs[2] = 100.0 * (1.0 - MIN_GAIN) + 1.0  # best, but not by MIN_GAIN
+    monkeypatch.setattr(feature_size, "start_size_costs", lambda *a, **k: costs.copy())
+    args = (HAND, None, 10, None, 5.0)
+    assert costs[one] == 100.0 and start_size(*args) == 1.0
+    costs[2] = 100.0 * (1.0 - MIN_GAIN) - 1.0
+    assert start_size(*args) == START_SCALES[2]  # neighbours equal: the grid point
+
+
+def test_the_cost_counts_features_not_found():
+    """A size whose features miss their windows does not look cheap: each missing one
+    costs a residual of INVALID_RESIDUAL_PX (no robust loss: r^2 / 2)."""
+    def evaluate(sized):
+        return np.ones(4), 10 if sized.links[1].length == HAND.links[1].length else 6
+
+    costs = feature_size.start_size_costs(HAND, evaluate, 10, None, 5.0,
+                                          scales=np.array([1.0, 0.9]))
+    expected_missing = 4 * 0.5 * feature_size.INVALID_RESIDUAL_PX ** 2
+    np.testing.assert_allclose(costs, [2.0, 2.0 + expected_missing])
+
+
+def tip_errors(results, true_states, size: float) -> np.ndarray:
+    """Mean fingertip error (mm) per frame of ``results`` against the hand of ``size``."""
+    truth = forward_kinematics(model_of_size(HAND, size), true_states).tip_centres()[0]
+    est = np.array([forward_kinematics(model_of_size(HAND, r.hand_scale), r.state)
+                    .tip_centres()[0] for r in results])
+    return np.linalg.norm(est - truth, axis=-1).mean(axis=1)
+
+
+def test_tracks_a_smaller_hand_at_its_size(rig, true_states):
+    frames = render(0.9, rig, true_states)
+    tracker = FeatureTracker(HAND, rig)
+    tracker.reset(true_states[0])
+    results = [tracker.step(f) for f in frames]
+    assert tracker.scale == pytest.approx(0.9, abs=0.021)
+    assert all(r.hand_scale == tracker.scale for r in results)
+    sized = tip_errors(results, true_states, 0.9)
+    fixed = FeatureTracker(HAND, rig, FeatureTrackerOptions(start_size=False))
+    assert fixed.scale is None
+    fixed.reset(true_states[0])
+    unsized = tip_errors([fixed.step(f) for f in frames], true_states, 0.9)
+    assert sized.mean() < 4.0 and unsized.mean() > 3.0 * sized.mean(), (sized, unsized)
+    assert len(results) == N_FRAMES
+
+
+def test_restart_keeps_the_size_and_reset_forgets_it(rig, true_states):
+    frames = render(0.9, rig, true_states[:2])
+    tracker = FeatureTracker(HAND, rig)
+    tracker.reset(true_states[0])
+    tracker.step(frames[0])
+    scale = tracker.scale
+    assert scale == pytest.approx(0.9, abs=0.021)
+    tracker.restart(true_states[1])
+    assert tracker.scale == scale and tracker.step(frames[1]).hand_scale == scale
+    assert model_hand_length(tracker.model) == pytest.approx(scale * model_hand_length(HAND))
+    tracker.reset(true_states[0])
+    assert tracker.scale == 1.0 and tracker.model is HAND
