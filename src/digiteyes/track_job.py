@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from itertools import chain, islice
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -56,6 +56,7 @@ from digiteyes.trackers import (
     create_tracker,
     sizes_hand,
     thesis_whole_hand_links,
+    tracker_entry,
 )
 
 if TYPE_CHECKING:
@@ -320,11 +321,12 @@ def _tracker_options(job: TrackJob, model: KinematicModel, name: str,
         options.setdefault("detector", job.detector)
         if footage:
             options.setdefault("start_size", False)
+    elif (footage or auto) and "start_size" in {
+            f.name for f in fields(tracker_entry(name).options_type)}:
+        options.setdefault("start_size", False)
     if name == DEFAULT_TRACKER:
         flags = tracker_options(job.iterations, job.window, job.links, model, job.robust,
                                 job.prediction, job.shading)
-        if footage or auto:
-            options.setdefault("start_size", False)
         options = {**vars(flags), **options}
     return options
 

@@ -13,6 +13,7 @@ from digiteyes.kinematics.scaling import model_of_size
 from digiteyes.synth import RenderOptions, render_views
 from digiteyes.trackers import FeatureTracker, FeatureTrackerOptions, feature_size
 from digiteyes.trackers.feature_size import MIN_GAIN, START_SCALES, start_size
+from digiteyes.trackers.layered_templates import LayeredTemplateOptions, LayeredTemplateTracker
 
 from .test_feature_tracker import N_FRAMES, palm_down_states, table_camera
 
@@ -85,20 +86,24 @@ def tip_errors(results, true_states, size: float) -> np.ndarray:
     return np.linalg.norm(est - truth, axis=-1).mean(axis=1)
 
 
-def test_tracks_a_smaller_hand_at_its_size(rig, true_states):
+@pytest.mark.parametrize("cls, options", [(FeatureTracker, FeatureTrackerOptions),
+                                          (LayeredTemplateTracker, LayeredTemplateOptions)])
+def test_tracks_a_smaller_hand_at_its_size(rig, true_states, cls, options):
     frames = render(0.9, rig, true_states)
-    tracker = FeatureTracker(HAND, rig)
+    tracker = cls(HAND, rig)
     tracker.reset(true_states[0])
     results = [tracker.step(f) for f in frames]
     assert tracker.scale == pytest.approx(0.9, abs=0.021)
     assert all(r.hand_scale == tracker.scale for r in results)
     sized = tip_errors(results, true_states, 0.9)
-    fixed = FeatureTracker(HAND, rig, FeatureTrackerOptions(start_size=False))
+    fixed = cls(HAND, rig, options(start_size=False))
     assert fixed.scale is None
     fixed.reset(true_states[0])
     unsized = tip_errors([fixed.step(f) for f in frames], true_states, 0.9)
     assert sized.mean() < 4.0 and unsized.mean() > 3.0 * sized.mean(), (sized, unsized)
     assert len(results) == N_FRAMES
+    tracker.reset(true_states[0])  # a new track: the size is unknown again
+    assert tracker.scale == 1.0 and tracker.model is HAND
 
 
 def test_restart_keeps_the_size_and_reset_forgets_it(rig, true_states):

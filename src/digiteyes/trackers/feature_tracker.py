@@ -98,6 +98,31 @@ def thesis_whole_hand_links(model: KinematicModel) -> tuple[str, ...]:
                  if link.kind in ("link", "tip") and link.name not in THESIS_EXCLUDED_LINKS)
 
 
+def feature_names(model: KinematicModel, names: Sequence[str] | None = None
+                  ) -> tuple[list[str], list[str]]:
+    """The cylinder links (and tracked edges) and the tips to measure: those of
+    ``names`` (a :class:`ValueError` naming the unknown ones), or for None every one but
+    :data:`THESIS_EXCLUDED_LINKS` (the feature tracker's default set)."""
+    features = [link for link in model.links if link.kind in ("link", "edge", "tip")]
+    if names is None:
+        chosen = [link for link in features if link.name not in THESIS_EXCLUDED_LINKS]
+    else:
+        by_name = {link.name: link for link in features}
+        unknown = [n for n in names if n not in by_name]
+        if unknown:
+            raise ValueError(
+                f"model {model.name!r} has no cylinder link or tip named "
+                f"{', '.join(map(repr, unknown))}; choose from "
+                f"{', '.join(by_name)}"
+            )
+        chosen = [by_name[n] for n in dict.fromkeys(names)]
+    links = [link.name for link in chosen if link.kind in ("link", "edge")]
+    tips = [link.name for link in chosen if link.kind == "tip"]
+    if not links and not tips:
+        raise ValueError(f"no cylinder link or tip to track in model {model.name!r}")
+    return links, tips
+
+
 @dataclass(frozen=True)
 class FeatureTrackerOptions(SilhouetteLossOptions, LossHoldOptions, FingerSearchOptions):
     """Settings of :class:`FeatureTracker` (defaults follow thesis Table 4.2).
@@ -449,7 +474,7 @@ class FeatureTracker:
         self.rig = rig
         self.options = FeatureTrackerOptions() if options is None else options
         opts = self.options
-        self.link_names, self.tip_names = self._split_features(model, opts.links)
+        self.link_names, self.tip_names = feature_names(model, opts.links)
         self.n_features = (len(self.link_names) + len(self.tip_names)) * len(rig)
         self.scale: float | None = (1.0 if opts.start_size and model.base_state is not None
                                     else None)
@@ -486,28 +511,6 @@ class FeatureTracker:
         self.predictor = StatePredictor(model, opts.prediction, opts.clip_to_limits)
         self.silhouette_loss = SilhouetteLoss.from_options(model, self.rig, opts)
         self.finger_recovery = FingerRecovery(model, self.silhouette_loss, opts)
-
-    @staticmethod
-    def _split_features(model: KinematicModel, names: tuple[str, ...] | None
-                        ) -> tuple[list[str], list[str]]:
-        features = [link for link in model.links if link.kind in ("link", "edge", "tip")]
-        if names is None:
-            chosen = [link for link in features if link.name not in THESIS_EXCLUDED_LINKS]
-        else:
-            by_name = {link.name: link for link in features}
-            unknown = [n for n in names if n not in by_name]
-            if unknown:
-                raise ValueError(
-                    f"model {model.name!r} has no cylinder link or tip named "
-                    f"{', '.join(map(repr, unknown))}; choose from "
-                    f"{', '.join(by_name)}"
-                )
-            chosen = [by_name[n] for n in dict.fromkeys(names)]
-        links = [link.name for link in chosen if link.kind in ("link", "edge")]
-        tips = [link.name for link in chosen if link.kind == "tip"]
-        if not links and not tips:
-            raise ValueError(f"no cylinder link or tip to track in model {model.name!r}")
-        return links, tips
 
     def reset(self, initial_state: np.ndarray, shading: ShadingModel | None = None) -> None:
         """Start a new track from ``initial_state`` (n_q,); a non-unit quaternion is

@@ -44,6 +44,7 @@ from digiteyes.features import FeatureOptions, feature_residuals, measure_featur
 from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import KinematicModel, forward_kinematics, validate_state
 from digiteyes.kinematics.anatomy import DIGITS
+from digiteyes.kinematics.scaling import scaled_model
 from digiteyes.occlusion.parts import TemplatePlane, template_parts
 from digiteyes.occlusion.segmentation import segment_image
 from digiteyes.occlusion.visibility import (
@@ -70,6 +71,8 @@ from digiteyes.templates.layered import (
     refresh_templates,
 )
 from digiteyes.trackers.base import TrackResult, start_step
+from digiteyes.trackers.feature_size import feature_evaluation, start_size
+from digiteyes.trackers.feature_tracker import feature_names
 from digiteyes.trackers.finger_search import FingerRecovery, FingerSearchOptions
 from digiteyes.trackers.loss_hold import LOCAL_HOLD_FRAMES, LossHold, LossHoldOptions
 from digiteyes.trackers.parameterisation import StateParameterisation
@@ -137,6 +140,12 @@ class LayeredTemplateOptions(SilhouetteLossOptions, LossHoldOptions, FingerSearc
         the result (:mod:`digiteyes.trackers.finger_search`; off by default).
     hidden_finger_search : search only the digits the rule's hidden-digit test names, on
         the frames it names them (off by default).
+    start_size : on the first frame of a track, before the templates are acquired,
+        measure the hand's size at the start state from the feature tracker's line and
+        tip features (:mod:`digiteyes.trackers.feature_size`) and track a model of that
+        size; the start must be the hand's pose (``digiteyes track`` turns it off for a
+        start fitted from the images or placed by eye on footage). Results carry the
+        size as :attr:`~digiteyes.trackers.TrackResult.hand_scale`.
     """
 
     templates: TemplateOptions = field(default_factory=TemplateOptions)
@@ -159,6 +168,7 @@ class LayeredTemplateOptions(SilhouetteLossOptions, LossHoldOptions, FingerSearc
     background_weight: float = 1.0
     background_pad_px: float = 20.0
     hold_lost_frames: int = LOCAL_HOLD_FRAMES
+    start_size: bool = True
 
     def __post_init__(self) -> None:
         FingerSearchOptions.__post_init__(self)
@@ -253,21 +263,33 @@ class LayeredTemplateTracker:
 
     def __init__(self, model: KinematicModel, rig: Rig,
                  options: LayeredTemplateOptions | None = None) -> None:
-        self.model = model
+        self.nominal_model = model
         self.rig = rig
         self.options = LayeredTemplateOptions() if options is None else options
-        self.parts = template_parts(model)
-        self.parameterisation = StateParameterisation(model, "tangent",
-                                                      self.options.clip_to_limits)
-        self.S = hand_conditioning(model, *self.options.conditioning)
-        self.predictor = StatePredictor(model, self.options.prediction,
-                                        self.options.clip_to_limits)
+        self.scale: float | None = (1.0 if self.options.start_size
+                                    and model.base_state is not None else None)
+        """The size of the tracked hand relative to ``nominal_model`` (``start_size``;
+        None when the tracker does not size the hand)."""
+        self._size_tried = False
+        self._build(model)
         self.templates: list[CameraTemplates] = []
         self.backgrounds: list[BackgroundTemplate] = []
         self.state: np.ndarray | None = None
         self._orders: list[VisibilityOrder | None] = []
         self._rms_history: deque[float] = deque(maxlen=self.options.growth_frames)
         self._frame_index = 0
+        self.loss_hold = LossHold(self.options.hold_lost_frames)
+
+    def _build(self, model: KinematicModel) -> None:
+        """Everything that depends on the tracked model (``model``: the model file's or
+        the measured size's): the template parts, the step form, the conditioning, the
+        prediction, the feature links, the silhouette rule and the finger search."""
+        opts = self.options
+        self.model = model
+        self.parts = template_parts(model)
+        self.parameterisation = StateParameterisation(model, "tangent", opts.clip_to_limits)
+        self.S = hand_conditioning(model, *opts.conditioning)
+        self.predictor = StatePredictor(model, opts.prediction, opts.clip_to_limits)
         self._feature_links = [link.name for link in model.links if link.kind == "link"]
         self._part_of_link = {p.link: k for k, p in enumerate(self.parts)}
         self._fingers: dict[str, list[int]] = {}
@@ -275,15 +297,17 @@ class LayeredTemplateTracker:
             finger = part.name.split(".")[0]
             if part.kind != "palm" and finger in DIGITS:
                 self._fingers.setdefault(finger, []).append(k)
-        opts = self.options
-        self.silhouette_loss = SilhouetteLoss.from_options(model, rig, opts)
+        self.silhouette_loss = SilhouetteLoss.from_options(model, self.rig, opts)
         self.finger_recovery = FingerRecovery(model, self.silhouette_loss, opts)
-        self.loss_hold = LossHold(opts.hold_lost_frames)
 
     def reset(self, initial_state: np.ndarray) -> None:
         """Start a new track from ``initial_state`` (n_q,); the templates are acquired
         from the next frame at this state."""
         q = np.asarray(getattr(initial_state, "q", initial_state), dtype=float)
+        if self.scale is not None and self.scale != 1.0:  # a new track: size unknown again
+            self.scale = 1.0
+            self._build(self.nominal_model)
+        self._size_tried = False
         if q.shape != (self.model.n_q,):
             raise StateError(f"initial state must hold {self.model.n_q} numbers for model "
                              f"{self.model.name!r}, got shape {q.shape}")
@@ -313,6 +337,10 @@ class LayeredTemplateTracker:
         if not self.templates:
             images = [topts.log.apply(g) for g in greys]
         timings["filtering"] = time.perf_counter() - tic
+        if self.scale is not None and not self._size_tried:
+            tic = time.perf_counter()
+            self._measure_size(greys, predicted)
+            timings["features"] += time.perf_counter() - tic
         if not self.templates:
             kin = forward_kinematics(self.model, predicted)
             self.templates = [acquire_templates(self.parts, image, cam, kin, topts.spacing_px,
@@ -547,7 +575,24 @@ class LayeredTemplateTracker:
             state=q, cost=energy, residual_rms_px=rms, lost=bool(reasons),
             loss_reason="; ".join(reasons), iterations=summary.iterations,
             predicted_state=predicted, frame_index=self._frame_index, timings=timings,
-            finger_lost=finger_lost, details=details)
+            finger_lost=finger_lost, details=details,
+            hand_scale=1.0 if self.scale is None else self.scale)
+
+    def _measure_size(self, greys: list[np.ndarray], q: np.ndarray) -> None:
+        """On the first frame: the hand's size at the start state ``q`` from the line and
+        tip features the feature tracker measures by default
+        (:func:`~digiteyes.trackers.feature_size.start_size`); a size other than the
+        model file's rebuilds the tracker on a model of that size."""
+        self._size_tried = True
+        links, tips = feature_names(self.nominal_model)
+        images = [g.astype(np.float32, copy=False) for g in greys]
+        evaluate = feature_evaluation(self.rig, images, q, self.options.features, links, tips)
+        scale = start_size(self.nominal_model, evaluate, (len(links) + len(tips)) * len(self.rig),
+                           loss=None, scale_px=1.0)  # plain squares, as the feature tracker
+        if scale != self.scale:
+            self.scale = scale
+            self._build(scaled_model(self.nominal_model, scale, name=self.nominal_model.name))
+            self.predictor.reset(q)
 
     def _finger_rms(self, final: list[LayeredEvaluation]) -> dict[str, float]:
         """Visibility-weighted residual RMS of each finger's parts over all cameras."""
