@@ -12,7 +12,7 @@ from digiteyes.kinematics import forward_kinematics, load_model
 from digiteyes.kinematics.scaling import model_of_size
 from digiteyes.synth import RenderOptions, render_views
 from digiteyes.trackers import FeatureTracker, FeatureTrackerOptions, feature_size
-from digiteyes.trackers.feature_size import MIN_GAIN, START_SCALES, start_size
+from digiteyes.trackers.feature_size import DEAD_BAND, MIN_GAIN, START_SCALES, start_size
 from digiteyes.trackers.layered_templates import LayeredTemplateOptions, LayeredTemplateTracker
 
 from .test_feature_tracker import N_FRAMES, palm_down_states, table_camera
@@ -64,6 +64,8 @@ def test_a_size_must_beat_the_model_files_clearly(monkeypatch):
     assert costs[one] == 100.0 and start_size(*args) == 1.0
     costs[2] = 100.0 * (1.0 - MIN_GAIN) - 1.0
     assert start_size(*args) == START_SCALES[2]  # neighbours equal: the grid point
+    costs[2], costs[one + 1] = 100.0, 10.0  # far better, but within the dead band
+    assert abs(START_SCALES[one + 1] - 1.0) <= DEAD_BAND and start_size(*args) == 1.0
 
 
 def test_the_cost_counts_features_not_found():

@@ -15,7 +15,8 @@ look cheap.
 Measured on the first frames of the accuracy table's renders (docs/features.md, "The
 hand's size"): the model file's size and 0.9 of it are found to the grid step on our
 drawing; on the independent flesh hand within 0.06 of either, which is why a size other
-than the model file's must explain the frame markedly better (:data:`MIN_GAIN`).
+than the model file's must explain the frame markedly better (:data:`MIN_GAIN`) and lie
+outside the measurement's own spread (:data:`DEAD_BAND`).
 
 A start fitted from the images (``--init auto``) has the depth the fit assumed for the
 model's size: one camera cannot tell a larger hand further away, so ``digiteyes track``
@@ -43,9 +44,14 @@ pixels costs (half the default search window)."""
 MIN_GAIN = 0.25
 """A size other than the model file's is taken only when its cost is at least this
 fraction below the cost at the model file's size: on a hand drawn unlike the model the
-cost's minimum moves by itself (the flesh hand of the model's size measured 0.94-1.04,
-9-17 % below the cost at 1), while a hand of another size shows a clear minimum (0.9 of
-the size: 41-72 % below on the flesh hand, 76-100 % on our drawing)."""
+cost's minimum moves by itself (the flesh hand of the model's size: up to 0.94, at most
+20 % below the cost at 1), while a hand of another size shows a clear minimum (0.9 and
+1.1 of the size: at least 28 % below; docs/features.md, "The hand's size")."""
+DEAD_BAND = 0.05
+"""...and only when it lies more than this from 1: one feature slipping into or out of
+its window moves the minimum by a grid step or two on our own drawing at the model's size
+(0.98 or 1.02, up to 39 % below the cost at 1); hands 0.9 and 1.1 times the size were
+found at 0.88-0.92 and 1.06-1.14. A hand within 5 % of the model's keeps its size."""
 
 
 FeatureEvaluation = Callable[[KinematicModel], tuple[np.ndarray, int]]
@@ -99,13 +105,14 @@ def start_size(model: KinematicModel, evaluate: FeatureEvaluation, n_requested: 
     """The hand's size relative to ``model``: the one of :data:`START_SCALES` that explains
     the first frame's features best (:func:`start_size_costs`), refined to the vertex of
     the parabola through its neighbours, when it beats the model file's size by
-    :data:`MIN_GAIN`; else 1."""
+    :data:`MIN_GAIN` and lies more than :data:`DEAD_BAND` from 1; else 1."""
     costs = start_size_costs(model, evaluate, n_requested, loss, scale_px)
     best = int(np.argmin(costs))
     at_one = float(costs[int(np.argmin(np.abs(START_SCALES - 1.0)))])
-    if not costs[best] <= (1.0 - MIN_GAIN) * at_one:
+    size = _vertex(START_SCALES, costs, best)
+    if not costs[best] <= (1.0 - MIN_GAIN) * at_one or abs(size - 1.0) <= DEAD_BAND:
         return 1.0
-    return _vertex(START_SCALES, costs, best)
+    return size
 
 
 def _vertex(scales: np.ndarray, costs: np.ndarray, best: int) -> float:
@@ -123,5 +130,5 @@ def _vertex(scales: np.ndarray, costs: np.ndarray, best: int) -> float:
     return float(scales[best]) + offset * step
 
 
-__all__ = ["INVALID_RESIDUAL_PX", "MIN_GAIN", "START_SCALES", "FeatureEvaluation",
+__all__ = ["DEAD_BAND", "INVALID_RESIDUAL_PX", "MIN_GAIN", "START_SCALES", "FeatureEvaluation",
            "feature_evaluation", "start_size", "start_size_costs"]
