@@ -17,6 +17,7 @@ SUITES = {
     "track-many": "digiteyes.benchmarks.track_many",
     "accuracy": "digiteyes.benchmarks.accuracy",
     "auto-start": "digiteyes.benchmarks.auto_start",
+    "hand-size": "digiteyes.benchmarks.hand_size",
 }
 TRACKER_SUITES = ("accuracy",)
 """Suites that take ``--trackers`` and ``--workers``."""

@@ -51,7 +51,7 @@ DEAD_BAND = 0.05
 """...and only when it lies more than this from 1: one feature slipping into or out of
 its window moves the minimum by a grid step or two on our own drawing at the model's size
 (0.98 or 1.02, up to 39 % below the cost at 1); hands 0.9 and 1.1 times the size were
-found at 0.88-0.92 and 1.06-1.14. A hand within 5 % of the model's keeps its size."""
+found at 0.86-0.94 and 1.06-1.14. A hand within 5 % of the model's keeps its size."""
 
 
 FeatureEvaluation = Callable[[KinematicModel], tuple[np.ndarray, int]]

@@ -1,8 +1,5 @@
-"""Benchmark: the hand's size measured on the first frame at a known start.
-
-Usage::
-
-    python benchmarks/start_size.py [--json FILE] [--seeds N]
+"""``digiteyes bench hand-size``: the hand's size measured on the first frame at a known
+start (``--quick``: one noise seed, else two).
 
 For the first frame of six scenarios (``whole-hand``, ``natural``, ``hand-mouse`` and the
 ``desk``, ``webcam`` and ``egocentric`` camera setups), drawn as our capsule model and as
@@ -17,13 +14,11 @@ docs/features.md, "The hand's size").
 
 from __future__ import annotations
 
-import argparse
-import json
 import time
 
 import numpy as np
 
-from digiteyes.benchmarks._machine import machine_info
+from digiteyes.benchmarks._machine import emit, machine_info, machine_lines
 from digiteyes.camera import Rig
 from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics.scaling import model_of_size
@@ -94,26 +89,29 @@ def summary(rows: list[dict]) -> dict:
     return out
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--json", default="benchmarks/results/start_size.json")
-    parser.add_argument("--seeds", type=int, default=2)
-    args = parser.parse_args(argv)
+def run(json_path: str | None = None, quick: bool = False) -> dict:
+    """Measure every first frame (:func:`measure`); print the table; write JSON to
+    ``json_path``."""
     started = time.perf_counter()
-    rows = measure(args.seeds)
-    result = {"benchmark": "start_size", "machine": machine_info(), "rows": rows,
-              "summary": summary(rows), "wall_seconds": time.perf_counter() - started}
-    print(f"{'hand, drawing':<14} {'size returned':>16} {'least-cost size':>16} "
-          f"{'cost below size 1':>18}")
+    rows = measure(1 if quick else 2)
+    result = {"benchmark": "hand-size", "quick": quick, "machine": machine_info(),
+              "settings": {"sizes": list(SIZES), "noise_sigma": NOISE_SIGMA,
+                           "seeds": 1 if quick else 2},
+              "rows": rows, "summary": summary(rows)}
+    result["wall_seconds"] = time.perf_counter() - started
+    return emit(result, format_table(result), json_path)
+
+
+def format_table(result: dict) -> str:
+    """One line per hand size and drawing: the ranges over the first frames."""
+    lines = [f"hand-size benchmark{' (quick)' if result['quick'] else ''}",
+             *machine_lines(result["machine"]),
+             f"{len(result['rows'])} first frames at the true start (six scenarios, one and "
+             f"two cameras)", "",
+             f"{'hand, drawing':<14} {'size returned':>16} {'least-cost size':>16} "
+             f"{'cost below size 1':>18}"]
     for key, value in result["summary"].items():
         m, b, g = value["measured"], value["least_cost_size"], value["gain_below_size_1"]
-        print(f"{key:<14} {m[0]:7.3f}-{m[1]:.3f} {b[0]:10.2f}-{b[1]:.2f} "
-              f"{100 * g[0]:11.0f}-{100 * g[1]:.0f} %")
-    with open(args.json, "w", encoding="utf-8") as handle:
-        json.dump(result, handle, indent=1)
-    print(f"{len(rows)} first frames; {args.json}")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+        lines.append(f"{key:<14} {m[0]:7.3f}-{m[1]:.3f} {b[0]:10.2f}-{b[1]:.2f} "
+                     f"{100 * g[0]:11.0f}-{100 * g[1]:.0f} %")
+    return "\n".join(lines)
