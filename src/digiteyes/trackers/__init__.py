@@ -8,6 +8,11 @@ conquer (``"divide-conquer"``), with its baselines ``"condensation"`` and
 ``"random-search"``. :func:`create_tracker` builds any registered tracker by name.
 """
 
+from digiteyes.features.selection import (
+    THESIS_EXCLUDED_LINKS,
+    all_features,
+    thesis_whole_hand_links,
+)
 from digiteyes.trackers.base import (
     Tracker,
     TrackResult,
@@ -26,12 +31,9 @@ from digiteyes.trackers.divide_conquer import (
     RandomSearchTracker,
 )
 from digiteyes.trackers.feature_tracker import (
-    THESIS_EXCLUDED_LINKS,
     FeatureDetails,
     FeatureTracker,
     FeatureTrackerOptions,
-    all_features,
-    thesis_whole_hand_links,
 )
 from digiteyes.trackers.keypoint_tracker import (
     KeypointDetails,

@@ -31,6 +31,8 @@ import numpy as np
 
 from digiteyes.camera import Rig
 from digiteyes.features import FeatureOptions, feature_residuals, measure_features
+from digiteyes.features.selection import feature_names
+from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import KinematicModel, forward_kinematics
 from digiteyes.kinematics.scaling import scaled_model
 from digiteyes.solvers.robust import RobustLoss, robust_cost
@@ -115,6 +117,27 @@ def start_size(model: KinematicModel, evaluate: FeatureEvaluation, n_requested: 
     return size
 
 
+def hand_size_at(model: KinematicModel, rig: Rig, images: Sequence[np.ndarray], q: np.ndarray,
+                 features: FeatureOptions | None = None,
+                 link_names: Sequence[str] | None = None,
+                 tip_names: Sequence[str] = (), axis_points: int = 2,
+                 loss: RobustLoss | None = None, scale_px: float = 5.0) -> float:
+    """The size of the hand in ``images`` (one per camera of ``rig``, grey or colour)
+    relative to ``model``, measured at its known state ``q`` (n_q,; translation in mm)
+    by :func:`start_size`: what every tracker with ``start_size`` calls on its first
+    frame. ``link_names``/``tip_names``: the features to measure (None: the feature
+    tracker's default set, :func:`~digiteyes.features.selection.feature_names`);
+    ``features``, ``axis_points``, ``loss``, ``scale_px``: the feature tracker's settings
+    (its defaults unless given)."""
+    if link_names is None:
+        link_names, tip_names = feature_names(model)
+    prepared = [prepare_image(image).astype(np.float32, copy=False) for image in images]
+    evaluate = feature_evaluation(rig, prepared, q, features or FeatureOptions(), link_names,
+                                  tip_names, axis_points)
+    return start_size(model, evaluate, (len(link_names) + len(tip_names)) * len(rig), loss,
+                      scale_px)
+
+
 def _vertex(scales: np.ndarray, costs: np.ndarray, best: int) -> float:
     """The minimum of the parabola through the grid's least cost ``best`` and its two
     neighbours (within half a grid step of ``scales[best]``; the grid point itself at
@@ -131,4 +154,4 @@ def _vertex(scales: np.ndarray, costs: np.ndarray, best: int) -> float:
 
 
 __all__ = ["DEAD_BAND", "INVALID_RESIDUAL_PX", "MIN_GAIN", "START_SCALES", "FeatureEvaluation",
-           "feature_evaluation", "start_size", "start_size_costs"]
+           "feature_evaluation", "hand_size_at", "start_size", "start_size_costs"]

@@ -46,6 +46,9 @@ from digiteyes.camera import Rig
 from digiteyes.errors import StateError
 from digiteyes.features import FeatureOptions, feature_residuals, measure_features
 from digiteyes.features.appearance import EdgeBias, ShadingModel, edge_bias, fit_shading
+from digiteyes.features.selection import (
+    feature_names,
+)
 from digiteyes.features.slices import prepare_image
 from digiteyes.features.width_scale import link_radius_scales
 from digiteyes.kinematics import (
@@ -65,7 +68,7 @@ from digiteyes.solvers import (
 from digiteyes.solvers.options import DAMPINGS, Damping
 from digiteyes.solvers.robust import ROBUST_LOSSES, RobustLoss
 from digiteyes.trackers.base import TrackResult, start_step
-from digiteyes.trackers.feature_size import feature_evaluation, start_size
+from digiteyes.trackers.feature_size import hand_size_at
 from digiteyes.trackers.finger_search import FingerRecovery, FingerSearchOptions
 from digiteyes.trackers.loss_hold import LOCAL_HOLD_FRAMES, LossHold, LossHoldOptions
 from digiteyes.trackers.parameterisation import StateParameterisation
@@ -78,51 +81,6 @@ from digiteyes.trackers.silhouette_loss import (
 
 NO_FEATURES = "no features measured"
 """The loss reason of a frame without any valid feature (given alone)."""
-THESIS_EXCLUDED_LINKS = ("middle.proximal", "ring.proximal")
-"""Links the thesis's whole-hand experiment did not measure (Sec. 4.3.3: the proximal
-phalanges of the middle two fingers, which were always occluded). In the Appendix A model
-they also interpenetrate (anchors 15 mm apart, radii 10 + 9 mm), so the silhouette edges
-between them do not exist; the default feature set leaves them out too."""
-
-
-def all_features(model: KinematicModel) -> tuple[str, ...]:
-    """Every cylinder link, tracked edge and tip of ``model``."""
-    return tuple(link.name for link in model.links if link.kind in ("link", "edge", "tip"))
-
-
-def thesis_whole_hand_links(model: KinematicModel) -> tuple[str, ...]:
-    """Every cylinder link and tip of ``model`` except :data:`THESIS_EXCLUDED_LINKS`:
-    the 13 phalanges and 5 tips of thesis Sec. 4.3.3 for the full hand (no palm edges,
-    which the thesis did not measure)."""
-    return tuple(link.name for link in model.links
-                 if link.kind in ("link", "tip") and link.name not in THESIS_EXCLUDED_LINKS)
-
-
-def feature_names(model: KinematicModel, names: Sequence[str] | None = None
-                  ) -> tuple[list[str], list[str]]:
-    """The cylinder links (and tracked edges) and the tips to measure: those of
-    ``names`` (a :class:`ValueError` naming the unknown ones), or for None every one but
-    :data:`THESIS_EXCLUDED_LINKS` (the feature tracker's default set)."""
-    features = [link for link in model.links if link.kind in ("link", "edge", "tip")]
-    if names is None:
-        chosen = [link for link in features if link.name not in THESIS_EXCLUDED_LINKS]
-    else:
-        by_name = {link.name: link for link in features}
-        unknown = [n for n in names if n not in by_name]
-        if unknown:
-            raise ValueError(
-                f"model {model.name!r} has no cylinder link or tip named "
-                f"{', '.join(map(repr, unknown))}; choose from "
-                f"{', '.join(by_name)}"
-            )
-        chosen = [by_name[n] for n in dict.fromkeys(names)]
-    links = [link.name for link in chosen if link.kind in ("link", "edge")]
-    tips = [link.name for link in chosen if link.kind == "tip"]
-    if not links and not tips:
-        raise ValueError(f"no cylinder link or tip to track in model {model.name!r}")
-    return links, tips
-
-
 @dataclass(frozen=True)
 class FeatureTrackerOptions(SilhouetteLossOptions, LossHoldOptions, FingerSearchOptions):
     """Settings of :class:`FeatureTracker` (defaults follow thesis Table 4.2).
@@ -642,10 +600,9 @@ class FeatureTracker:
         :func:`~digiteyes.trackers.feature_size.start_size` from the tracker's features
         (no width rows: they measure how thick the fingers look, not how long)."""
         opts = self.options
-        evaluate = feature_evaluation(self.rig, images, q, opts.features, self.link_names,
-                                      self.tip_names, opts.axis_points)
-        return start_size(self.nominal_model, evaluate, self.n_features, opts.robust_loss,
-                          opts.robust_scale_px)
+        return hand_size_at(self.nominal_model, self.rig, images, q, opts.features,
+                            self.link_names, self.tip_names, opts.axis_points,
+                            opts.robust_loss, opts.robust_scale_px)
 
     def _measure_size(self, images: list[np.ndarray], q: np.ndarray) -> None:
         """On the first frame: the hand's size at the start state ``q``

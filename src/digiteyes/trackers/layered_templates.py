@@ -71,8 +71,7 @@ from digiteyes.templates.layered import (
     refresh_templates,
 )
 from digiteyes.trackers.base import TrackResult, start_step
-from digiteyes.trackers.feature_size import feature_evaluation, start_size
-from digiteyes.trackers.feature_tracker import feature_names
+from digiteyes.trackers.feature_size import hand_size_at
 from digiteyes.trackers.finger_search import FingerRecovery, FingerSearchOptions
 from digiteyes.trackers.loss_hold import LOCAL_HOLD_FRAMES, LossHold, LossHoldOptions
 from digiteyes.trackers.parameterisation import StateParameterisation
@@ -581,14 +580,10 @@ class LayeredTemplateTracker:
     def _measure_size(self, greys: list[np.ndarray], q: np.ndarray) -> None:
         """On the first frame: the hand's size at the start state ``q`` from the line and
         tip features the feature tracker measures by default
-        (:func:`~digiteyes.trackers.feature_size.start_size`); a size other than the
+        (:func:`~digiteyes.trackers.feature_size.hand_size_at`); a size other than the
         model file's rebuilds the tracker on a model of that size."""
         self._size_tried = True
-        links, tips = feature_names(self.nominal_model)
-        images = [g.astype(np.float32, copy=False) for g in greys]
-        evaluate = feature_evaluation(self.rig, images, q, self.options.features, links, tips)
-        scale = start_size(self.nominal_model, evaluate, (len(links) + len(tips)) * len(self.rig),
-                           loss=None, scale_px=1.0)  # plain squares, as the feature tracker
+        scale = hand_size_at(self.nominal_model, self.rig, greys, q, self.options.features)
         if scale != self.scale:
             self.scale = scale
             self._build(scaled_model(self.nominal_model, scale, name=self.nominal_model.name))
