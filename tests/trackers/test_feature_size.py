@@ -12,6 +12,7 @@ from digiteyes.kinematics import forward_kinematics, load_model
 from digiteyes.kinematics.scaling import model_of_size
 from digiteyes.synth import RenderOptions, render_views
 from digiteyes.trackers import FeatureTracker, FeatureTrackerOptions, feature_size
+from digiteyes.trackers.divide_conquer import DivideConquerOptions, DivideConquerTracker
 from digiteyes.trackers.feature_size import DEAD_BAND, MIN_GAIN, START_SCALES, start_size
 from digiteyes.trackers.layered_templates import LayeredTemplateOptions, LayeredTemplateTracker
 
@@ -120,3 +121,22 @@ def test_restart_keeps_the_size_and_reset_forgets_it(rig, true_states):
     assert model_hand_length(tracker.model) == pytest.approx(scale * model_hand_length(HAND))
     tracker.reset(true_states[0])
     assert tracker.scale == 1.0 and tracker.model is HAND
+
+
+def test_divide_and_conquer_tracks_a_smaller_hand_at_its_size(rig, true_states):
+    """Huang et al.'s tracker (one camera, the particle filter seeded) measures the size
+    too, and its fingertips follow the smaller hand closer than at the model's size."""
+    one = Rig((rig[0],))
+    frames = render(0.9, one, true_states[:6])
+    errors = {}
+    for sizing in (True, False):
+        tracker = DivideConquerTracker(HAND, one, DivideConquerOptions(start_size=sizing))
+        tracker.reset(true_states[0])
+        results = [tracker.step(f) for f in frames]
+        if sizing:
+            assert tracker.scale == pytest.approx(0.9, abs=0.021)
+            assert all(r.hand_scale == tracker.scale for r in results)
+        else:
+            assert tracker.scale is None and all(r.hand_scale == 1.0 for r in results)
+        errors[sizing] = tip_errors(results, true_states[:6], 0.9).mean()
+    assert errors[True] < 0.7 * errors[False], errors

@@ -45,6 +45,7 @@ from digiteyes.camera import Camera, Rig
 from digiteyes.errors import DigitEyesError
 from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import KinematicModel
+from digiteyes.kinematics.scaling import scaled_model
 from digiteyes.smc.configuration import ConfigurationSpace
 from digiteyes.smc.digit_search import DigitSearchOptions, digit_curl_directions, search_digits
 from digiteyes.smc.likelihood import (
@@ -88,6 +89,7 @@ from digiteyes.smc.proposal import (
 from digiteyes.smc.resample import effective_sample_size, normalised_weights, systematic_resample
 from digiteyes.smc.spread import SpreadHeldSpace
 from digiteyes.trackers.base import TrackResult
+from digiteyes.trackers.feature_size import hand_size_at
 from digiteyes.trackers.loss_hold import LossHold, LossHoldOptions
 from digiteyes.trackers.silhouette_loss import (
     SilhouetteLoss,
@@ -142,6 +144,12 @@ class DivideConquerOptions(SilhouetteLossOptions, LossHoldOptions):
         ``rounds=0`` turns it off).
     proposal, likelihood, icp : options of the parts.
     seed : seed of the tracker's Generator (every draw comes from it).
+    start_size : on the first frame, before the patches are fitted, measure the hand's
+        size at the start state from the feature tracker's line and tip features
+        (:func:`~digiteyes.trackers.feature_size.hand_size_at`) and track a model of that
+        size; the start must be the hand's pose (``digiteyes track`` turns it off for a
+        start fitted from the images or placed by eye on footage). Results carry the size
+        as :attr:`~digiteyes.trackers.TrackResult.hand_scale`.
     """
 
     sampler: str = "manifold"
@@ -166,6 +174,7 @@ class DivideConquerOptions(SilhouetteLossOptions, LossHoldOptions):
     palm_search: PalmSearchOptions = field(default_factory=PalmSearchOptions)
     digit_search: DigitSearchOptions = field(default_factory=DigitSearchOptions)
     seed: int = 0
+    start_size: bool = True
 
 
 @dataclass
@@ -264,11 +273,15 @@ class DivideConquerTracker:
                                  f"{options.sampler!r}")
         if model.base_state is None:
             raise DigitEyesError(f"model {model.name!r} has no palm pose (pose:q row)")
-        self.model, self.rig, self.options = model, _as_rig(rig), options
+        self.nominal_model, self.rig, self.options = model, _as_rig(rig), options
         self.cameras = self.rig.cameras
         self.space = self.base_space = space or default_configuration_space(model)
         self.joint_index = self.space.joint_indices(model)
-        self.geometry = FingerGeometry.of(model)
+        self.scale: float | None = 1.0 if options.start_size else None
+        """The size of the tracked hand relative to ``nominal_model`` (``start_size``;
+        None when the tracker does not size the hand)."""
+        self._size_tried = False
+        self._build(model)
         self.pairs = manifold_pairs(len(self.space.basis))
         self.curl_directions = digit_curl_directions(self.space)
         self.palm_scale = 1.0
@@ -276,18 +289,27 @@ class DivideConquerTracker:
         self.state: np.ndarray | None = None
         self.particles = np.zeros((0, self.space.n_dims))
         self.frame_index = -1
-        self.silhouette_loss = SilhouetteLoss.from_options(model, self.rig, options)
         self.loss_hold = LossHold(options.hold_lost_frames)
         self.palm_search_options = options.palm_search
         self.outline_fit: float | None = None
         self.outline_calibration: OutlineCalibration | None = None
         self.finger_width_scale = 1.0
-        self.model_geometry = self.geometry
+
+    def _build(self, model: KinematicModel) -> None:
+        """What depends on the tracked model (the model file's or the measured size's):
+        the patch geometry and the silhouette rule."""
+        self.model = model
+        self.geometry = self.model_geometry = FingerGeometry.of(model)
+        self.silhouette_loss = SilhouetteLoss.from_options(model, self.rig, self.options)
 
     # ------------------------------------------------------------------ protocol
     def reset(self, initial_state: np.ndarray) -> None:
         """Start a track at ``initial_state`` (n_q,): palm pose and finger joints."""
         q = np.asarray(initial_state, dtype=float)
+        if self.scale is not None and self.scale != 1.0:  # a new track: size unknown again
+            self.scale = 1.0
+            self._build(self.nominal_model)
+        self._size_tried = False
         if q.shape != (self.model.n_q,):
             raise DigitEyesError(f"initial state must have shape ({self.model.n_q},), got "
                                  f"{q.shape}")
@@ -325,6 +347,8 @@ class DivideConquerTracker:
         opt = self.options
         self.frame_index += 1
         t = time.perf_counter()
+        if self.scale is not None and not self._size_tried:
+            self._measure_size(frames)
         edge_maps = [observe_edges(f, opt.likelihood) for f in frames]
         lookups = [edge_lookup(e, opt.likelihood) for e in edge_maps]
         nearest = nearest_edge_field(edge_maps[0]) if opt.track_palm else None
@@ -456,7 +480,18 @@ class DivideConquerTracker:
             state=q.copy(), residual_rms_px=float(lik.rms_px[best]), cost=cost,
             lost=bool(reasons), loss_reason="; ".join(reasons), iterations=rounds,
             predicted_state=predicted, frame_index=self.frame_index, timings=timings,
-            finger_lost=finger_lost, details=details))
+            finger_lost=finger_lost, details=details,
+            hand_scale=1.0 if self.scale is None else self.scale))
+
+    def _measure_size(self, frames: Sequence[np.ndarray]) -> None:
+        """On the first frame: the hand's size at the start state
+        (:func:`~digiteyes.trackers.feature_size.hand_size_at`); a size other than the
+        model file's rebuilds the patches on a model of that size."""
+        self._size_tried = True
+        scale = hand_size_at(self.nominal_model, self.rig, frames, self.state)
+        if scale != self.scale:
+            self.scale = scale
+            self._build(scaled_model(self.nominal_model, scale, name=self.nominal_model.name))
 
     # ------------------------------------------------------------------ refinement
     def _fit_first_frame(self, edge_maps: list[np.ndarray], lookups: list[EdgeLookup]
