@@ -29,6 +29,7 @@ seeds (:func:`summarise`); a variant that cannot start on some seed fails.
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -93,11 +94,13 @@ def track_states(tracker: Tracker, frames, start: np.ndarray,
     return np.array(states), np.array(scales), fresh_frames, seconds
 
 
-def make_tracker(name: str, model, rig, detector: str) -> Tracker:
-    """The tracker of a variant with the settings of ``digiteyes track``."""
+def make_tracker(name: str, model, rig, detector: str, automatic: bool) -> Tracker:
+    """The tracker of a variant with the settings of ``digiteyes track`` on a dataset,
+    started from its true state or (``automatic``) from the images: the feature tracker
+    then keeps the model's size (``start_size`` off, as ``track --init auto``)."""
     if name == DEFAULT_TRACKER:
-        return FeatureTracker(model, rig, tracker_options(5, 20.0, "default", model, None,
-                                                          "none"))
+        options = tracker_options(5, 20.0, "default", model, None, "none")
+        return FeatureTracker(model, rig, replace(options, start_size=not automatic))
     return create_tracker(name, model, rig, detector=detector)
 
 
@@ -120,10 +123,10 @@ def setup_entry(name: str, n_frames: int, detector: str = "classic",
         return entry | {"started": False, "why": str(error), "meets_target": False}
     start_s = time.perf_counter() - started
     truth_states, truth_scales, truth_fresh, truth_s = track_states(
-        make_tracker(tracker, model, rig, detector), sequence.images[skipped:],
+        make_tracker(tracker, model, rig, detector, False), sequence.images[skipped:],
         scenario.states[skipped], AutoInitialiser(model, rig, detector))
     auto_states, auto_scales, fresh, auto_s = track_states(
-        make_tracker(tracker, model, rig, detector), list(rest), start, initialiser)
+        make_tracker(tracker, model, rig, detector, True), list(rest), start, initialiser)
     err_truth = keypoint_error_mm(model, truth_states, sequence.truth, skipped, truth_scales)
     err_auto = keypoint_error_mm(model, auto_states, sequence.truth, skipped, auto_scales)
     gap = err_auto - err_truth
