@@ -92,16 +92,23 @@ def test_track_says_compiling_only_when_its_tracker_has_cold_kernels(whole_hand,
     assert asked == [DEMO_KERNELS] and COMPILE_MESSAGE not in capsys.readouterr().out
 
 
-def test_track_videos_matches_tracking_the_dataset(whole_hand, tmp_path):
-    seq = open_sequence(whole_hand)
+def write_videos(seq, folder) -> list[str]:
+    """One lossless video per camera of ``seq`` and its initial state as
+    ``folder/init.json``; the videos' paths."""
     videos = []
     for c, name in enumerate(seq.camera_names):
-        path = tmp_path / f"{name}.mkv"
+        path = folder / f"{name}.mkv"
         with VideoWriter(path, seq.fps, codec="ffv1") as writer:
             for images in seq:
                 writer.write(images[c])
         videos.append(str(path))
-    State(seq.model, seq.initial_state).save_json(tmp_path / "init.json")
+    State(seq.model, seq.initial_state).save_json(folder / "init.json")
+    return videos
+
+
+def test_track_videos_matches_tracking_the_dataset(whole_hand, tmp_path):
+    seq = open_sequence(whole_hand)
+    videos = write_videos(seq, tmp_path)
     out = tmp_path / "video-out"
     assert main(["track", *videos, "--tracker", "features", "--model",
                  str(whole_hand / "model.dh"), "--rig", str(whole_hand / "rig.json"),
@@ -226,15 +233,8 @@ def test_track_measures_the_size_of_a_smaller_hand_from_the_datasets_start(tmp_p
         estimated = hand_keypoints(seq.model, log.states, log.hand_scale)[1]
         errors[name] = np.linalg.norm(estimated[:, tips] - seq.truth.keypoints_3d[:, tips],
                                       axis=-1).mean()
-    assert errors["sized"] < 3.0 < 2.0 * errors["sized"] < errors["fixed"], errors
-    videos = []
-    for c, name in enumerate(seq.camera_names):
-        path = tmp_path / f"{name}.mkv"
-        with VideoWriter(path, seq.fps, codec="ffv1") as writer:
-            for images in seq:
-                writer.write(images[c])
-        videos.append(str(path))
-    State(seq.model, seq.initial_state).save_json(tmp_path / "init.json")
+    assert errors["sized"] < 3.0 and 2.0 * errors["sized"] < errors["fixed"], errors
+    videos = write_videos(seq, tmp_path)
     out = tmp_path / "video"
     assert main(["track", *videos, "--tracker", "features", "--rig",
                  str(folder / "rig.json"), "--init", str(tmp_path / "init.json"), "-o",

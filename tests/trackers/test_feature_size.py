@@ -16,19 +16,7 @@ from digiteyes.trackers.divide_conquer import DivideConquerOptions, DivideConque
 from digiteyes.trackers.feature_size import DEAD_BAND, MIN_GAIN, START_SCALES, start_size
 from digiteyes.trackers.layered_templates import LayeredTemplateOptions, LayeredTemplateTracker
 
-from .test_feature_tracker import N_FRAMES, palm_down_states, table_camera
-
 HAND = load_model("hand")
-
-
-@pytest.fixture(scope="module")
-def rig() -> Rig:
-    return Rig((table_camera("left", -40.0), table_camera("right", 40.0)))
-
-
-@pytest.fixture(scope="module")
-def true_states() -> np.ndarray:
-    return palm_down_states()
 
 
 
@@ -104,7 +92,7 @@ def test_tracks_a_smaller_hand_at_its_size(rig, true_states, cls, options):
     fixed.reset(true_states[0])
     unsized = tip_errors([fixed.step(f) for f in frames], true_states, 0.9)
     assert sized.mean() < 4.0 and unsized.mean() > 3.0 * sized.mean(), (sized, unsized)
-    assert len(results) == N_FRAMES
+    assert len(results) == len(true_states)
     tracker.reset(true_states[0])  # a new track: the size is unknown again
     assert tracker.scale == 1.0 and tracker.model is HAND
 
