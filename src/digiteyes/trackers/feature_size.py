@@ -12,15 +12,17 @@ requested feature that finds no edge in its window, the cost of a residual of
 :data:`INVALID_RESIDUAL_PX`: without it a size whose features miss their windows would
 look cheap.
 
-Measured on the first frames of the accuracy table's renders (docs/features.md, "The
-hand's size"): the model file's size and 0.9 of it are found to the grid step on our
-drawing; on the independent flesh hand within 0.06 of either, which is why a size other
+Measured by ``digiteyes bench hand-size`` (:mod:`digiteyes.benchmarks.hand_size`; docs/
+features.md, "The hand's size"): at the model file's size the least cost lies within a
+grid step or two of 1 on our drawing and within 0.06 of it on the independent flesh hand,
+while hands 0.9 and 1.1 times the size are found within 0.04, which is why a size other
 than the model file's must explain the frame markedly better (:data:`MIN_GAIN`) and lie
-outside the measurement's own spread (:data:`DEAD_BAND`).
+outside the measurement's own spread (:data:`DEAD_BAND`). :func:`hand_size_at` is what
+the feature, template and divide-and-conquer trackers call on their first frame.
 
 A start fitted from the images (``--init auto``) has the depth the fit assumed for the
 model's size: one camera cannot tell a larger hand further away, so ``digiteyes track``
-measures the size only from a given start (:func:`digiteyes.track_job`).
+measures the size only from a given start (:mod:`digiteyes.track_job`).
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ from digiteyes.kinematics import KinematicModel, forward_kinematics
 from digiteyes.kinematics.scaling import scaled_model
 from digiteyes.solvers.robust import RobustLoss, robust_cost
 
-START_SCALES = np.round(np.linspace(0.8, 1.2, 21), 2)
+START_SCALES = np.round(np.linspace(0.8, 1.2, 21), 2)  # step 0.02
 """Hand sizes tried on the first frame, relative to the model file (adult hand lengths
 spread by about 8 % about their mean; the grid covers two and a half spreads)."""
 INVALID_RESIDUAL_PX = 10.0
@@ -50,7 +52,8 @@ cost's minimum moves by itself (the flesh hand of the model's size: up to 0.94, 
 20 % below the cost at 1), while a hand of another size shows a clear minimum (0.9 and
 1.1 of the size: at least 28 % below; docs/features.md, "The hand's size")."""
 DEAD_BAND = 0.05
-"""...and only when it lies more than this from 1: one feature slipping into or out of
+"""A size other than the model file's is taken only when it also lies more than this
+from 1: one feature slipping into or out of
 its window moves the minimum by a grid step or two on our own drawing at the model's size
 (0.98 or 1.02, up to 39 % below the cost at 1); hands 0.9 and 1.1 times the size were
 found at 0.86-0.94 and 1.06-1.14. A hand within 5 % of the model's keeps its size."""

@@ -46,9 +46,7 @@ from digiteyes.camera import Rig
 from digiteyes.errors import StateError
 from digiteyes.features import FeatureOptions, feature_residuals, measure_features
 from digiteyes.features.appearance import EdgeBias, ShadingModel, edge_bias, fit_shading
-from digiteyes.features.selection import (
-    feature_names,
-)
+from digiteyes.features.selection import feature_names
 from digiteyes.features.slices import prepare_image
 from digiteyes.features.width_scale import link_radius_scales
 from digiteyes.kinematics import (
