@@ -2,7 +2,7 @@
 
 Usage::
 
-    python benchmarks/real_two_hands.py [--data ../shared/data] [--frames N] [--json FILE]
+    python benchmarks/real_two_hands.py [--data ../shared/data] [--frames N] [--json FILE] [--shift-px PX]
 
 The real video (``real_video/human_hand_video.mp4``, a right hand) gets a second hand: in
 every frame ``t`` the hand of frame ``t + 150`` of the same video, mirrored (so a left hand)
@@ -72,16 +72,17 @@ def hand_region(keypoints: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     return mask.astype(np.float32)
 
 
-def paste_second_hand(images: list[np.ndarray], keypoints: np.ndarray
-                      ) -> tuple[list[np.ndarray], np.ndarray]:
-    """The frames with the second hand (module docstring) and its keypoints (T, 21, 2)."""
+def paste_second_hand(images: list[np.ndarray], keypoints: np.ndarray,
+                      shift_px: int = SHIFT_PX) -> tuple[list[np.ndarray], np.ndarray]:
+    """The frames with the second hand (module docstring; moved ``shift_px`` sideways)
+    and its keypoints (T, 21, 2)."""
     n = len(images)
     height, width = images[0].shape[:2]
     second = keypoints[(np.arange(n) + LAG_FRAMES) % n].copy()
-    second[..., 0] = width - 1 - second[..., 0] + SHIFT_PX
+    second[..., 0] = width - 1 - second[..., 0] + shift_px
     out = []
     for t, base in enumerate(images):
-        other = np.roll(images[(t + LAG_FRAMES) % n][:, ::-1], SHIFT_PX, axis=1)
+        other = np.roll(images[(t + LAG_FRAMES) % n][:, ::-1], shift_px, axis=1)
         wall = np.median(other.reshape(-1, 3)[::97], axis=0)
         differs = (np.abs(other.astype(np.int16) - wall.astype(np.int16)).max(axis=2)
                    > WALL_DIFFERENCE).astype(np.uint8)
@@ -90,14 +91,19 @@ def paste_second_hand(images: list[np.ndarray], keypoints: np.ndarray
         alpha = cv2.GaussianBlur(differs.astype(np.float32) * hand_region(second[t], (height,
                                                                                       width)),
                                  (7, 7), 0)[..., None]
-        if SHIFT_PX < 0:
-            alpha[:, SHIFT_PX:] = 0  # what the roll wrapped round
+        if shift_px < 0:
+            alpha[:, shift_px:] = 0  # what the roll wrapped round
+        elif shift_px > 0:
+            alpha[:, :shift_px] = 0
         out.append((alpha * other + (1 - alpha) * base).astype(np.uint8))
     return out, second
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = footage_parser(__doc__.splitlines()[0], "real_two_hands")
+    parser.add_argument("--shift-px", type=int, default=SHIFT_PX,
+                        help=f"how far the second hand is moved sideways (px; default "
+                             f"{SHIFT_PX}; -80 brings the hands within a finger's width)")
     parser.add_argument("--picture", type=Path, default=None,
                         help=f"also write frame {PICTURE_FRAME} of the two-hand video here, half "
                              "size")
@@ -107,7 +113,7 @@ def main(argv: list[str] | None = None) -> int:
     machine = machine_info()
     images = read_frames(args.data / VIDEO, args.frames)
     right = single_hand_keypoints(images)
-    composed, left = paste_second_hand(images, right)
+    composed, left = paste_second_hand(images, right, args.shift_px)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         video = write_video(composed, Path(tmp) / "two_hands.mp4")
@@ -120,7 +126,7 @@ def main(argv: list[str] | None = None) -> int:
             rows.append({"hand": hand} | track_and_score(video, Path(tmp) / hand, reference,
                                                          hand))
     result = {"benchmark": "real_two_hands", "machine": machine, "video": str(VIDEO),
-              "second_hand": {"lag_frames": LAG_FRAMES, "shift_px": SHIFT_PX,
+              "second_hand": {"lag_frames": LAG_FRAMES, "shift_px": args.shift_px,
                               "mirrored": True},
               "reference": "MediaPipe on the single-hand frames (still-image mode); machine "
                            "output, not truth", "runs": rows}
