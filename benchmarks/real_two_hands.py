@@ -2,7 +2,8 @@
 
 Usage::
 
-    python benchmarks/real_two_hands.py [--data ../shared/data] [--frames N] [--json FILE] [--shift-px PX]
+    python benchmarks/real_two_hands.py [--data ../shared/data] [--frames N] [--json FILE]
+        [--shift-px PX]
 
 The real video (``real_video/human_hand_video.mp4``, a right hand) gets a second hand: in
 every frame ``t`` the hand of frame ``t + 150`` of the same video, mirrored (so a left hand)
