@@ -25,16 +25,18 @@ def monkeypatch_module():
 
 
 def test_rows_measure_the_rendered_size(rows):
-    assert {(r["size"], r["appearance"], r["cameras"]) for r in rows} == {
-        (s, a, c) for s in (0.9, 1.0) for a in ("model", "flesh") for c in (1, 2)}
+    assert {(r["size"], r["proportions"], r["appearance"], r["cameras"]) for r in rows} == {
+        (s, p, a, c) for s in (0.9, 1.0) for p in hand_size.PROPORTIONS
+        for a in ("model", "flesh") for c in (1, 2)}
     for row in rows:
         assert row["measured"] == pytest.approx(row["size"], abs=0.04), row
         assert abs(row["least_cost_size"] - row["size"]) <= 0.06, row
         if row["size"] == 0.9:
             assert row["gain_below_size_1"] > 0.25, row
     summary = hand_size.summary(rows)
-    assert summary["0.9 model"]["measured"][0] == min(
-        r["measured"] for r in rows if r["size"] == 0.9 and r["appearance"] == "model")
+    assert summary["0.9 model, model"]["measured"][0] == min(
+        r["measured"] for r in rows if r["size"] == 0.9 and r["appearance"] == "model"
+        and r["proportions"] == "model")
 
 
 def test_the_command_writes_its_table_and_json(rows, tmp_path, capsys, monkeypatch):
@@ -43,4 +45,4 @@ def test_the_command_writes_its_table_and_json(rows, tmp_path, capsys, monkeypat
     assert main(["bench", "hand-size", "--quick", "--json", str(path)]) == 0
     result = json.loads(path.read_text())
     assert result["benchmark"] == "hand-size" and len(result["rows"]) == len(rows)
-    assert "0.9 flesh" in capsys.readouterr().out
+    assert "0.9 links 5 %, flesh" in capsys.readouterr().out

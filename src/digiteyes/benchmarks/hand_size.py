@@ -3,8 +3,10 @@ start (``--quick``: one noise seed, else two).
 
 For the first frame of six scenarios (``whole-hand``, ``natural``, ``hand-mouse`` and the
 ``desk``, ``webcam`` and ``egocentric`` camera setups), drawn as our capsule model and as
-the independent flesh hand, with hands 0.9, 1.0 and 1.1 times the model's size, one
-camera and (where the rig has them) two, and sensor-noise seeds: the size
+the independent flesh hand, with hands 0.9, 1.0 and 1.1 times the model's size, with the
+model's proportions and with every link length off by up to 5 % (a hand that is not the
+model scaled; :func:`~digiteyes.synth.perturb.perturb_model`), one camera and (where the
+rig has them) two, and sensor-noise seeds: the size
 :func:`digiteyes.trackers.feature_size.start_size` returns, the size of least cost
 before its two rules, and how far that cost lies below the cost at the model's size
 (:data:`~digiteyes.trackers.feature_size.MIN_GAIN` and
@@ -15,6 +17,7 @@ docs/features.md, "The hand's size").
 from __future__ import annotations
 
 import time
+from itertools import product
 
 import numpy as np
 
@@ -23,6 +26,7 @@ from digiteyes.camera import Rig
 from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics.scaling import model_of_size
 from digiteyes.synth import RenderOptions, render_views
+from digiteyes.synth.perturb import perturb_model
 from digiteyes.synth.scenarios import build_scenario
 from digiteyes.synth.setups import setup_scenario
 from digiteyes.trackers import FeatureTracker
@@ -34,6 +38,9 @@ from digiteyes.trackers.feature_size import (
 
 SIZES = (0.9, 1.0, 1.1)
 NOISE_SIGMA = 2.0
+PROPORTIONS = {"model": 0.0, "links 5 %": 0.05}
+"""Hand proportions: the model's, or every link length off by up to this fraction (the
+perturbation's seed is the noise seed)."""
 
 
 def scenarios() -> list[tuple[str, object]]:
@@ -46,46 +53,45 @@ def scenarios() -> list[tuple[str, object]]:
 
 
 def measure(seeds: int) -> list[dict]:
-    """One row per scenario, appearance, size, camera count and seed."""
+    """One row per scenario, size, proportions, appearance, camera count and seed."""
     one = int(np.argmin(np.abs(START_SCALES - 1.0)))
     rows = []
     for name, scenario in scenarios():
         q = scenario.initial_state
-        for size in SIZES:
-            hand = model_of_size(scenario.model, size)
-            for appearance in ("model", "flesh"):
-                for n_cameras in sorted({1, len(scenario.rig)}):
-                    rig = Rig(scenario.rig.cameras[:n_cameras])
-                    for seed in range(seeds):
-                        views = render_views(hand, q, rig, RenderOptions(
-                            appearance=appearance, noise_sigma=NOISE_SIGMA), rng=seed)
-                        images = [prepare_image(v.image).astype(np.float32) for v in views]
-                        tracker = FeatureTracker(scenario.model, rig)
-                        evaluate = feature_evaluation(rig, images, q, tracker.options.features,
-                                                      tracker.link_names, tracker.tip_names)
-                        costs = start_size_costs(scenario.model, evaluate,
-                                                 tracker.n_features, None, 5.0)
-                        best = int(np.argmin(costs))
-                        rows.append({
-                            "scenario": name, "appearance": appearance, "size": size,
-                            "cameras": n_cameras, "seed": seed,
-                            "measured": tracker.start_size_at(images, q),
-                            "least_cost_size": float(START_SCALES[best]),
-                            "gain_below_size_1": float((costs[one] - costs[best]) / costs[one]),
-                        })
+        for size, (proportions, perturbation), appearance, n_cameras, seed in product(
+                SIZES, PROPORTIONS.items(), ("model", "flesh"),
+                sorted({1, len(scenario.rig)}), range(seeds)):
+            hand = perturb_model(model_of_size(scenario.model, size),
+                                 link_length=perturbation, rng=seed)
+            rig = Rig(scenario.rig.cameras[:n_cameras])
+            views = render_views(hand, q, rig, RenderOptions(
+                appearance=appearance, noise_sigma=NOISE_SIGMA), rng=seed)
+            images = [prepare_image(v.image).astype(np.float32) for v in views]
+            tracker = FeatureTracker(scenario.model, rig)
+            evaluate = feature_evaluation(rig, images, q, tracker.options.features,
+                                          tracker.link_names, tracker.tip_names)
+            costs = start_size_costs(scenario.model, evaluate, tracker.n_features, None, 5.0)
+            best = int(np.argmin(costs))
+            rows.append({
+                "scenario": name, "appearance": appearance, "size": size,
+                "proportions": proportions, "cameras": n_cameras, "seed": seed,
+                "measured": tracker.start_size_at(images, q),
+                "least_cost_size": float(START_SCALES[best]),
+                "gain_below_size_1": float((costs[one] - costs[best]) / costs[one]),
+            })
     return rows
 
 
 def summary(rows: list[dict]) -> dict:
-    """Per size and appearance: the range of the measured size, of the least-cost size
-    and of the gain."""
+    """Per size, proportions and appearance: the range of the measured size, of the
+    least-cost size and of the gain."""
     out = {}
-    for size in SIZES:
-        for appearance in ("model", "flesh"):
-            sel = [r for r in rows if r["size"] == size and r["appearance"] == appearance]
-            out[f"{size} {appearance}"] = {
-                key: [min(r[key] for r in sel), max(r[key] for r in sel)]
-                for key in ("measured", "least_cost_size", "gain_below_size_1")}
+    for size, proportions, appearance in product(SIZES, PROPORTIONS, ("model", "flesh")):
+        sel = [r for r in rows if r["size"] == size and r["appearance"] == appearance
+               and r["proportions"] == proportions]
+        out[f"{size} {proportions}, {appearance}"] = {
+            key: [min(r[key] for r in sel), max(r[key] for r in sel)]
+            for key in ("measured", "least_cost_size", "gain_below_size_1")}
     return out
 
 
@@ -96,6 +102,7 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
     rows = measure(1 if quick else 2)
     result = {"benchmark": "hand-size", "quick": quick, "machine": machine_info(),
               "settings": {"sizes": list(SIZES), "noise_sigma": NOISE_SIGMA,
+                           "proportions": PROPORTIONS,
                            "seeds": 1 if quick else 2},
               "rows": rows, "summary": summary(rows)}
     result["wall_seconds"] = time.perf_counter() - started
@@ -108,10 +115,10 @@ def format_table(result: dict) -> str:
              *machine_lines(result["machine"]),
              f"{len(result['rows'])} first frames at the true start (six scenarios, one and "
              f"two cameras)", "",
-             f"{'hand, drawing':<14} {'size returned':>16} {'least-cost size':>16} "
+             f"{'hand, drawing':<26} {'size returned':>16} {'least-cost size':>16} "
              f"{'cost below size 1':>18}"]
     for key, value in result["summary"].items():
         m, b, g = value["measured"], value["least_cost_size"], value["gain_below_size_1"]
-        lines.append(f"{key:<14} {m[0]:7.3f}-{m[1]:.3f} {b[0]:10.2f}-{b[1]:.2f} "
+        lines.append(f"{key:<26} {m[0]:7.3f}-{m[1]:.3f} {b[0]:10.2f}-{b[1]:.2f} "
                      f"{100 * g[0]:11.0f}-{100 * g[1]:.0f} %")
     return "\n".join(lines)
