@@ -7,6 +7,8 @@ import pytest
 
 from digiteyes.camera import Rig
 from digiteyes.detect.hand_size import model_hand_length
+from digiteyes.features import FeatureOptions
+from digiteyes.features.selection import feature_names
 from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import forward_kinematics, load_model
 from digiteyes.kinematics.scaling import model_of_size
@@ -128,3 +130,21 @@ def test_divide_and_conquer_tracks_a_smaller_hand_at_its_size(rig, true_states):
             assert tracker.scale is None and all(r.hand_scale == 1.0 for r in results)
         errors[sizing] = tip_errors(results, true_states[:6], 0.9).mean()
     assert errors[True] < 0.7 * errors[False], errors
+
+
+@pytest.mark.parametrize("cameras", [(0,), (0, 1)])
+def test_a_start_off_to_the_side_keeps_the_models_size(rig, true_states, cameras):
+    """A hand of the model's size started 6 mm off along the table: at the start some
+    other size fits the features by chance; re-fitting the palm's position does not
+    confirm it, so the model's size stays."""
+    sub = Rig(tuple(rig[c] for c in cameras))
+    images = [v.image for v in render_views(HAND, true_states[0], sub,
+                                            RenderOptions(noise_sigma=2.0), rng=0)]
+    off = true_states[0].copy()
+    off[4] -= 6.0
+    links, tips = feature_names(HAND)
+    at_start = start_size(HAND, feature_size.feature_evaluation(
+        sub, prepared(images), off, FeatureOptions(), links, tips),
+        (len(links) + len(tips)) * len(sub), None, 5.0)
+    assert abs(at_start - 1.0) > DEAD_BAND  # the start alone is fooled
+    assert feature_size.hand_size_at(HAND, sub, images, off) == 1.0

@@ -66,26 +66,68 @@ the requested features found an edge (:func:`feature_evaluation`)."""
 
 def feature_evaluation(rig: Rig, images: Sequence[np.ndarray], q: np.ndarray,
                        features: FeatureOptions, link_names: Sequence[str],
-                       tip_names: Sequence[str], axis_points: int = 2) -> FeatureEvaluation:
+                       tip_names: Sequence[str], axis_points: int = 2,
+                       palm_iterations: int = 0) -> FeatureEvaluation:
     """The :data:`FeatureEvaluation` of state ``q`` (n_q,; translation in mm) in
     ``images`` (one prepared grey image per camera,
     :func:`~digiteyes.features.slices.prepare_image`, float32; rig order): the line and
     tip residuals of the feature tracker (thesis Sec. 2.5, no width rows) of the links
-    and tips named."""
+    and tips named, after ``palm_iterations`` Gauss-Newton steps of the palm's position
+    alone (:func:`_shifted_palm`; 0: at ``q`` itself)."""
 
-    def evaluate(model: KinematicModel) -> tuple[np.ndarray, int]:
-        kin = forward_kinematics(model, q)
-        residuals, n_valid = [], 0
+    def measure(model: KinematicModel, x: np.ndarray, jacobian: bool):
+        kin = forward_kinematics(model, x)
+        residuals, jacobians, n_valid = [], [], 0
         for camera, image in zip(rig, images, strict=True):
             measured = measure_features(image, camera, model, kin, features, link_names,
                                         tip_names)
-            r, _, _ = feature_residuals(measured, camera, kin, jacobian=False,
+            r, J, _ = feature_residuals(measured, camera, kin, jacobian=jacobian,
                                         axis_points=axis_points)
             residuals.append(r)
+            jacobians.append(J)
             n_valid += measured.n_valid
-        return np.concatenate(residuals), n_valid
+        J = np.concatenate(jacobians) if jacobian else None
+        return np.concatenate(residuals), J, n_valid
+
+    def evaluate(model: KinematicModel) -> tuple[np.ndarray, int]:
+        x = np.asarray(q, dtype=float)
+        for _ in range(palm_iterations if model.base_state is not None else 0):
+            x = _shifted_palm(model, x, q, rig, *measure(model, x, True)[:2])
+        r, _, n_valid = measure(model, x, False)
+        return r, n_valid
 
     return evaluate
+
+
+CHECK_PALM_ITERATIONS = 3
+"""A size other than the model file's is confirmed by measuring again with the palm's
+position re-fitted at each size by this many Gauss-Newton steps: a start a few
+millimetres off to the side makes some size fit the features at the start by chance, but
+not once the palm has moved to where the image puts it (docs/features.md, "The hand's
+size")."""
+
+
+def _shifted_palm(model: KinematicModel, x: np.ndarray, q: np.ndarray, rig: Rig,
+                  r: np.ndarray, J: np.ndarray) -> np.ndarray:
+    """One Gauss-Newton step of the palm's position alone (rotation and fingers held)
+    on the feature residuals ``r`` with their tangent Jacobian ``J`` at ``x``; with one
+    camera the palm's distance along the optical axis stays that of the start ``q`` (one
+    view cannot tell a larger hand further away, which is the size being measured)."""
+    if len(r) == 0:
+        return x
+    k = model.base_state
+    columns = model.q_to_v[k + 4:k + 7]
+    A = J[:, columns]
+    H, g = A.T @ A, A.T @ r
+    if len(rig) == 1:
+        axis = np.asarray(rig[0].T_cam_world, dtype=float)[2, :3]  # optical axis, world
+        weight = 1e4 * max(float(np.trace(H)), 1.0)
+        H = H + weight * np.outer(axis, axis)
+        g = g + weight * axis * float(axis @ (x[k + 4:k + 7] - q[k + 4:k + 7]))
+    step = np.linalg.solve(H + 1e-6 * max(float(np.trace(H)), 1.0) * np.eye(3), -g)
+    out = np.array(x, dtype=float)
+    out[k + 4:k + 7] += step
+    return out
 
 
 def start_size_costs(model: KinematicModel, evaluate: FeatureEvaluation, n_requested: int,
@@ -127,18 +169,26 @@ def hand_size_at(model: KinematicModel, rig: Rig, images: Sequence[np.ndarray], 
                  loss: RobustLoss | None = None, scale_px: float = 5.0) -> float:
     """The size of the hand in ``images`` (one per camera of ``rig``, grey or colour)
     relative to ``model``, measured at its known state ``q`` (n_q,; translation in mm)
-    by :func:`start_size`: what every tracker with ``start_size`` calls on its first
-    frame. ``link_names``/``tip_names``: the features to measure (None: the feature
-    tracker's default set, :func:`~digiteyes.features.selection.feature_names`);
+    by :func:`start_size`, and a size other than 1 confirmed on the same side of 1 with
+    the palm's position re-fitted (:data:`CHECK_PALM_ITERATIONS`; else 1): what every
+    tracker with ``start_size`` calls on its first frame. ``link_names``/``tip_names``:
+    the features to measure (None: the feature tracker's default set,
+    :func:`~digiteyes.features.selection.feature_names`);
     ``features``, ``axis_points``, ``loss``, ``scale_px``: the feature tracker's settings
     (its defaults unless given)."""
     if link_names is None:
         link_names, tip_names = feature_names(model)
     prepared = [prepare_image(image).astype(np.float32, copy=False) for image in images]
-    evaluate = feature_evaluation(rig, prepared, q, features or FeatureOptions(), link_names,
-                                  tip_names, axis_points)
-    return start_size(model, evaluate, (len(link_names) + len(tip_names)) * len(rig), loss,
-                      scale_px)
+    n_requested = (len(link_names) + len(tip_names)) * len(rig)
+    sizes = []
+    for palm_iterations in (0, CHECK_PALM_ITERATIONS):
+        evaluate = feature_evaluation(rig, prepared, q, features or FeatureOptions(),
+                                      link_names, tip_names, axis_points, palm_iterations)
+        sizes.append(start_size(model, evaluate, n_requested, loss, scale_px))
+        if sizes[0] == 1.0:
+            return 1.0
+    at_start, checked = sizes
+    return at_start if (checked - 1.0) * (at_start - 1.0) > 0 else 1.0
 
 
 def _vertex(scales: np.ndarray, costs: np.ndarray, best: int) -> float:
@@ -156,5 +206,15 @@ def _vertex(scales: np.ndarray, costs: np.ndarray, best: int) -> float:
     return float(scales[best]) + offset * step
 
 
-__all__ = ["DEAD_BAND", "INVALID_RESIDUAL_PX", "MIN_GAIN", "START_SCALES", "FeatureEvaluation",
-           "feature_evaluation", "hand_size_at", "start_size", "start_size_costs"]
+__all__ = [
+    "CHECK_PALM_ITERATIONS",
+    "DEAD_BAND",
+    "INVALID_RESIDUAL_PX",
+    "MIN_GAIN",
+    "START_SCALES",
+    "FeatureEvaluation",
+    "feature_evaluation",
+    "hand_size_at",
+    "start_size",
+    "start_size_costs",
+]
