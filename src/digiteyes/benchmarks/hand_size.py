@@ -5,10 +5,12 @@ For the first frame of six scenarios (``whole-hand``, ``natural``, ``hand-mouse`
 ``desk``, ``webcam`` and ``egocentric`` camera setups), drawn as our capsule model and as
 the independent flesh hand, with hands 0.9, 1.0 and 1.1 times the model's size, with the
 model's proportions and with every link length off by up to 5 % (a hand that is not the
-model scaled; :func:`~digiteyes.synth.perturb.perturb_model`), one camera and (where the
-rig has them) two, and sensor-noise seeds: the size
-:func:`digiteyes.trackers.feature_size.start_size` returns, the size of least cost
-before its two rules, and how far that cost lies below the cost at the model's size
+model scaled; :func:`~digiteyes.synth.perturb.perturb_model`), from the true start and
+from starts moved :data:`START_OFFSETS_MM` away, one camera and (where the rig has them)
+two, and sensor-noise seeds: the size
+:func:`digiteyes.trackers.feature_size.hand_size_at` returns, the size of least cost
+before its two rules, how far that cost lies below the cost at the model's size, and
+how often the model's size is kept with and without the check of a misplaced start
 (:data:`~digiteyes.trackers.feature_size.MIN_GAIN` and
 :data:`~digiteyes.trackers.feature_size.DEAD_BAND` were chosen from these figures;
 docs/features.md, "The hand's size").
@@ -33,6 +35,7 @@ from digiteyes.trackers import FeatureTracker
 from digiteyes.trackers.feature_size import (
     START_SCALES,
     feature_evaluation,
+    start_size,
     start_size_costs,
 )
 
@@ -41,6 +44,9 @@ NOISE_SIGMA = 2.0
 PROPORTIONS = {"model": 0.0, "links 5 %": 0.05}
 """Hand proportions: the model's, or every link length off by up to this fraction (the
 perturbation's seed is the noise seed)."""
+START_OFFSETS_MM = (0.0, 3.0, 6.0, 10.0)
+"""How far the start is moved from the true pose (a random direction per frame); the
+hands of the model's proportions only."""
 
 
 def scenarios() -> list[tuple[str, object]]:
@@ -56,15 +62,21 @@ def measure(seeds: int) -> list[dict]:
     """One row per scenario, size, proportions, appearance, camera count and seed."""
     one = int(np.argmin(np.abs(START_SCALES - 1.0)))
     rows = []
+    rng = np.random.default_rng(0)
     for name, scenario in scenarios():
-        q = scenario.initial_state
-        for size, (proportions, perturbation), appearance, n_cameras, seed in product(
-                SIZES, PROPORTIONS.items(), ("model", "flesh"),
+        k = scenario.model.base_state
+        for size, (proportions, perturbation), offset, appearance, n_cameras, seed in product(
+                SIZES, PROPORTIONS.items(), START_OFFSETS_MM, ("model", "flesh"),
                 sorted({1, len(scenario.rig)}), range(seeds)):
+            if offset and perturbation:
+                continue
+            q = np.array(scenario.initial_state, dtype=float)
+            direction = rng.standard_normal(3)
+            q[k + 4:k + 7] += offset * direction / np.linalg.norm(direction)
             hand = perturb_model(model_of_size(scenario.model, size),
                                  link_length=perturbation, rng=seed)
             rig = Rig(scenario.rig.cameras[:n_cameras])
-            views = render_views(hand, q, rig, RenderOptions(
+            views = render_views(hand, scenario.initial_state, rig, RenderOptions(
                 appearance=appearance, noise_sigma=NOISE_SIGMA), rng=seed)
             images = [prepare_image(v.image).astype(np.float32) for v in views]
             tracker = FeatureTracker(scenario.model, rig)
@@ -74,8 +86,11 @@ def measure(seeds: int) -> list[dict]:
             best = int(np.argmin(costs))
             rows.append({
                 "scenario": name, "appearance": appearance, "size": size,
-                "proportions": proportions, "cameras": n_cameras, "seed": seed,
+                "proportions": proportions, "start_offset_mm": offset,
+                "cameras": n_cameras, "seed": seed,
                 "measured": tracker.start_size_at(images, q),
+                "measured_at_start_only": start_size(scenario.model, evaluate,
+                                                     tracker.n_features, None, 5.0),
                 "least_cost_size": float(START_SCALES[best]),
                 "gain_below_size_1": float((costs[one] - costs[best]) / costs[one]),
             })
@@ -86,12 +101,20 @@ def summary(rows: list[dict]) -> dict:
     """Per size, proportions and appearance: the range of the measured size, of the
     least-cost size and of the gain."""
     out = {}
-    for size, proportions, appearance in product(SIZES, PROPORTIONS, ("model", "flesh")):
+    for size, proportions, offset, appearance in product(SIZES, PROPORTIONS,
+                                                         START_OFFSETS_MM, ("model", "flesh")):
         sel = [r for r in rows if r["size"] == size and r["appearance"] == appearance
-               and r["proportions"] == proportions]
-        out[f"{size} {proportions}, {appearance}"] = {
+               and r["proportions"] == proportions and r["start_offset_mm"] == offset]
+        if not sel:
+            continue
+        label = f"{size} {proportions}" + (f" {offset:g} mm off" if offset else "")
+        out[f"{label}, {appearance}"] = {
             key: [min(r[key] for r in sel), max(r[key] for r in sel)]
-            for key in ("measured", "least_cost_size", "gain_below_size_1")}
+            for key in ("measured", "least_cost_size", "gain_below_size_1")} | {
+            "frames": len(sel),
+            "kept_model_size": sum(r["measured"] == 1.0 for r in sel),
+            "kept_model_size_at_start_only": sum(r["measured_at_start_only"] == 1.0
+                                                 for r in sel)}
     return out
 
 
@@ -102,7 +125,7 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
     rows = measure(1 if quick else 2)
     result = {"benchmark": "hand-size", "quick": quick, "machine": machine_info(),
               "settings": {"sizes": list(SIZES), "noise_sigma": NOISE_SIGMA,
-                           "proportions": PROPORTIONS,
+                           "proportions": PROPORTIONS, "start_offsets_mm": START_OFFSETS_MM,
                            "seeds": 1 if quick else 2},
               "rows": rows, "summary": summary(rows)}
     result["wall_seconds"] = time.perf_counter() - started
@@ -115,10 +138,12 @@ def format_table(result: dict) -> str:
              *machine_lines(result["machine"]),
              f"{len(result['rows'])} first frames at the true start (six scenarios, one and "
              f"two cameras)", "",
-             f"{'hand, drawing':<26} {'size returned':>16} {'least-cost size':>16} "
-             f"{'cost below size 1':>18}"]
+             f"{'hand, drawing':<30} {'size returned':>16} {'kept 1 (start only)':>20} "
+             f"{'least-cost size':>16} {'cost below size 1':>18}"]
     for key, value in result["summary"].items():
         m, b, g = value["measured"], value["least_cost_size"], value["gain_below_size_1"]
-        lines.append(f"{key:<26} {m[0]:7.3f}-{m[1]:.3f} {b[0]:10.2f}-{b[1]:.2f} "
-                     f"{100 * g[0]:11.0f}-{100 * g[1]:.0f} %")
+        kept = (f"{value['kept_model_size']}/{value['frames']} "
+                f"({value['kept_model_size_at_start_only']})")
+        lines.append(f"{key:<30} {m[0]:7.3f}-{m[1]:.3f} {kept:>20} "
+                     f"{b[0]:10.2f}-{b[1]:.2f} {100 * g[0]:11.0f}-{100 * g[1]:.0f} %")
     return "\n".join(lines)
