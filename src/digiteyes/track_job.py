@@ -309,12 +309,12 @@ def has_hand21(model: KinematicModel) -> bool:
 
 def _tracker_options(job: TrackJob, model: KinematicModel, name: str,
                      footage: bool, auto: bool) -> dict[str, object]:
-    """The options of tracker ``name``: the job's ``--option`` pairs over the flags. The
-    keypoint and feature trackers read the hand's size from a dataset's start (its true
-    state), not from footage's, which the images gave (from the model's size) or the user
-    placed by eye (``--init FILE``), nor from a start fitted to a dataset's images
-    (``auto``; the keypoint tracker, which holds the palm where that fit put it, keeps
-    reading it there); the model's (or a personal model's) size then stays
+    """The options of tracker ``name``: the job's ``--option`` pairs over the flags.
+    Trackers with a ``start_size`` option read the hand's size from a dataset's start
+    (its true state), not from footage's, which the images gave (from the model's size)
+    or the user placed by eye (``--init FILE``), nor from a start fitted to a dataset's
+    images (``auto``; the keypoint tracker, which holds the palm where that fit put it,
+    keeps reading it there); the model's (or a personal model's) size then stays
     (``--option start_size=true`` overrides)."""
     options = dict(job.options)
     if name == FOOTAGE_TRACKER:
