@@ -148,3 +148,21 @@ def test_a_start_off_to_the_side_keeps_the_models_size(rig, true_states, cameras
         (len(links) + len(tips)) * len(sub), None, 5.0)
     assert abs(at_start - 1.0) > DEAD_BAND  # the start alone is fooled
     assert feature_size.hand_size_at(HAND, sub, images, off) == 1.0
+
+
+@pytest.mark.parametrize("tracker", ["features", "templates", "templates+features",
+                                     "divide-conquer", "keypoints"])
+def test_track_measures_the_size_only_from_a_given_start_on_a_dataset(tracker):
+    """``digiteyes track`` leaves ``start_size`` on for a dataset's own start, and turns
+    it off for footage and for an automatic start (the keypoint tracker, which holds the
+    palm where its fit put it, only for footage); ``--option start_size=true`` wins."""
+    from digiteyes.track_job import TrackJob, _tracker_options
+
+    def chosen(footage, auto, options=()):
+        job = TrackJob(("in",), "out", "hand", options=options)
+        return _tracker_options(job, HAND, tracker, footage, auto).get("start_size", True)
+
+    assert chosen(False, False) is True
+    assert chosen(True, False) is False
+    assert chosen(False, True) is (tracker == "keypoints")
+    assert chosen(True, True, (("start_size", True),)) is True
