@@ -7,8 +7,10 @@ import json
 
 import numpy as np
 
+from digiteyes.camera import Rig
+from digiteyes.camera.default import default_camera
 from digiteyes.io.frame_sinks import KeypointLog, frame_message
-from digiteyes.kinematics import forward_kinematics
+from digiteyes.kinematics import forward_kinematics, load_model
 from digiteyes.kinematics.keypoints import keypoints
 from digiteyes.kinematics.scaling import scaled_model
 from digiteyes.synth.scenarios import build_scenario
@@ -40,3 +42,25 @@ def test_keypoints_of_a_result_are_those_of_the_hand_of_its_size(tmp_path):
         tip = names.index("index.tip")
         np.testing.assert_allclose([float(row[f"{camera.name}.index.tip.{a}"])
                                     for a in ("x_mm", "y_mm", "z_mm")], xyz[tip], atol=0.006)
+
+
+def test_the_same_frames_keypoints_are_computed_once(monkeypatch):
+    """The keypoint log and the stream ask for one frame's keypoints in turn: the second
+    call returns the first's arrays; another state, scale or rig computes anew."""
+    from digiteyes.io import frame_sinks
+
+    model = load_model("hand")
+    rig = Rig((default_camera(640, 480),))
+    calls = []
+    compute = frame_sinks._camera_keypoints
+    monkeypatch.setattr(frame_sinks, "_camera_keypoints",
+                        lambda *a: calls.append(a) or compute(*a))
+    q = model.neutral()
+    q[6] = 400.0
+    first = frame_sinks.camera_keypoints(model, rig, q, 1.0)
+    assert frame_sinks.camera_keypoints(model, rig, q.copy(), 1.0) is first
+    assert len(calls) == 1
+    frame_sinks.camera_keypoints(model, rig, q, 0.9)
+    other = Rig((default_camera(640, 480),))
+    frame_sinks.camera_keypoints(model, other, q, 0.9)
+    assert len(calls) == 3

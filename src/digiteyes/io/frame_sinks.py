@@ -44,13 +44,33 @@ class TrackResult(Protocol):
     hand_scale: float
 
 
+_last_keypoints: list = [None, None, None, None]
+"""The model, rig, (state bytes, hand scale) and result of the last
+:func:`camera_keypoints` call (the objects themselves, so that their ids cannot be
+reused while kept): the keypoint log and the stream ask for the same frame's keypoints
+one after the other."""
+
+
 def camera_keypoints(model: KinematicModel, rig: Rig, q: np.ndarray, hand_scale: float = 1.0
                      ) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
     """Names, pixels (n_cameras, K, 2) and camera-frame points (n_cameras, K, 3), mm, of
     the model keypoints of state ``q`` (a hand ``hand_scale`` times the model's size,
     :func:`~digiteyes.kinematics.keypoints.hand_keypoints`) in every camera of ``rig``,
     in the real images and camera frames (:meth:`~digiteyes.camera.Rig.real_pixels`; a
-    mirrored rig's points reflected back, :mod:`digiteyes.camera.mirror`)."""
+    mirrored rig's points reflected back, :mod:`digiteyes.camera.mirror`). The arrays of
+    the last call are returned again for the same arguments (read them, do not write)."""
+    q = np.asarray(q, dtype=float)
+    key = (q.tobytes(), float(hand_scale))
+    last_model, last_rig, last_key, last_result = _last_keypoints
+    if last_model is model and last_rig is rig and last_key == key:
+        return last_result
+    result = _camera_keypoints(model, rig, q, hand_scale)
+    _last_keypoints[:] = [model, rig, key, result]
+    return result
+
+
+def _camera_keypoints(model: KinematicModel, rig: Rig, q: np.ndarray, hand_scale: float
+                      ) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
     names, world = hand_keypoints(model, q, hand_scale)
     world = world[0]
     uv = np.stack([cam.project(world) for cam in rig])
