@@ -529,14 +529,14 @@ class FeatureTracker:
         # feature kernels are then compiled once, not twice (uint8 and float32)
         images = [prepare_image(frame).astype(np.float32, copy=False) for frame in frames]
         timings["feature_detection"] += time.perf_counter() - start
+        if self.scale is not None and not self._size_tried:  # before the shading fit,
+            start = time.perf_counter()                       # which draws the model
+            self._measure_size(images, predicted)
+            timings["feature_detection"] += time.perf_counter() - start
         if self.options.shading_correction:
             start = time.perf_counter()
             self._predict_edge_bias(images, predicted)
             timings["shading"] = time.perf_counter() - start
-        if self.scale is not None and not self._size_tried:
-            start = time.perf_counter()
-            self._measure_size(images, predicted)
-            timings["feature_detection"] += time.perf_counter() - start
         if (not self._widths_tried and self.options.fit_widths and len(self.rig) == 1
                 and self.options.width_weight > 0):
             start = time.perf_counter()
