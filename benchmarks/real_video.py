@@ -35,34 +35,32 @@ and exits with status 0.
 
 from __future__ import annotations
 
-import os
+import one_thread  # noqa: F401  (first: one thread for the libraries imported below)
 
-for _name in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ[_name] = "1"
+# isort: split
+import argparse
+import json
+import pickle
+import sys
+import tempfile
+from pathlib import Path
 
-import argparse  # noqa: E402
-import json  # noqa: E402
-import pickle  # noqa: E402
-import sys  # noqa: E402
-import tempfile  # noqa: E402
-from pathlib import Path  # noqa: E402
+import cv2
+import numpy as np
 
-import cv2  # noqa: E402
-import numpy as np  # noqa: E402
-
-from digiteyes.benchmarks._machine import machine_info  # noqa: E402
-from digiteyes.camera.default import DEFAULT_HFOV_DEG, default_camera  # noqa: E402
-from digiteyes.detect.check import worst_digit_gap  # noqa: E402
-from digiteyes.detect.hand21 import BONES, model_anchors  # noqa: E402
-from digiteyes.detect.mediapipe_detector import (  # noqa: E402
+from digiteyes.benchmarks._machine import machine_info
+from digiteyes.camera.default import DEFAULT_HFOV_DEG, default_camera
+from digiteyes.detect.check import worst_digit_gap
+from digiteyes.detect.hand21 import BONES, model_anchors
+from digiteyes.detect.mediapipe_detector import (
     MediaPipeDetector,
     mediapipe_available,
 )
-from digiteyes.io import VideoReader, read_state_log  # noqa: E402
-from digiteyes.io.video_lengths import count_frames  # noqa: E402
-from digiteyes.kinematics import forward_kinematics, load_model  # noqa: E402
-from digiteyes.kinematics.procrustes import kabsch  # noqa: E402
-from digiteyes.track_job import (  # noqa: E402
+from digiteyes.io import VideoReader, read_state_log
+from digiteyes.io.video_lengths import count_frames
+from digiteyes.kinematics import forward_kinematics, load_model
+from digiteyes.kinematics.procrustes import kabsch
+from digiteyes.track_job import (
     AUTO,
     DEFAULT_CHECK_EVERY,
     TrackJob,

@@ -19,19 +19,17 @@ Without the data or the MediaPipe extra the script says so and exits with status
 
 from __future__ import annotations
 
-import os
+import one_thread  # noqa: F401  (first: one thread for the libraries imported below)
 
-for _name in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ[_name] = "1"
+# isort: split
+import sys
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
 
-import sys  # noqa: E402
-import tempfile  # noqa: E402
-from collections.abc import Callable  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-import cv2  # noqa: E402
-import numpy as np  # noqa: E402
-from footage_runs import (  # noqa: E402
+import cv2
+import numpy as np
+from footage_runs import (
     can_run,
     footage_parser,
     read_frames,
@@ -41,9 +39,9 @@ from footage_runs import (  # noqa: E402
     track_and_score,
     write_video,
 )
-from real_video import VIDEO  # noqa: E402
+from real_video import VIDEO
 
-from digiteyes.benchmarks._machine import machine_info  # noqa: E402
+from digiteyes.benchmarks._machine import machine_info
 
 SMALL_SIDE = 320
 """Width (px) of the ``small`` version (the video's 1280 scaled by a quarter)."""

@@ -1,0 +1,8 @@
+"""One thread for numba, OpenMP and BLAS in the footage benchmarks, whose figures are for
+one core. Imported first, before numpy, OpenCV or numba load (they read these variables
+once, when they start)."""
+
+import os
+
+for _name in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_name] = "1"
