@@ -45,7 +45,6 @@ from digiteyes.camera import Camera, Rig
 from digiteyes.errors import DigitEyesError
 from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import KinematicModel
-from digiteyes.kinematics.scaling import scaled_model
 from digiteyes.smc.configuration import ConfigurationSpace
 from digiteyes.smc.digit_search import DigitSearchOptions, digit_curl_directions, search_digits
 from digiteyes.smc.likelihood import (
@@ -89,7 +88,7 @@ from digiteyes.smc.proposal import (
 from digiteyes.smc.resample import effective_sample_size, normalised_weights, systematic_resample
 from digiteyes.smc.spread import SpreadHeldSpace
 from digiteyes.trackers.base import TrackResult
-from digiteyes.trackers.feature_size import hand_size_at
+from digiteyes.trackers.feature_size import StartSize
 from digiteyes.trackers.loss_hold import LossHold, LossHoldOptions
 from digiteyes.trackers.silhouette_loss import (
     SilhouetteLoss,
@@ -273,14 +272,11 @@ class DivideConquerTracker:
                                  f"{options.sampler!r}")
         if model.base_state is None:
             raise DigitEyesError(f"model {model.name!r} has no palm pose (pose:q row)")
-        self.nominal_model, self.rig, self.options = model, _as_rig(rig), options
+        self.rig, self.options = _as_rig(rig), options
+        self.sizing = StartSize(model, options.start_size)
         self.cameras = self.rig.cameras
         self.space = self.base_space = space or default_configuration_space(model)
         self.joint_index = self.space.joint_indices(model)
-        self.scale: float | None = 1.0 if options.start_size else None
-        """The size of the tracked hand relative to ``nominal_model`` (``start_size``;
-        None when the tracker does not size the hand)."""
-        self._size_tried = False
         self._build(model)
         self.pairs = manifold_pairs(len(self.space.basis))
         self.curl_directions = digit_curl_directions(self.space)
@@ -295,6 +291,12 @@ class DivideConquerTracker:
         self.outline_calibration: OutlineCalibration | None = None
         self.finger_width_scale = 1.0
 
+    @property
+    def scale(self) -> float | None:
+        """The size of the tracked hand relative to the model file (``start_size``; None
+        when the tracker does not size the hand)."""
+        return self.sizing.scale
+
     def _build(self, model: KinematicModel) -> None:
         """What depends on the tracked model (the model file's or the measured size's):
         the patch geometry and the silhouette rule."""
@@ -306,10 +308,8 @@ class DivideConquerTracker:
     def reset(self, initial_state: np.ndarray) -> None:
         """Start a track at ``initial_state`` (n_q,): palm pose and finger joints."""
         q = np.asarray(initial_state, dtype=float)
-        if self.scale is not None and self.scale != 1.0:  # a new track: size unknown again
-            self.scale = 1.0
-            self._build(self.nominal_model)
-        self._size_tried = False
+        if (model := self.sizing.forget()) is not None:  # a new track: size unknown again
+            self._build(model)
         if q.shape != (self.model.n_q,):
             raise DigitEyesError(f"initial state must have shape ({self.model.n_q},), got "
                                  f"{q.shape}")
@@ -347,8 +347,9 @@ class DivideConquerTracker:
         opt = self.options
         self.frame_index += 1
         t = time.perf_counter()
-        if self.scale is not None and not self._size_tried:
-            self._measure_size(frames)
+        # the hand's size, on the first frame before the patches are fitted to the hand
+        if (model := self.sizing.measure(self.rig, frames, self.state)) is not None:
+            self._build(model)
         edge_maps = [observe_edges(f, opt.likelihood) for f in frames]
         lookups = [edge_lookup(e, opt.likelihood) for e in edge_maps]
         nearest = nearest_edge_field(edge_maps[0]) if opt.track_palm else None
@@ -481,17 +482,7 @@ class DivideConquerTracker:
             lost=bool(reasons), loss_reason="; ".join(reasons), iterations=rounds,
             predicted_state=predicted, frame_index=self.frame_index, timings=timings,
             finger_lost=finger_lost, details=details,
-            hand_scale=1.0 if self.scale is None else self.scale))
-
-    def _measure_size(self, frames: Sequence[np.ndarray]) -> None:
-        """On the first frame: the hand's size at the start state
-        (:func:`~digiteyes.trackers.feature_size.hand_size_at`); a size other than the
-        model file's rebuilds the patches on a model of that size."""
-        self._size_tried = True
-        scale = hand_size_at(self.nominal_model, self.rig, frames, self.state)
-        if scale != self.scale:
-            self.scale = scale
-            self._build(scaled_model(self.nominal_model, scale, name=self.nominal_model.name))
+            hand_scale=self.sizing.hand_scale))
 
     # ------------------------------------------------------------------ refinement
     def _fit_first_frame(self, edge_maps: list[np.ndarray], lookups: list[EdgeLookup]

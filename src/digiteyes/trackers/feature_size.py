@@ -191,6 +191,46 @@ def hand_size_at(model: KinematicModel, rig: Rig, images: Sequence[np.ndarray], 
     return at_start if (checked - 1.0) * (at_start - 1.0) > 0 else 1.0
 
 
+class StartSize:
+    """A tracker's hand size from its first frame (``start_size`` option): the model file's
+    model, the size found (None: the tracker does not size the hand) and whether the
+    coming first frame is still to be measured. The tracker rebuilds what depends on its
+    model whenever :meth:`forget` or :meth:`measure` returns a model."""
+
+    def __init__(self, model: KinematicModel, enabled: bool) -> None:
+        self.nominal_model = model
+        self.scale: float | None = 1.0 if enabled and model.base_state is not None else None
+        self.pending = self.scale is not None
+
+    @property
+    def hand_scale(self) -> float:
+        """The size results carry (:attr:`~digiteyes.trackers.TrackResult.hand_scale`)."""
+        return 1.0 if self.scale is None else self.scale
+
+    def forget(self) -> KinematicModel | None:
+        """A new track: the size is unknown again. The model file's model when the tracker
+        was on another size (to rebuild on), else None."""
+        self.pending = self.scale is not None
+        if self.scale is None or self.scale == 1.0:
+            return None
+        self.scale = 1.0
+        return self.nominal_model
+
+    def measure(self, rig: Rig, images: Sequence[np.ndarray], q: np.ndarray,
+                **settings) -> KinematicModel | None:
+        """On the first frame of a track (else None): the size at the start state ``q``
+        (:func:`hand_size_at`, ``settings`` passed on); the model of that size when it is
+        not the current one (to rebuild on), else None."""
+        if not self.pending:
+            return None
+        self.pending = False
+        scale = hand_size_at(self.nominal_model, rig, images, q, **settings)
+        if scale == self.scale:
+            return None
+        self.scale = scale
+        return scaled_model(self.nominal_model, scale, name=self.nominal_model.name)
+
+
 def _vertex(scales: np.ndarray, costs: np.ndarray, best: int) -> float:
     """The minimum of the parabola through the grid's least cost ``best`` and its two
     neighbours (within half a grid step of ``scales[best]``; the grid point itself at
@@ -213,6 +253,7 @@ __all__ = [
     "MIN_GAIN",
     "START_SCALES",
     "FeatureEvaluation",
+    "StartSize",
     "feature_evaluation",
     "hand_size_at",
     "start_size",

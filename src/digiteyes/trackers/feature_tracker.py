@@ -56,7 +56,6 @@ from digiteyes.kinematics import (
     forward_kinematics,
     validate_state,
 )
-from digiteyes.kinematics.scaling import scaled_model
 from digiteyes.solvers import (
     GaussNewtonOptions,
     SolverSummary,
@@ -66,7 +65,7 @@ from digiteyes.solvers import (
 from digiteyes.solvers.options import DAMPINGS, Damping
 from digiteyes.solvers.robust import ROBUST_LOSSES, RobustLoss
 from digiteyes.trackers.base import TrackResult, start_step
-from digiteyes.trackers.feature_size import hand_size_at
+from digiteyes.trackers.feature_size import StartSize, hand_size_at
 from digiteyes.trackers.finger_search import FingerRecovery, FingerSearchOptions
 from digiteyes.trackers.loss_hold import LOCAL_HOLD_FRAMES, LossHold, LossHoldOptions
 from digiteyes.trackers.parameterisation import StateParameterisation
@@ -426,16 +425,12 @@ class FeatureTracker:
 
     def __init__(self, model: KinematicModel, rig: Rig,
                  options: FeatureTrackerOptions | None = None) -> None:
-        self.nominal_model = model
         self.rig = rig
         self.options = FeatureTrackerOptions() if options is None else options
         opts = self.options
+        self.sizing = StartSize(model, opts.start_size)
         self.link_names, self.tip_names = feature_names(model, opts.links)
         self.n_features = (len(self.link_names) + len(self.tip_names)) * len(rig)
-        self.scale: float | None = (1.0 if opts.start_size and model.base_state is not None
-                                    else None)
-        """The size of the tracked hand relative to ``nominal_model`` (``start_size``;
-        None when the tracker does not size the hand)."""
         self._build(model)
         self._rms_history: deque[float] = deque(maxlen=opts.growth_frames)
         self._frame_index = 0
@@ -448,7 +443,12 @@ class FeatureTracker:
         """Per link, the factor on its radius fitted on the first frame (``fit_widths``;
         None before it, or when the start did not fit the image)."""
         self._widths_tried = False
-        self._size_tried = False
+
+    @property
+    def scale(self) -> float | None:
+        """The size of the tracked hand relative to the model file (``start_size``; None
+        when the tracker does not size the hand)."""
+        return self.sizing.scale
 
     def _build(self, model: KinematicModel) -> None:
         """Everything that depends on the tracked model (``model``: the model file's or
@@ -476,9 +476,14 @@ class FeatureTracker:
         one (:func:`~digiteyes.features.appearance.fit_shading`) on the first frame at
         ``initial_state``, which must therefore show the model where it is."""
         q = np.asarray(getattr(initial_state, "q", initial_state), dtype=float)
-        if self.scale is not None and self.scale != 1.0:  # a new track: size unknown again
-            self.scale = 1.0
-            self._build(self.nominal_model)
+        if (model := self.sizing.forget()) is not None:  # a new track: size unknown again
+            self._build(model)
+        self._start(q, shading)
+
+    def _start(self, initial_state: np.ndarray, shading: ShadingModel | None) -> None:
+        """Everything a track starts afresh but the hand's size (:meth:`reset`,
+        :meth:`restart`)."""
+        q = initial_state
         if q.shape != (self.model.n_q,):
             raise StateError(
                 f"initial state must hold {self.model.n_q} numbers for model "
@@ -497,7 +502,6 @@ class FeatureTracker:
         self._invalid_baseline = None
         self.radius_scale = None
         self._widths_tried = False
-        self._size_tried = False
 
     def restart(self, state: np.ndarray) -> None:
         """Continue the same scene from ``state`` (n_q,) after a re-detection: the motion
@@ -505,14 +509,10 @@ class FeatureTracker:
         the shading model, its backdrop, the foreground colours, the link widths and the
         hand's size of the first frame stay, so a recovery costs no refit."""
         foreground, radius_scale = self.silhouette_loss.foreground, self.radius_scale
-        scale, model = self.scale, self.model
-        self.reset(state, shading=self.shading)
-        if scale is not None and scale != 1.0:
-            self.scale = scale
-            self._build(model)
-            self.predictor.reset(self.state)
+        self._start(np.asarray(state, dtype=float), self.shading)
         self.silhouette_loss.foreground = foreground
-        self.radius_scale, self._widths_tried, self._size_tried = radius_scale, True, True
+        self.radius_scale, self._widths_tried = radius_scale, True
+        self.sizing.pending = False
 
     def step(self, frames: Sequence[np.ndarray]) -> TrackResult:
         """Estimate the state for one set of frames (one image per camera, rig order).
@@ -529,8 +529,8 @@ class FeatureTracker:
         # feature kernels are then compiled once, not twice (uint8 and float32)
         images = [prepare_image(frame).astype(np.float32, copy=False) for frame in frames]
         timings["feature_detection"] += time.perf_counter() - start
-        if self.scale is not None and not self._size_tried:  # before the shading fit,
-            start = time.perf_counter()                       # which draws the model
+        if self.sizing.pending:  # before the shading fit, which draws the model
+            start = time.perf_counter()
             self._measure_size(images, predicted)
             timings["feature_detection"] += time.perf_counter() - start
         if self.options.shading_correction:
@@ -591,26 +591,28 @@ class FeatureTracker:
         return (found, summary, problem.evaluation_at(found),
                 self.silhouette_loss.check(images, found, predicted), moved)
 
-    def start_size_at(self, images: list[np.ndarray], q: np.ndarray) -> float:
-        """The size of the hand in ``images`` (one prepared grey float32 image per camera,
-        :func:`~digiteyes.features.slices.prepare_image`) relative to the model file,
-        measured at its known state ``q`` (n_q,; translation in mm) by
-        :func:`~digiteyes.trackers.feature_size.start_size` from the tracker's features
-        (no width rows: they measure how thick the fingers look, not how long)."""
+    def _size_settings(self) -> dict:
+        """The tracker's feature settings for the size measurement
+        (:func:`~digiteyes.trackers.feature_size.hand_size_at`; no width rows: they measure
+        how thick the fingers look, not how long)."""
         opts = self.options
-        return hand_size_at(self.nominal_model, self.rig, images, q, opts.features,
-                            self.link_names, self.tip_names, opts.axis_points,
-                            opts.robust_loss, opts.robust_scale_px)
+        return {"features": opts.features, "link_names": self.link_names,
+                "tip_names": self.tip_names, "axis_points": opts.axis_points,
+                "loss": opts.robust_loss, "scale_px": opts.robust_scale_px}
+
+    def start_size_at(self, images: list[np.ndarray], q: np.ndarray) -> float:
+        """The size of the hand in ``images`` (one image per camera) relative to the model
+        file, measured at its known state ``q`` (n_q,; translation in mm) from the
+        tracker's features (:func:`~digiteyes.trackers.feature_size.hand_size_at`)."""
+        return hand_size_at(self.sizing.nominal_model, self.rig, images, q,
+                            **self._size_settings())
 
     def _measure_size(self, images: list[np.ndarray], q: np.ndarray) -> None:
-        """On the first frame: the hand's size at the start state ``q``
-        (:meth:`start_size_at`); a size other than the model file's rebuilds the tracker
-        on a model of that size."""
-        self._size_tried = True
-        scale = self.start_size_at(images, q)
-        if scale != self.scale:
-            self.scale = scale
-            self._build(scaled_model(self.nominal_model, scale, name=self.nominal_model.name))
+        """On the first frame: the hand's size at the start state ``q``; a size other than
+        the model file's rebuilds the tracker on a model of that size."""
+        if (model := self.sizing.measure(self.rig, images, q,
+                                         **self._size_settings())) is not None:
+            self._build(model)
             self.predictor.reset(q)
 
     def _fit_widths(self, images: list[np.ndarray], q: np.ndarray) -> np.ndarray | None:
@@ -671,7 +673,7 @@ class FeatureTracker:
             loss_reason="; ".join(reasons), iterations=summary.iterations,
             predicted_state=predicted, frame_index=self._frame_index, timings=timings,
             finger_lost=finger_lost, details=details,
-            hand_scale=1.0 if self.scale is None else self.scale)
+            hand_scale=self.sizing.hand_scale)
 
 
 def track_loss_reasons(rms: float, n_valid: int, n_features: int, previous_rms: Sequence[float],

@@ -44,7 +44,6 @@ from digiteyes.features import FeatureOptions, feature_residuals, measure_featur
 from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import KinematicModel, forward_kinematics, validate_state
 from digiteyes.kinematics.anatomy import DIGITS
-from digiteyes.kinematics.scaling import scaled_model
 from digiteyes.occlusion.parts import TemplatePlane, template_parts
 from digiteyes.occlusion.segmentation import segment_image
 from digiteyes.occlusion.visibility import (
@@ -71,7 +70,7 @@ from digiteyes.templates.layered import (
     refresh_templates,
 )
 from digiteyes.trackers.base import TrackResult, start_step
-from digiteyes.trackers.feature_size import hand_size_at
+from digiteyes.trackers.feature_size import StartSize
 from digiteyes.trackers.finger_search import FingerRecovery, FingerSearchOptions
 from digiteyes.trackers.loss_hold import LOCAL_HOLD_FRAMES, LossHold, LossHoldOptions
 from digiteyes.trackers.parameterisation import StateParameterisation
@@ -262,14 +261,9 @@ class LayeredTemplateTracker:
 
     def __init__(self, model: KinematicModel, rig: Rig,
                  options: LayeredTemplateOptions | None = None) -> None:
-        self.nominal_model = model
         self.rig = rig
         self.options = LayeredTemplateOptions() if options is None else options
-        self.scale: float | None = (1.0 if self.options.start_size
-                                    and model.base_state is not None else None)
-        """The size of the tracked hand relative to ``nominal_model`` (``start_size``;
-        None when the tracker does not size the hand)."""
-        self._size_tried = False
+        self.sizing = StartSize(model, self.options.start_size)
         self._build(model)
         self.templates: list[CameraTemplates] = []
         self.backgrounds: list[BackgroundTemplate] = []
@@ -278,6 +272,12 @@ class LayeredTemplateTracker:
         self._rms_history: deque[float] = deque(maxlen=self.options.growth_frames)
         self._frame_index = 0
         self.loss_hold = LossHold(self.options.hold_lost_frames)
+
+    @property
+    def scale(self) -> float | None:
+        """The size of the tracked hand relative to the model file (``start_size``; None
+        when the tracker does not size the hand)."""
+        return self.sizing.scale
 
     def _build(self, model: KinematicModel) -> None:
         """Everything that depends on the tracked model (``model``: the model file's or
@@ -303,10 +303,8 @@ class LayeredTemplateTracker:
         """Start a new track from ``initial_state`` (n_q,); the templates are acquired
         from the next frame at this state."""
         q = np.asarray(getattr(initial_state, "q", initial_state), dtype=float)
-        if self.scale is not None and self.scale != 1.0:  # a new track: size unknown again
-            self.scale = 1.0
-            self._build(self.nominal_model)
-        self._size_tried = False
+        if (model := self.sizing.forget()) is not None:  # a new track: size unknown again
+            self._build(model)
         if q.shape != (self.model.n_q,):
             raise StateError(f"initial state must hold {self.model.n_q} numbers for model "
                              f"{self.model.name!r}, got shape {q.shape}")
@@ -336,9 +334,12 @@ class LayeredTemplateTracker:
         if not self.templates:
             images = [topts.log.apply(g) for g in greys]
         timings["filtering"] = time.perf_counter() - tic
-        if self.scale is not None and not self._size_tried:
+        if self.sizing.pending:  # before the templates are acquired
             tic = time.perf_counter()
-            self._measure_size(greys, predicted)
+            if (model := self.sizing.measure(self.rig, greys, predicted,
+                                             features=self.options.features)) is not None:
+                self._build(model)
+                self.predictor.reset(predicted)
             timings["features"] += time.perf_counter() - tic
         if not self.templates:
             kin = forward_kinematics(self.model, predicted)
@@ -575,19 +576,7 @@ class LayeredTemplateTracker:
             loss_reason="; ".join(reasons), iterations=summary.iterations,
             predicted_state=predicted, frame_index=self._frame_index, timings=timings,
             finger_lost=finger_lost, details=details,
-            hand_scale=1.0 if self.scale is None else self.scale)
-
-    def _measure_size(self, greys: list[np.ndarray], q: np.ndarray) -> None:
-        """On the first frame: the hand's size at the start state ``q`` from the line and
-        tip features the feature tracker measures by default
-        (:func:`~digiteyes.trackers.feature_size.hand_size_at`); a size other than the
-        model file's rebuilds the tracker on a model of that size."""
-        self._size_tried = True
-        scale = hand_size_at(self.nominal_model, self.rig, greys, q, self.options.features)
-        if scale != self.scale:
-            self.scale = scale
-            self._build(scaled_model(self.nominal_model, scale, name=self.nominal_model.name))
-            self.predictor.reset(q)
+            hand_scale=self.sizing.hand_scale)
 
     def _finger_rms(self, final: list[LayeredEvaluation]) -> dict[str, float]:
         """Visibility-weighted residual RMS of each finger's parts over all cameras."""
