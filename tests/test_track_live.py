@@ -152,14 +152,16 @@ def test_auto_start_reaches_the_truth_within_five_frames(webcam, tmp_path):
 
 class LoseAfter:
     """A test tracker: holds its state, calls the track lost from frame ``lost_from`` on
-    (counted since the last reset)."""
+    (counted since the last reset); ``scale``: the hand's size it reports (None: it does
+    not size the hand)."""
 
     stages = ("hold",)
 
-    def __init__(self, lost_from: int) -> None:
+    def __init__(self, lost_from: int, scale: float | None = None) -> None:
         self.lost_from = lost_from
         self.state = None
         self.frame = 0
+        self.scale = scale
 
     def reset(self, initial_state: np.ndarray) -> None:
         self.state = np.array(initial_state, dtype=float)
@@ -172,7 +174,8 @@ class LoseAfter:
                            loss_reason="test" if lost else "", iterations=1,
                            predicted_state=self.state.copy(), frame_index=self.frame,
                            timings={"hold": 0.0, "total": 0.0},
-                           finger_lost=dict.fromkeys(FINGERS, False), details=None)
+                           finger_lost=dict.fromkeys(FINGERS, False), details=None,
+                           hand_scale=1.0 if self.scale is None else self.scale)
 
 
 def test_recovery_marks_each_reinitialisation(webcam, tmp_path):
@@ -181,16 +184,17 @@ def test_recovery_marks_each_reinitialisation(webcam, tmp_path):
     fresh = seq.truth.states[3].copy()
     calls = []
 
-    def recover(images):
-        calls.append(len(images))
+    def recover(images, hand_scale):
+        calls.append((len(images), hand_scale))
         return fresh
 
-    tracker = LoseAfter(lost_from=2)
+    tracker = LoseAfter(lost_from=2, scale=0.9)
     run = run_tracker(tracker, seq.model, seq.rig, iter(seq), start, tmp_path / "r",
                       overlay=False, progress=False, views_every=0, warm=False,
                       recover=recover)
-    # lost at frame 2; restarted there, it counts anew: frames 3, 4 held, 5 lost
-    assert run.reinitialised_frames == [2, 5] and calls == [1, 1]
+    # lost at frame 2; restarted there, it counts anew: frames 3, 4 held, 5 lost; the
+    # re-detection is asked for a hand of the size the tracker measured
+    assert run.reinitialised_frames == [2, 5] and calls == [(1, 0.9), (1, 0.9)]
     header = (tmp_path / "r" / "states.csv").read_text().splitlines()[0].split(",")
     assert "reinitialised" in header
     with open(tmp_path / "r" / "states.csv", newline="") as handle:
@@ -198,6 +202,7 @@ def test_recovery_marks_each_reinitialisation(webcam, tmp_path):
     assert flags == [0, 0, 1, 0, 0, 1]
     log = read_state_log(tmp_path / "r" / "states.csv", seq.model)
     assert np.allclose(log.states[2], fresh) and np.allclose(log.states[1], start)
+    assert np.allclose(log.hand_scale, 0.9)  # the re-detected frames' too
     assert json.loads((tmp_path / "r" / "summary.json").read_text())["reinitialisations"] == 2
 
 
@@ -220,7 +225,7 @@ def test_recovery_restarts_a_tracker_that_can(webcam, tmp_path):
     tracker = LoseAfterWithRestart(lost_from=2)
     run = run_tracker(tracker, seq.model, seq.rig, iter(seq), seq.initial_state,
                       tmp_path / "r", overlay=False, progress=False, views_every=0,
-                      warm=False, recover=lambda images: fresh)
+                      warm=False, recover=lambda images, hand_scale: fresh)
     assert run.reinitialised_frames == [2, 5] and len(tracker.restarts) == 2
     np.testing.assert_array_equal(tracker.restarts[0], fresh)
 
@@ -443,7 +448,7 @@ def test_recovery_keeps_the_track_when_the_redetection_explains_less(webcam, tmp
     tracker.silhouette_loss = _Mismatch(fresh, 0.5, fresh_score)
     run = run_tracker(tracker, seq.model, seq.rig, iter(seq), seq.initial_state,
                       tmp_path / "r", overlay=False, progress=False, views_every=0,
-                      warm=False, recover=lambda images: fresh)
+                      warm=False, recover=lambda images, hand_scale: fresh)
     # after the restart at frame 2 the estimate is the re-detected state itself, so the
     # same re-detection at the next loss (frame 5) explains no more and is declined
     assert run.reinitialised_frames == ([2] if accepted else [])
@@ -553,6 +558,49 @@ def test_auto_takes_the_keypoint_tracker_only_for_datasets_the_detector_sees(tmp
         else:  # measured at the model's size: no personal model written
             assert summary["hand_scale"] == 1.0
             assert not (out / "hand-measured.dh").exists()
+
+
+@pytest.mark.skipif(not mediapipe_available(), reason="optional extra digiteyes[mediapipe]")
+def test_two_cameras_start_automatically_at_the_hands_size(tmp_path, capsys, monkeypatch):
+    """A flesh hand 0.9 times the model's size before two cameras, ``--init auto``: the
+    start measures the size (within 0.03), the feature tracker tracks a model of that size
+    (``model.dh`` beside the log), ``hand-measured.dh`` keeps it for later footage, and
+    the tracked keypoints are closer to the truth than in the same run held at the model's
+    size."""
+    from digiteyes.detect import initialiser
+    from digiteyes.kinematics.keypoints import hand_keypoints
+
+    data = tmp_path / "data"
+    assert main(["render", "desk-2cam", "-o", str(data), "--frames", "3", "--appearance",
+                 "flesh", "--color", "--noise", "2", "--hand-scale", "0.9"]) == 0
+    sequence = open_sequence(data)
+    errors = {}
+    for sized in (True, False):
+        if not sized:  # no size ever differs enough from the model's to be taken
+            monkeypatch.setattr(initialiser, "MIN_SIZE_CHANGE", 1.0)
+        out = tmp_path / f"track-{sized}"
+        assert main(["track", str(data), "-o", str(out), "--init", "auto", "--tracker",
+                     "features", "--quiet", "--no-overlay"]) == 0
+        printed = capsys.readouterr().out
+        summary = json.loads((out / "summary.json").read_text())
+        tracked = model_from_file(out / "model.dh")
+        log = read_state_log(out / "states.csv", tracked)
+        names, points = hand_keypoints(tracked, log.states, log.hand_scale)
+        idx = [sequence.truth.keypoint_names.index(n) for n in names]
+        errors[sized] = float(np.linalg.norm(
+            points - sequence.truth.keypoints_3d[:, idx], axis=2).mean())
+        if not sized:
+            assert "two_camera_hand_scale" not in summary["start"]
+            assert not (out / "hand-measured.dh").exists()
+            break
+        scale = summary["start"]["two_camera_hand_scale"]
+        assert scale == pytest.approx(0.9, abs=0.03)
+        assert "the cameras measure the hand 0.9" in printed
+        assert model_hand_length(tracked) == pytest.approx(
+            scale * model_hand_length(sequence.model), rel=1e-6)
+        measured = model_from_file(out / "hand-measured.dh")
+        assert model_hand_length(measured) == pytest.approx(model_hand_length(tracked))
+    assert errors[True] < errors[False] - 2.0, errors
 
 
 @pytest.mark.skipif(not mediapipe_available(), reason="optional extra digiteyes[mediapipe]")

@@ -68,12 +68,15 @@ OVERLAY_PRESET = "veryfast"
 look at (about 2.5 KB and 5 ms per 640x480 frame, where the near-lossless CRF 12 of the
 dataset videos at the medium preset took 60 KB and 45 ms)."""
 
-Recover = Callable[[list[np.ndarray]], "np.ndarray | None"]
+Recover = Callable[[list[np.ndarray], float], "np.ndarray | None"]
+"""``recover(images, hand_scale)``: the re-initialisation after a lost frame, from one
+frame's images (rig order) a fresh state of a hand ``hand_scale`` times the size of the
+tracker's model file (the lost frame's :attr:`~digiteyes.trackers.TrackResult.hand_scale`:
+the size the tracker measured), or None when it finds no hand (e.g.
+:class:`digiteyes.detect.initialiser.AutoInitialiser`)."""
 Check = Callable[[int, Sequence[np.ndarray], np.ndarray], "str | None"]
 """``check(index, images, state)``: why the estimate of frame ``index`` is off (a loss
 reason), or None (e.g. :class:`digiteyes.detect.check.DetectionCheck`)."""
-"""A function from one frame's images (rig order) to a fresh state, or None when it finds
-no hand: the re-initialisation after a lost frame."""
 
 
 class FrameSink(Protocol):
@@ -186,7 +189,8 @@ def step_frames(tracker: Tracker, frames: Iterable[Sequence[np.ndarray]],
 def recovered_state(tracker: Tracker, images: Sequence[np.ndarray], result: TrackResult,
                     recover: Recover | None) -> np.ndarray | None:
     """The state to continue from after frame ``result``: on a lost frame, the
-    re-detection ``recover(images)`` (n_q,) if it found a hand and, where the tracker has
+    re-detection ``recover(images, result.hand_scale)`` (n_q,), a hand of the size the
+    tracker measured, if it found one and, where the tracker has
     a silhouette rule with a fitted foreground (``tracker.silhouette_loss``), explains
     the hand's silhouette better than the estimate does
     (:meth:`~digiteyes.trackers.silhouette_loss.SilhouetteLoss.mismatch`): a fit to
@@ -195,7 +199,7 @@ def recovered_state(tracker: Tracker, images: Sequence[np.ndarray], result: Trac
     otherwise (the tracker goes on from its estimate)."""
     if not result.lost or recover is None:
         return None
-    fresh = recover(list(images))
+    fresh = recover(list(images), result.hand_scale)
     if fresh is None:
         return None
     fresh = np.asarray(fresh, dtype=float)
@@ -271,8 +275,8 @@ def run_tracker(
                     if reason:
                         result = replace(result, lost=True, loss_reason=reason)
                 fresh = recovered_state(tracker, images, result, recover)
-                if fresh is not None:  # a fit at the model's size
-                    result = replace(result, state=fresh, hand_scale=1.0)
+                if fresh is not None:  # a fit of a hand of the size the tracker measured
+                    result = replace(result, state=fresh)
                     run.reinitialised_frames.append(index)
                 seconds += time.perf_counter() - start
                 log.append(index, result.state, time_s=seconds, lost=result.lost,

@@ -356,7 +356,8 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
     rig.check_images(first)
     frames = chain([first], frames)
     rig, frames = _transformed_input(job, rig, frames, say)
-    model = source.model
+    model = nominal = source.model
+    start_scale = 1.0
     auto = source.initial is None
     initialiser = None
     start_note: dict[str, object] = {"init": "auto" if auto else "given",
@@ -391,6 +392,12 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
                 f"tracks a {job.hand} hand (--hand {sorted(seen)[0]} if that is the one)")
         initialiser.side = TRACKED_SIDE  # re-detections keep to the started hand's side
         start_note["hand"] = "left" if rig.mirrored else "right"
+        initial, start_scale = initialiser.size_hand(initial)
+        if start_scale != 1.0:  # two cameras measured the hand: track a model of its size
+            model = initialiser.model
+            start_note["two_camera_hand_scale"] = start_scale
+            say(f"--init auto: the cameras measure the hand {start_scale:.3f} times the "
+                "model's size; tracking a model of that size")
     else:
         initial = np.asarray(source.initial)
     first_index = int(start_note.get("first_frame", 0))
@@ -422,12 +429,15 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
         for sink in sinks:
             sink.close()
     run.files["keypoints"] = out / KEYPOINTS_FILE
+    segments, tracker_scale = None, 1.0
     if sizes_hand(tracker):
-        start_note["hand_scale"] = float(getattr(tracker, "start_scale", tracker.scale))
+        start_note["hand_scale"] = start_scale * float(getattr(tracker, "start_scale",
+                                                               tracker.scale))
         segments = getattr(tracker, "measured_segments", None)
-        if run.hand_scale is not None and (run.hand_scale != 1.0 or segments is not None):
-            run.files["measured-model"] = _write_measured_model(model, run.hand_scale,
-                                                                segments, out, say)
+        tracker_scale = 1.0 if run.hand_scale is None else run.hand_scale
+    if start_scale * tracker_scale != 1.0 or segments is not None:
+        run.files["measured-model"] = _write_measured_model(
+            nominal, start_scale * tracker_scale, segments, out, say)
     _record_start(run, start_note, initialiser, job.smooth, source.rate, check)
     if source.lengths is not None and not run.interrupted and job.max_frames is None:
         record_missing(run.files["summary"], source.lengths[0], first_index + run.n_frames,
@@ -447,10 +457,11 @@ MEASURED_MODEL = "hand-measured.dh"
 def _write_measured_model(model: KinematicModel, scale: float,
                           segments: np.ndarray | None, out: Path,
                           say: Callable[[str], None]) -> Path:
-    """Write ``model`` at the size the tracker measured (its last frame's), with the 15
-    finger ``segments`` (mm) when it measured them, as ``out/hand-measured.dh``, to track
-    later footage of the same hand with ``--model`` (one camera cannot measure the size
-    itself); say so."""
+    """Write ``model`` (the model file's) at the size measured, ``scale``: the two cameras'
+    at the automatic start (:meth:`~digiteyes.detect.initialiser.AutoInitialiser.size_hand`)
+    times the tracker's at its last frame, with the 15 finger ``segments`` (mm) when the
+    tracker measured them, as ``out/hand-measured.dh``, to track later footage of the same
+    hand with ``--model`` (one camera cannot measure the size itself); say so."""
     from digiteyes.detect.hand_size import model_hand_length, write_personal_model
 
     path = out / MEASURED_MODEL

@@ -83,7 +83,7 @@ def test_in_the_run_loop_a_reason_marks_the_frame_lost_and_the_recovery_runs(han
     check = a_check(hand, camera, truth)
     asked = []
 
-    def recover(images):
+    def recover(images, hand_scale):
         asked.append(len(asked))
         return truth
 

@@ -8,16 +8,18 @@ import sys
 import numpy as np
 import pytest
 
-from digiteyes.camera import Rig
+from digiteyes.camera import Camera, Rig
 from digiteyes.detect import pose
 from digiteyes.detect.candidate import HandCandidate
 from digiteyes.detect.classic import ClassicDetector
 from digiteyes.detect.fallback import FallbackDetector
 from digiteyes.detect.hand21 import model_anchors
+from digiteyes.detect.hand_size import model_hand_length
 from digiteyes.detect.initialiser import AutoInitialiser
 from digiteyes.detect.mediapipe_detector import MediaPipeDetector, mediapipe_available
 from digiteyes.kinematics import forward_kinematics
 from digiteyes.kinematics.keypoints import keypoints
+from digiteyes.kinematics.scaling import scaled_model
 from digiteyes.synth.options import RenderOptions
 from digiteyes.synth.scenarios import build_scenario
 from digiteyes.synth.views import render_views
@@ -130,3 +132,81 @@ def test_detections_no_pose_explains_are_reported_not_raised(hand, camera):
     assert "palm pose" in result.fit_failure
     record = pose_to_json(result, Rig((camera,)), ["x.png"])
     assert record["hand"] is None and record["fit_failure"] == result.fit_failure
+
+
+class ProjectingDetector:
+    """A detector that reports given 3D keypoints (world, mm) as each camera sees them,
+    with Gaussian pixel noise and, for the camera named ``shifted``, every keypoint moved
+    by ``shift_px``."""
+
+    name = "projecting"
+    locates_joints = True
+
+    def __init__(self, points: np.ndarray, noise_px: float = 1.0, shifted: str | None = None,
+                 shift_px: float = 0.0) -> None:
+        self.points, self.noise_px = points, noise_px
+        self.shifted, self.shift_px = shifted, shift_px
+        self.rng = np.random.default_rng(0)
+
+    def detect(self, image, camera=None):
+        pixels = camera.project(self.points) + self.rng.normal(0.0, self.noise_px, (21, 2))
+        if camera.name == self.shifted:
+            pixels = pixels + self.shift_px
+        return [HandCandidate(pixels, np.ones(21), 0.9, (0.0, 0.0, 640.0, 480.0), "right",
+                              self.name)]
+
+
+def test_two_cameras_measure_the_hands_size_at_the_start(hand, camera, posed):
+    """A hand 0.9 or 1.1 times the model's size seen by two cameras: the start is fitted at
+    the model's size, then ``size_hand`` measures the size within 0.02, moves the
+    initialiser to a model of that size, and returns the state that poses the hand where
+    it is; a hand 1.02 times the size keeps the model's; detections the sized fit does not
+    match (one view's keypoints 40 px off), or one camera, keep the model's too."""
+    side = Camera.look_at("side", eye=(300, 0, 350), target=(0, 0, 0), up=(0, -1, 0))
+    rig = Rig((camera, side))
+    q = posed(hand, 3)
+    images = [np.zeros((480, 640), np.uint8)] * 2
+    for size, shift_px, cameras, expected in ((0.9, 0.0, rig, 0.9), (1.1, 0.0, rig, 1.1),
+                                              (1.02, 0.0, rig, 1.0), (0.9, 40.0, rig, 1.0),
+                                              (0.9, 0.0, Rig((camera,)), 1.0)):
+        true_hand = scaled_model(hand, size)
+        points = forward_kinematics(true_hand, q).points(*model_anchors(true_hand))
+        init = AutoInitialiser(hand, cameras, "classic")
+        init._detector = ProjectingDetector(points, shifted="side", shift_px=shift_px)
+        start = init(images[:len(cameras)])
+        assert start is not None
+        state, scale = init.size_hand(start)
+        assert scale == pytest.approx(expected, abs=0.02), (size, shift_px, len(cameras))
+        if expected == 1.0:
+            assert scale == 1.0 and state is start and init.model is hand
+            continue
+        assert init.model.name == hand.name
+        assert model_hand_length(init.model) == pytest.approx(scale * model_hand_length(hand))
+        anchors = model_anchors(init.model)
+        posed_points = forward_kinematics(init.model, state).points(*anchors)
+        assert np.linalg.norm(posed_points - points, axis=1).mean() < 4.0  # mm
+        again = init(images)  # a recovery: a fit of the measured hand
+        assert again is not None
+        refit = forward_kinematics(init.model, again).points(*anchors)
+        assert np.linalg.norm(refit - points, axis=1).mean() < 4.0
+
+
+def test_a_recovery_fits_a_hand_of_the_size_the_tracker_measured(hand, camera, posed):
+    """Asked for a hand 0.9 times the model's size (a tracker that measured it), the
+    initialiser returns the state of the scaled model that poses the detected hand; at the
+    model's size the same detections leave the fitted hand farther from them."""
+    q = posed(hand, 5)
+    small = scaled_model(hand, 0.9)
+    anchors = model_anchors(small)
+    points = forward_kinematics(small, q).points(*anchors)
+    side = Camera.look_at("side", eye=(300, 0, 350), target=(0, 0, 0), up=(0, -1, 0))
+    init = AutoInitialiser(hand, Rig((camera, side)), "classic")
+    init._detector = ProjectingDetector(points, noise_px=0.5)
+    images = [np.zeros((480, 640), np.uint8)] * 2
+    state = init(images, hand_scale=0.9)
+    sized = np.linalg.norm(forward_kinematics(small, state).points(*anchors) - points,
+                           axis=1).mean()
+    state = init(images)
+    held = np.linalg.norm(forward_kinematics(hand, state).points(*model_anchors(hand))
+                          - points, axis=1).mean()
+    assert sized < 2.0 < held, (sized, held)

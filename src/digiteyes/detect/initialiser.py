@@ -8,13 +8,19 @@ the hand scale held at the model's (``fit_scale=False``), so the state belongs t
 model the tracker uses (a personal model from ``calibrate-hand`` sets the size). When the
 joint fit to all cameras does not match the detections, the best fit to one camera alone
 is taken (the tracker, seeing every camera, corrects its depth).
+
+With two or more cameras the keypoints also say how large the hand is: after the start,
+:meth:`AutoInitialiser.size_hand` fits the start frame's detections again with the scale
+free and, when that fit matches them and the size is clearly not the model's, moves the
+initialiser (and the run) to a model of that size (docs/initialisation.md, "The hand's
+size from two cameras").
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from itertools import chain
 
 import numpy as np
@@ -24,6 +30,7 @@ from digiteyes.detect.model_fit import FitOptions, KeypointObservation, PoseFit,
 from digiteyes.detect.pose import PoseResult, estimate_pose, make_detector
 from digiteyes.errors import DatasetError, DigitEyesError
 from digiteyes.kinematics import KinematicModel
+from digiteyes.kinematics.scaling import scaled_model
 
 MAX_HANDS = 2
 """Hands the detector returns at most, so that the one of the tracked side can be picked
@@ -31,6 +38,17 @@ when a second hand is in view (:mod:`digiteyes.detect.side`)."""
 MIN_DETECTED_FRACTION = 0.5
 """A fit is accepted when at least this fraction of the 21 keypoints reprojects within
 ``max_error_px`` (a detector's wrong labelling leaves most keypoints far off)."""
+SIZE_FIT_MAX_PX = 8.0
+""":meth:`AutoInitialiser.size_hand` takes a size only from a fit whose median keypoint
+reprojection error is at most this (px): twice the detector error the fit expects
+(:attr:`~digiteyes.detect.model_fit.FitOptions.sigma_px`). Measured on the first frames of
+the two-camera desk renders (``digiteyes bench auto-start``): MediaPipe's keypoints on the
+flesh hand fit within 2.9-5.0 px and give sizes within 0.03 of the truth; the classic
+detector's fit at 10.9 px and more with sizes up to 0.33 off."""
+MIN_SIZE_CHANGE = 0.05
+"""A measured size within this of 1 keeps the model's (the same dead band as the first
+frame's feature measurement, :data:`digiteyes.trackers.feature_size.DEAD_BAND`): a hand of
+the model's size measured 0.968-1.004 in those renders."""
 
 
 @dataclass
@@ -74,31 +92,68 @@ class AutoInitialiser:
         """The class name of the detector in use (``auto`` resolved)."""
         return type(self._detector).__name__
 
-    def __call__(self, images: Sequence[np.ndarray]) -> np.ndarray | None:
-        """A state of ``model`` (mm, rad) fitted to the hand detected in ``images`` (rig
-        order), or None when no camera finds a hand or the fit does not match it."""
+    def __call__(self, images: Sequence[np.ndarray], hand_scale: float = 1.0
+                 ) -> np.ndarray | None:
+        """The state (mm, rad) of a hand ``hand_scale`` times the size of :attr:`model`
+        fitted to the hand detected in ``images`` (rig order): a state of ``model`` at
+        ``hand_scale`` 1, else of ``scaled_model(model, hand_scale)`` (a tracker that
+        measured the hand's size); None when no camera finds a hand or the fit does not
+        match it."""
         self.calls += 1
+        options = replace(self._options, scale=float(hand_scale))
         try:
             result = estimate_pose(list(images), self.rig, self._detector, self.model,
-                                   self._options, self.side)
+                                   options, self.side)
         except DigitEyesError:  # detections no hand pose explains: no state, as no hand
             return None
         self.seconds += sum(result.seconds.values())
         self.last = result
         fit = result.fit
         if fit is not None and not self._accepted(fit.reprojection_px):
-            fit = self._best_single_camera(result)
+            fit = self._best_single_camera(result, options)
         if fit is None:
             return None
         self.found += 1
-        return np.array(fit.q, dtype=float)
+        return fit.scaled_state()
+
+    def size_hand(self, state: np.ndarray) -> tuple[np.ndarray, float]:
+        """The hand's size from the last detections (:attr:`last`, those that gave the
+        start ``state``), fitted again with the scale free, when two or more cameras saw
+        the hand, that fit's median reprojection error is at most :data:`SIZE_FIT_MAX_PX`
+        and its size lies more than :data:`MIN_SIZE_CHANGE` from 1 (Rehg Sec. 2.2.3 names
+        the hand's scale among the parameters to calibrate; a second camera observes it).
+
+        Returns ``(state, scale)``: the state that poses the measured hand (palm in mm, a
+        state of ``scaled_model(model, scale)``) and its size relative to :attr:`model`,
+        which from then on is that model (later fits, the recoveries, are of it); or
+        ``(state, 1.0)`` unchanged."""
+        if self.last is None:
+            return state, 1.0
+        observations = [KeypointObservation.of(candidate, camera) for camera, candidate
+                        in zip(self.rig, self.last.candidates, strict=True)
+                        if candidate is not None]
+        if len(observations) < 2:
+            return state, 1.0
+        started = time.perf_counter()
+        try:
+            fit = fit_keypoints(self.model, observations, options=FitOptions(fit_scale=True))
+        except DigitEyesError:
+            return state, 1.0
+        finally:
+            self.seconds += time.perf_counter() - started
+        errors = fit.reprojection_px[np.isfinite(fit.reprojection_px)]
+        if (not errors.size or np.median(errors) > SIZE_FIT_MAX_PX
+                or abs(fit.scale - 1.0) <= MIN_SIZE_CHANGE):
+            return state, 1.0
+        self.model = scaled_model(self.model, fit.scale, name=self.model.name)
+        return fit.scaled_state(), float(fit.scale)
 
     def _accepted(self, reprojection_px: np.ndarray) -> bool:
         errors = reprojection_px[np.isfinite(reprojection_px)]
         return bool(errors.size
                     and np.mean(errors <= self.max_error_px) >= MIN_DETECTED_FRACTION)
 
-    def _best_single_camera(self, result: PoseResult) -> PoseFit | None:
+    def _best_single_camera(self, result: PoseResult, options: FitOptions) -> PoseFit | None:
         """When the cameras' detections disagree (a detector labels a hand seen from the
         palm in one view and from the back in another), the best fit to one camera alone
         that matches its detection; the depth then comes from the hand's size."""
@@ -109,7 +164,7 @@ class AutoInitialiser:
                 continue
             observation = KeypointObservation.of(candidate, camera)
             try:
-                fit = fit_keypoints(self.model, [observation], options=self._options)
+                fit = fit_keypoints(self.model, [observation], options=options)
             except DigitEyesError:
                 continue
             if self._accepted(fit.reprojection_px):
