@@ -507,6 +507,27 @@ def test_a_colour_video_of_the_flesh_hand_is_tracked_by_the_keypoint_tracker(tmp
     assert np.median(errors) < 12.0
 
 
+@pytest.mark.skipif(not mediapipe_available(), reason="optional extra digiteyes[mediapipe]")
+def test_a_colour_video_is_tracked_by_features_anchored_by_keypoints(tmp_path):
+    """``track VIDEO --init auto --tracker features+keypoints``: on the hand, and without
+    the detection check that other trackers get on footage (it detects every frame)."""
+    camera, views, video = flesh_video(tmp_path, 6)
+    save_rig(Rig((camera,)), tmp_path / "rig.json")
+    out = tmp_path / "out"
+    assert main(["track", str(video), "--rig", str(tmp_path / "rig.json"), "--init", "auto",
+                 "--tracker", "features+keypoints", "-o", str(out), "--quiet",
+                 "--no-overlay"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["tracker"] == "features+keypoints" and "detection_check" not in summary
+    with open(out / "keypoints.csv", newline="", encoding="utf-8") as handle:
+        rows = list(csv.DictReader(handle))
+    errors = [np.linalg.norm(np.subtract(
+        [float(row[f"{camera.name}.{f}.tip.u_px"]), float(row[f"{camera.name}.{f}.tip.v_px"])],
+        views[k].keypoints_2d[views[k].keypoint_names.index(f"{f}.tip")]))
+        for k, row in enumerate(rows) for f in FINGERS]
+    assert len(rows) == 6 and np.median(errors) < 12.0
+
+
 def test_footage_without_the_extra_says_what_it_costs_and_how_to_install(tmp_path, capsys,
                                                                         monkeypatch):
     """Without MediaPipe, ``--tracker auto`` on a video runs the feature tracker and says

@@ -52,6 +52,7 @@ from digiteyes.pipeline import FrameSink, TrackingRun, run_tracker
 from digiteyes.trackers import (
     DEFAULT_TRACKER,
     FeatureTrackerOptions,
+    Tracker,
     all_features,
     create_tracker,
     sizes_hand,
@@ -416,7 +417,7 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
             f"{_why_tracker(name, source.footage, job.detector, model)})")
     tracker = create_tracker(name, model, rig,
                              **_tracker_options(job, model, name, source.footage, auto))
-    check = _detection_check(job, source.footage, name, model, rig)
+    check = _detection_check(job, source.footage, tracker, model, rig)
     out = Path(job.output)
     out.mkdir(parents=True, exist_ok=True)
     sinks = _open_sinks(job, model, rig, out, source.rate, say)
@@ -600,15 +601,16 @@ def _detector_agrees(model: KinematicModel, rig: Rig, detector: str,
     return found >= AGREEMENT_RATE * len(frames)
 
 
-def _detection_check(job: TrackJob, footage: bool, name: str, model: KinematicModel,
+def _detection_check(job: TrackJob, footage: bool, tracker: Tracker, model: KinematicModel,
                      rig: Rig) -> DetectionCheck | None:
     """The detector's check of the track (:mod:`digiteyes.detect.check`): on footage,
-    with a learned detector, for every tracker but the keypoint tracker (which follows
-    the detector anyway) and every model with the 21 hand keypoints."""
+    with a learned detector, for every tracker but those that run the detector on every
+    frame themselves (``follows_detector``: the keypoint tracker, ``features+keypoints``)
+    and every model with the 21 hand keypoints."""
     from digiteyes.detect.check import DetectionCheck
     from digiteyes.detect.mediapipe_detector import mediapipe_available
 
-    if (not footage or job.check_every <= 0 or name == FOOTAGE_TRACKER
+    if (not footage or job.check_every <= 0 or getattr(tracker, "follows_detector", False)
             or job.detector == "classic" or not mediapipe_available()):
         return None
     if not has_hand21(model):  # another object, or part of a hand

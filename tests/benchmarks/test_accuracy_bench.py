@@ -60,3 +60,15 @@ def test_each_tracker_tracks_its_own_frames_of_one_render():
     for row in rows:
         assert row["flag"]["lost_frames"] == row["truly_lost_frames"]
         assert row["finger_flag"]["judged"] == 5 * row["frames"]
+
+
+def test_a_tracker_whose_extra_is_absent_is_left_out(monkeypatch, capsys):
+    """Without MediaPipe the default table runs every tracker but ``features+keypoints``,
+    and says why."""
+    from digiteyes.trackers import anchored_features
+
+    monkeypatch.setattr(anchored_features, "mediapipe_available", lambda: False)
+    names = accuracy.available_trackers()
+    assert "features+keypoints" not in names and names[0] == "features"
+    assert "keypoints" in names  # its detector falls back to the classic one
+    assert "tracker features+keypoints left out" in capsys.readouterr().out

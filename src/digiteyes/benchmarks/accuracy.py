@@ -50,12 +50,15 @@ from digiteyes.benchmarks.tracker import (
     render_sequence,
     track_sequence,
 )
+from digiteyes.camera import Rig
+from digiteyes.camera.default import default_camera
 from digiteyes.errors import DigitEyesError
 from digiteyes.evaluate import evaluate_run
 from digiteyes.evaluate.truth_loss import flag_scores, truth_loss
+from digiteyes.kinematics import load_model
 from digiteyes.synth.scenarios import Scenario, build_scenario
 from digiteyes.synth.setups import setup_scenario
-from digiteyes.trackers import tracker_entry, tracker_names
+from digiteyes.trackers import create_tracker, tracker_entry, tracker_names
 
 FRAMES = 120
 """Frames per sequence of the full run."""
@@ -160,6 +163,22 @@ def frames_per_tracker(names: Sequence[str], quick: bool = False,
     return out
 
 
+def available_trackers() -> list[str]:
+    """The registered trackers that can run here, in registry order: one that needs an
+    optional extra this installation lacks (``features+keypoints`` without MediaPipe) is
+    left out, with a line saying why."""
+    names = []
+    model, rig = load_model("hand"), Rig((default_camera(640, 480),))
+    for name in tracker_names():
+        try:
+            create_tracker(name, model, rig)
+        except DigitEyesError as error:
+            print(f"accuracy: tracker {name} left out: {error}", flush=True)
+            continue
+        names.append(name)
+    return names
+
+
 def source_rows(appearance: str, hand: str, source: str, frames: dict[str, int],
                 progress: bool = False) -> list[dict[str, Any]]:
     """Render one scenario ``source`` (``whole-hand`` or a camera setup) in ``appearance``
@@ -218,7 +237,7 @@ def run(json_path: str | None = None, quick: bool = False,
     50 mm); its ``timeline`` has the frames ``flagged`` and ``truly_lost`` as strings of
     ``0`` and ``1``, one character per frame.
     """
-    names = list(tracker_names()) if trackers is None else list(trackers)
+    names = available_trackers() if trackers is None else list(trackers)
     for name in names:
         tracker_entry(name)
     per_tracker = frames_per_tracker(names, quick, frames)

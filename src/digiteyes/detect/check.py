@@ -42,6 +42,21 @@ def worst_digit_gap(tracked: np.ndarray, detected: np.ndarray) -> tuple[float, s
     return max((float(gap[keys].mean()), digit) for digit, keys in DIGIT_KEYPOINTS.items())
 
 
+PALM_KEYPOINTS = [0, 5, 9, 13, 17]
+"""The wrist and the four finger MCPs of :data:`~digiteyes.detect.hand21.HAND21_NAMES`."""
+
+
+def palm_gap(tracked: np.ndarray, detected: np.ndarray) -> float | None:
+    """The mean distance of the palm's keypoints (:data:`PALM_KEYPOINTS`) from the
+    detected ones in palm lengths (the detection's wrist to middle MCP): tracked and
+    detected (21, 2) px of one image. None for a detection without a palm length."""
+    palm = float(np.linalg.norm(detected[0] - detected[9]))
+    if not palm > 0:
+        return None
+    return float(np.linalg.norm(tracked[PALM_KEYPOINTS] - detected[PALM_KEYPOINTS],
+                                axis=1).mean() / palm)
+
+
 @dataclass
 class DetectionCheck:
     """The check of the module docstring; callable as ``check(index, images, state)``.

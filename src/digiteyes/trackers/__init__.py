@@ -13,6 +13,10 @@ from digiteyes.features.selection import (
     all_features,
     thesis_whole_hand_links,
 )
+from digiteyes.trackers.anchored_features import (
+    AnchoredFeatureOptions,
+    AnchoredFeatureTracker,
+)
 from digiteyes.trackers.base import (
     Tracker,
     TrackResult,
@@ -79,9 +83,13 @@ register_tracker("random-search", RandomSearchTracker, RandomSearchOptions,
 register_tracker("keypoints", KeypointTracker, KeypointTrackerOptions,
                  "ours: the model fitted every frame to a learned detector's keypoints "
                  "(MediaPipe when installed), from the previous estimate")
+register_tracker("features+keypoints", AnchoredFeatureTracker, AnchoredFeatureOptions,
+                 "ours: the feature tracker with MediaPipe's keypoints in every solve "
+                 "(needs the mediapipe extra)")
 
 __all__ = [
-    "DEFAULT_TRACKER", "THESIS_EXCLUDED_LINKS", "CondensationOptions", "CondensationTracker",
+    "DEFAULT_TRACKER", "THESIS_EXCLUDED_LINKS", "AnchoredFeatureOptions",
+    "AnchoredFeatureTracker", "CondensationOptions", "CondensationTracker",
     "DivideConquerDetails", "DivideConquerOptions", "DivideConquerTracker", "FeatureDetails",
     "FeatureTracker", "FeatureTrackerOptions", "KeypointDetails", "KeypointTracker",
     "KeypointTrackerOptions", "LayeredFeatureTracker", "LayeredTemplateOptions",

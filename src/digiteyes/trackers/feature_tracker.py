@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import time
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -52,6 +52,7 @@ from digiteyes.features.width_scale import link_radius_scales
 from digiteyes.kinematics import (
     STEP_FORMS,
     KinematicModel,
+    Kinematics,
     StepForm,
     forward_kinematics,
     validate_state,
@@ -312,6 +313,11 @@ class _Evaluation:
     residuals: np.ndarray
 
 
+MoreRows = Callable[[Kinematics, bool], tuple[np.ndarray, "np.ndarray | None"]]
+"""``rows(kin, jacobian)``: residuals (M,) at the kinematics ``kin`` of the iterate and, if
+asked, their Jacobian (M, n_v) in the tracker's step form (:class:`FeatureProblem`)."""
+
+
 class FeatureProblem:
     """Feature alignment at one set of frames as a least-squares problem: residuals are
     re-measured at every iterate (thesis Sec. 4.3.2 steps 1-5), in every camera, and
@@ -330,13 +336,17 @@ class FeatureProblem:
     timings : seconds per stage, added to in place.
     radius_scale : per link, the factor on its radius in the width residuals (None: 1;
         :mod:`digiteyes.features.width_scale`).
+    more_rows : further residual rows from the same kinematics, stacked below the
+        features' (e.g. a detector's keypoints, :mod:`digiteyes.trackers.anchored_features`);
+        None: the features alone. The evaluations keep the features' rows only.
     """
 
     def __init__(self, model: KinematicModel, rig: Rig, images: list[np.ndarray],
                  link_names: Sequence[str], tip_names: Sequence[str],
                  options: FeatureTrackerOptions, parameterisation: StateParameterisation,
                  edge_bias: Sequence[EdgeBias], timings: dict[str, float],
-                 radius_scale: np.ndarray | None = None) -> None:
+                 radius_scale: np.ndarray | None = None,
+                 more_rows: MoreRows | None = None) -> None:
         self.model = model
         self.rig = rig
         self.images = images
@@ -347,6 +357,7 @@ class FeatureProblem:
         self.edge_bias = list(edge_bias)
         self.timings = timings
         self.radius_scale = radius_scale
+        self.more_rows = more_rows
         self.n_v = self.param.n_v
         self.evaluations: list[_Evaluation] = []
 
@@ -379,6 +390,10 @@ class FeatureProblem:
         J = np.concatenate(Js) if jacobian else None
         timings["jacobian"] += time.perf_counter() - start
         self.evaluations.append(_Evaluation(np.array(q), measurements, layouts, r))
+        if self.more_rows is not None:
+            r_more, J_more = self.more_rows(kin, jacobian)
+            r = np.concatenate([r, r_more])
+            J = np.concatenate([J, J_more]) if jacobian else None
         return r, J
 
     def retract(self, q: np.ndarray, dv: np.ndarray) -> np.ndarray:
@@ -545,7 +560,8 @@ class FeatureTracker:
             timings["feature_detection"] += time.perf_counter() - start
         problem = FeatureProblem(self.model, self.rig, images, self.link_names,
                                  self.tip_names, self.options, self.parameterisation,
-                                 self.edge_bias, timings, self.radius_scale)
+                                 self.edge_bias, timings, self.radius_scale,
+                                 self._more_rows(frames, timings))
         q, summary = gauss_newton(problem, predicted, self.solver_options)
         timings["linear_solve"] = summary.timings["linear_solve"]
         final = problem.evaluation_at(q)
@@ -572,6 +588,13 @@ class FeatureTracker:
         self._frame_index += 1
         timings["total"] = time.perf_counter() - start_total
         return self.finger_recovery.hold(self.loss_hold, result, searched)
+
+    def _more_rows(self, frames: Sequence[np.ndarray], timings: dict[str, float]
+                   ) -> MoreRows | None:
+        """Residual rows to stack below the features' in this frame's solves (the frames
+        as given, rig order; ``timings`` to account their cost in): None here, the
+        features alone; a subclass adds its own (:mod:`digiteyes.trackers.anchored_features`)."""
+        return None
 
     def _search_fingers(self, problem: FeatureProblem, images: list[np.ndarray],
                         q: np.ndarray, predicted: np.ndarray,

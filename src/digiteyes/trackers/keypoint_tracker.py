@@ -196,6 +196,8 @@ class KeypointTracker:
     """The model fitted to detected keypoints every frame (module docstring)."""
 
     stages: ClassVar[tuple[str, ...]] = ("detection", "fit", "silhouette")
+    follows_detector: ClassVar[bool] = True
+    """It runs the detector on every frame: ``track`` adds no detection check."""
 
     def __init__(self, model: KinematicModel, rig: Rig,
                  options: KeypointTrackerOptions | None = None) -> None:
