@@ -10,7 +10,7 @@ Runs :func:`digiteyes.track_job.run_track_job` (what ``digiteyes track VIDEO --i
 --tracker NAME`` runs) on ``real_video/human_hand_video.mp4`` (621 frames, 1280x720, a
 right hand before a grey wall) with the shipped ``hand`` model, the default camera (60 deg
 field of view) and recovery after lost frames, once per tracker of :data:`TRACKERS` (the
-DigitEyes feature tracker and the keypoint tracker), on one core (numba, BLAS and OpenMP
+DigitEyes feature tracker, the keypoint tracker and the two joined), on one core (numba, BLAS and OpenMP
 limited to one thread before anything is imported). Figures per tracker:
 
 * frames tracked, frames without a state (video frames before the automatic start or never
@@ -72,10 +72,11 @@ RESULTS = Path(__file__).resolve().parent / "results"
 VIDEO = Path("real_video") / "human_hand_video.mp4"
 STORED = Path("real_video") / "mediapipe_joints_right.pkl"
 TARGET_FPS = 60.0
-TRACKERS = ("features:0", "features", "keypoints")
+TRACKERS = ("features:0", "features", "keypoints", "features+keypoints")
 """The runs: the DigitEyes feature tracker without and with the detection check every
-third frame (``NAME:N`` sets ``--check-every N``; the default otherwise), and the keypoint
-tracker."""
+third frame (``NAME:N`` sets ``--check-every N``; the default otherwise), the keypoint
+tracker, and the feature tracker anchored by the keypoints (no detection check: it
+detects every frame)."""
 IMAGE_STEP = 3
 """Every how many frames the image gap is measured (frames 1, 4, 7, ...)."""
 PICTURE_FRAMES = (31, 121, 451)
@@ -129,8 +130,8 @@ def static_detections(video: Path, step: int, frames: int | None) -> dict[int, n
 def _label(row: dict) -> str:
     """A run's name in the table and the picture."""
     check = row["detection_check"]
-    if row["tracker"] == "keypoints":
-        return "keypoints"
+    if row["tracker"] in ("keypoints", "features+keypoints"):  # they detect every frame
+        return row["tracker"]
     return f"{row['tracker']}, " + (f"check every {check['every']}" if check else "no check")
 
 
