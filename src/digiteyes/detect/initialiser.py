@@ -136,7 +136,8 @@ class AutoInitialiser:
             return state, 1.0
         started = time.perf_counter()
         try:
-            fit = fit_keypoints(self.model, observations, options=FitOptions(fit_scale=True))
+            fit = fit_keypoints(self.model, observations,
+                               options=replace(self._options, fit_scale=True))
         except DigitEyesError:
             return state, 1.0
         finally:

@@ -47,6 +47,7 @@ from digiteyes.detect.mediapipe_detector import INSTALL_HINT, mediapipe_availabl
 from digiteyes.detect.pose import make_detector
 from digiteyes.detect.side import TRACKED_SIDE, SideFollower, pick_candidate
 from digiteyes.errors import DigitEyesError
+from digiteyes.features.appearance import ShadingModel
 from digiteyes.kinematics import KinematicModel, Kinematics, forward_kinematics, point_jacobian
 from digiteyes.kinematics.step_form import StepForm
 from digiteyes.trackers.base import TrackResult
@@ -163,7 +164,7 @@ class AnchoredFeatureTracker(FeatureTracker):
         """The hand each camera's detector found in the last frame and the solve used
     (None: none, or one too far from the estimate, ``anchor_max_gap``)."""
 
-    def reset(self, initial_state: np.ndarray, shading=None) -> None:
+    def reset(self, initial_state: np.ndarray, shading: ShadingModel | None = None) -> None:
         """Start a new track (the feature tracker's reset); the detectors start afresh (a
         new video for MediaPipe's frame-to-frame following)."""
         super().reset(initial_state, shading)
