@@ -465,10 +465,14 @@ def test_recovery_keeps_the_track_when_the_redetection_explains_less(webcam, tmp
 ])
 def test_the_auto_tracker_is_the_keypoint_tracker_for_footage_with_a_learned_detector(
         monkeypatch, footage, detector, available, expected):
+    """Footage: the keypoint tracker; a dataset: the feature tracker, anchored by the
+    keypoints when the detector sees its hand where the start is."""
     import digiteyes.detect.mediapipe_detector as mediapipe_detector
 
     monkeypatch.setattr(mediapipe_detector, "mediapipe_available", lambda: available)
     assert resolve_tracker("auto", footage, detector) == expected
+    anchored = "features+keypoints" if available and detector != "classic" else "features"
+    assert resolve_tracker("auto", False, detector, detector_agrees=lambda: True) == anchored
     assert resolve_tracker("templates", footage, detector) == "templates"
 
 
@@ -544,22 +548,28 @@ def test_footage_without_the_extra_says_what_it_costs_and_how_to_install(tmp_pat
 
 
 @pytest.mark.skipif(not mediapipe_available(), reason="optional extra digiteyes[mediapipe]")
-def test_auto_takes_the_keypoint_tracker_only_for_datasets_the_detector_sees(tmp_path, capsys):
-    """A rendered flesh hand: MediaPipe finds it where the dataset starts, so the keypoint
-    tracker; our capsule drawing: it does not, so the feature tracker."""
-    for appearance, expected in (("flesh", "keypoints"), ("model", "features")):
+def test_auto_takes_the_anchored_tracker_only_for_datasets_the_detector_sees(tmp_path,
+                                                                            capsys):
+    """A rendered flesh hand: MediaPipe finds it where the dataset starts, so the feature
+    tracker anchored by its keypoints; our capsule drawing: it does not, so the feature
+    tracker. The keypoint tracker, asked for by name, measures the hand's size on-line."""
+    cases = (("flesh", "auto", "features+keypoints"), ("flesh", "keypoints", "keypoints"),
+             ("model", "auto", "features"))
+    for appearance, asked, expected in cases:
         data = tmp_path / appearance
-        assert main(["render", "desk-2cam", "-o", str(data), "--frames", "2",
-                     "--appearance", appearance]) == 0
-        out = tmp_path / f"{appearance}-track"
-        assert main(["track", str(data), "-o", str(out), "--quiet", "--no-overlay"]) == 0
+        if not data.exists():
+            assert main(["render", "desk-2cam", "-o", str(data), "--frames", "2",
+                         "--appearance", appearance]) == 0
+        out = tmp_path / f"{appearance}-{asked}-track"
+        assert main(["track", str(data), "-o", str(out), "--tracker", asked, "--quiet",
+                     "--no-overlay"]) == 0
         printed = capsys.readouterr().out
-        assert f"tracker: {expected}" in printed
+        assert (f"tracker: {expected}" in printed) is (asked == "auto")
         summary = json.loads((out / "summary.json").read_text())
         assert summary["tracker"] == expected
-        # both trackers record the hand's scale (the keypoint tracker with two cameras: the
-        # model's size at the start, then measured on-line; the feature tracker: measured
-        # at the dataset's start, the model's size here), per frame in states.csv
+        # every tracker records the hand's scale (the keypoint tracker with two cameras:
+        # the model's size at the start, then measured on-line; the feature trackers:
+        # measured at the dataset's start, the model's size here), per frame in states.csv
         assert summary["start"].get("hand_scale") == 1.0
         header = (out / "states.csv").read_text().splitlines()[0].split(",")
         assert "hand_scale" in header

@@ -74,6 +74,12 @@ DEFAULT_CHECK_EVERY = 3
 """Frames between the detector's checks of a track on footage (``--check-every``)."""
 FOOTAGE_TRACKER = "keypoints"
 """The tracker ``auto`` chooses for footage when a learned detector is installed."""
+DATASET_TRACKER = "features+keypoints"
+"""The tracker ``auto`` chooses for a dataset whose hand a learned detector finds where
+its start is: the feature tracker with the detector's keypoints in its solves
+(docs/anchored-features.md), the most accurate on the flesh hand's renders (mean
+fingertip error over the accuracy table 14.8 mm, the keypoint tracker 16.4) and before a
+cluttered backdrop; too slow for footage's 60 frames/s at 1280x720."""
 DEFAULT_MODEL = "hand"
 """Model of videos and cameras when none is named."""
 
@@ -271,19 +277,21 @@ def _with_files(job: TrackJob, frames: Iterator[list[np.ndarray]], total: int | 
 def resolve_tracker(name: str, footage: bool, detector: str,
                     model: KinematicModel | None = None,
                     detector_agrees: Callable[[], bool] | None = None) -> str:
-    """The tracker a job runs: ``name`` itself unless it is ``"auto"``. Then the keypoint
-    tracker for a hand model with the 21 hand keypoints (``model``; None: assume so) when
-    its detector is a learned one (MediaPipe installed and ``detector`` not
-    ``"classic"``) and either the input is footage (videos, cameras) or, for a dataset,
+    """The tracker a job runs: ``name`` itself unless it is ``"auto"``. Then, for a hand
+    model with the 21 hand keypoints (``model``; None: assume so) and a learned detector
+    (MediaPipe installed and ``detector`` not ``"classic"``): on footage (videos,
+    cameras) the keypoint tracker (:data:`FOOTAGE_TRACKER`); on a dataset, when
     ``detector_agrees()`` says that the detector takes its images for a hand where its
-    initial state puts it (:func:`_detector_agrees`; images a detector does not take
-    for a hand, such as our own capsule drawing, keep the feature tracker). Otherwise the
+    initial state puts it (:func:`_detector_agrees`), the feature tracker anchored by the
+    detector's keypoints (:data:`DATASET_TRACKER`; images a detector does not take for a
+    hand, such as our own capsule drawing, keep the feature tracker). Otherwise the
     DigitEyes feature tracker (models of other objects or of part of a hand such as
     ``mouse-hand``, machines without the MediaPipe extra). Why: on the real video the
     feature tracker is more than half a palm length off MediaPipe's keypoints in 93 % of
-    frames and flags 7, the keypoint tracker in none; on the flesh hand's renders its
-    mean error over the accuracy table is 16.3 mm against 42.4
-    (docs/keypoint-tracker.md)."""
+    frames and flags 7, the keypoint tracker in none (docs/keypoint-tracker.md); on the
+    flesh hand's renders the mean fingertip error over the accuracy table is 22.9 mm for
+    the feature tracker, 16.4 for the keypoint tracker and 14.8 for the two joined
+    (docs/anchored-features.md)."""
     if name != AUTO_TRACKER:
         return name
     from digiteyes.detect.mediapipe_detector import mediapipe_available
@@ -291,8 +299,10 @@ def resolve_tracker(name: str, footage: bool, detector: str,
     learned = detector != "classic" and mediapipe_available()
     if not learned or (model is not None and not has_hand21(model)):
         return DEFAULT_TRACKER
-    if footage or (detector_agrees is not None and detector_agrees()):
+    if footage:
         return FOOTAGE_TRACKER
+    if detector_agrees is not None and detector_agrees():
+        return DATASET_TRACKER
     return DEFAULT_TRACKER
 
 
@@ -318,6 +328,8 @@ def _tracker_options(job: TrackJob, model: KinematicModel, name: str,
     keeps reading it there); the model's (or a personal model's) size then stays
     (``--option start_size=true`` overrides)."""
     options = dict(job.options)
+    if name == DATASET_TRACKER and job.detector in ("mediapipe", "mediapipe-lite"):
+        options.setdefault("detector", job.detector)
     if name == FOOTAGE_TRACKER:
         options.setdefault("detector", job.detector)
         if footage:
@@ -496,8 +508,10 @@ def _why_tracker(name: str, footage: bool, detector: str, model: KinematicModel)
     """Why ``--tracker auto`` chose ``name`` (:func:`resolve_tracker`), for the log; on
     footage without the MediaPipe extra, what it costs and how to install it."""
     if name == FOOTAGE_TRACKER:
-        return ("footage with a learned detector" if footage else
-                "a dataset whose hand the detector finds where its start is")
+        return "footage with a learned detector"
+    if name == DATASET_TRACKER:
+        return ("a dataset whose hand the detector finds where its start is: the feature "
+                "tracker with the detector's keypoints")
     if not footage:
         return "a dataset"
     if not has_hand21(model):
