@@ -50,7 +50,7 @@ from digiteyes.kinematics.keypoints import hand_keypoints
 from digiteyes.pipeline import recovered_state, step_frames
 from digiteyes.synth.scenarios import build_scenario
 from digiteyes.synth.setups import setup_scenario
-from digiteyes.track_job import tracker_options
+from digiteyes.track_job import DATASET_TRACKER, tracker_options
 from digiteyes.trackers import DEFAULT_TRACKER, FeatureTracker, Tracker, create_tracker
 
 SETUPS = ("desk-2cam", "webcam-1cam")
@@ -62,15 +62,17 @@ SCALED_HAND = 0.9
 """The hand size of the sized variants (as the accuracy benchmark's smaller hand)."""
 VARIANTS = (("classic", "model", "features", 1.0), ("classic", "flesh", "features", 1.0),
             ("mediapipe", "flesh", "features", 1.0), ("auto", "flesh", "features", 1.0),
-            ("auto", "flesh", "keypoints", 1.0), ("auto", "flesh", "features", SCALED_HAND),
+            ("auto", "flesh", "keypoints", 1.0), ("auto", "flesh", "features+keypoints", 1.0),
+            ("auto", "flesh", "features", SCALED_HAND),
             ("auto", "flesh", "keypoints", SCALED_HAND))
 """(detector, appearance, tracker, hand size): grey images for the classic detector (our
 drawing and, beside it, the independent flesh hand), colour for MediaPipe (which does not
 take our capsule drawing for a hand) and for ``auto``, what ``--init auto`` uses by
 default (MediaPipe, and the classic detector where MediaPipe finds no hand:
 :class:`~digiteyes.detect.fallback.FallbackDetector`); the feature tracker, and the
-keypoint tracker that ``track --tracker auto`` runs on footage with MediaPipe; a hand of
-the model's size, and one :data:`SCALED_HAND` times it."""
+keypoint tracker that ``track --tracker auto`` runs on footage with MediaPipe, and the
+feature tracker anchored by MediaPipe's keypoints that it runs on datasets whose hand
+MediaPipe sees; a hand of the model's size, and one :data:`SCALED_HAND` times it."""
 TOLERANCE_MM = 1.0
 """Mean keypoint error the automatic run may exceed the run from truth by, mm."""
 
@@ -108,11 +110,14 @@ def track_states(tracker: Tracker, frames, start: np.ndarray,
 
 def make_tracker(name: str, model, rig, detector: str, automatic: bool) -> Tracker:
     """The tracker of a variant with the settings of ``digiteyes track`` on a dataset,
-    started from its true state or (``automatic``) from the images: the feature tracker
-    then keeps the model's size (``start_size`` off, as ``track --init auto``)."""
+    started from its true state or (``automatic``) from the images: the feature trackers
+    then keep the model's size (``start_size`` off, as ``track --init auto``; the
+    anchored one takes MediaPipe, its only detector)."""
     if name == DEFAULT_TRACKER:
         options = tracker_options(5, 20.0, "default", model, None, "none")
         return FeatureTracker(model, rig, replace(options, start_size=not automatic))
+    if name == DATASET_TRACKER:
+        return create_tracker(name, model, rig, start_size=not automatic)
     return create_tracker(name, model, rig, detector=detector)
 
 
