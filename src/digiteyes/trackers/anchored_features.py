@@ -162,7 +162,7 @@ class AnchoredFeatureTracker(FeatureTracker):
         self._off_detection: list[str] = []
         self.last_candidates: list[HandCandidate | None] = []
         """The hand each camera's detector found in the last frame and the solve used
-    (None: none, or one too far from the estimate, ``anchor_max_gap``)."""
+        (None: none, or one too far from the estimate, ``anchor_max_gap``)."""
 
     def reset(self, initial_state: np.ndarray, shading: ShadingModel | None = None) -> None:
         """Start a new track (the feature tracker's reset); the detectors start afresh (a
