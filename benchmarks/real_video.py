@@ -10,8 +10,8 @@ Runs :func:`digiteyes.track_job.run_track_job` (what ``digiteyes track VIDEO --i
 --tracker NAME`` runs) on ``real_video/human_hand_video.mp4`` (621 frames, 1280x720, a
 right hand before a grey wall) with the shipped ``hand`` model, the default camera (60 deg
 field of view) and recovery after lost frames, once per tracker of :data:`TRACKERS` (the
-DigitEyes feature tracker, the keypoint tracker and the two joined), on one core (numba, BLAS and OpenMP
-limited to one thread before anything is imported). Figures per tracker:
+DigitEyes feature tracker, the keypoint tracker and the two joined), on one core (numba,
+BLAS and OpenMP limited to one thread before anything is imported). Figures per tracker:
 
 * frames tracked, frames without a state (video frames before the automatic start or never
   reached), frames flagged lost, re-detections;
