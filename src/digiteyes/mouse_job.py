@@ -11,6 +11,9 @@ The thesis's mouse needs a calibrated table camera, the reduced model and a star
 3. the start is searched frame by frame until a hand shows
    (:func:`~digiteyes.detect.initialiser.start_automatically`); a left hand is tracked
    as the right hand of the mirror image (:func:`digiteyes.track_job.as_left_hand`);
+   with two or more cameras the hand's size is measured there and a model of that size
+   is tracked and mapped (:meth:`~digiteyes.detect.initialiser.AutoInitialiser.
+   size_hand`, as ``track --init auto``);
 4. the tracker is the one ``digiteyes track --tracker auto`` picks for footage
    (:func:`~digiteyes.track_job.resolve_tracker`: the keypoint tracker with MediaPipe
    installed, the feature tracker otherwise), re-detecting after a lost frame
@@ -115,6 +118,9 @@ def footage_mouse_frames(model: KinematicModel, frames: Iterable[list[np.ndarray
     if initialiser.last.sides() == {"left"}:
         initialiser, rig, found, initial = as_left_hand(initialiser, rig, found, initial)
     initialiser.side = TRACKED_SIDE
+    initial, scale = initialiser.size_hand(initial)  # two cameras: the hand's own size
+    if scale != 1.0:
+        model = initialiser.model
     name = resolve_tracker(AUTO_TRACKER, True, detector, model)
     options = ({"detector": detector, "start_size": False, "iterations": MOUSE_FIT_ITERATIONS}
                if name == FOOTAGE_TRACKER else {})

@@ -66,6 +66,27 @@ def test_a_video_file_is_read_paced_and_started_by_itself(tmp_path, hand_mouse):
     assert all(f.overlay_jpeg is not None for f in out)
 
 
+@needs_mediapipe
+def test_two_cameras_map_the_hand_at_its_own_size():
+    """A flesh hand 0.9 times the model's size before the desk pair: the footage mouse
+    measures its size at the start and maps a model of that size (the palm mapping's
+    model), so the pole is in the hand's own millimetres."""
+    from digiteyes.detect.hand_size import model_hand_length
+    from digiteyes.synth.setups import setup_scenario, truth_model
+
+    scenario = setup_scenario("desk", 2, hand_scale=0.9, seed=0, n_frames=3)
+    hand = truth_model(scenario)  # the model drawn 0.9 times its size
+    frames = [[view.image for view in render_views(hand, scenario.states[t], scenario.rig,
+                                                   FLESH, rng=t)]
+              for t in range(3)]
+    out = list(footage_mouse_frames(scenario.model, iter(frames), scenario.rig,
+                                    overlay=False))
+    assert len(out) == 3
+    mapped = out[0].mapping.model
+    assert model_hand_length(mapped) / model_hand_length(scenario.model) == pytest.approx(
+        0.9, abs=0.03)
+
+
 def test_footage_mouse_says_what_is_wrong(tmp_path):
     with pytest.raises(DatasetError, match="no such video file"):
         open_footage_mouse(str(tmp_path / "missing.mp4"))
