@@ -318,8 +318,8 @@ def has_hand21(model: KinematicModel) -> bool:
     return True
 
 
-def _tracker_options(job: TrackJob, model: KinematicModel, name: str,
-                     footage: bool, auto: bool) -> dict[str, object]:
+def job_tracker_options(job: TrackJob, model: KinematicModel, name: str,
+                        footage: bool, auto: bool) -> dict[str, object]:
     """The options of tracker ``name``: the job's ``--option`` pairs over the flags.
     Trackers with a ``start_size`` option read the hand's size from a dataset's start
     (its true state), not from footage's, which the images gave (from the model's size)
@@ -428,7 +428,7 @@ def run_track_job(job: TrackJob, echo: Callable[[str], None] | None = None) -> T
         say(f"tracker: {name} (--tracker auto: "
             f"{_why_tracker(name, source.footage, job.detector, model)})")
     tracker = create_tracker(name, model, rig,
-                             **_tracker_options(job, model, name, source.footage, auto))
+                             **job_tracker_options(job, model, name, source.footage, auto))
     check = _detection_check(job, source.footage, tracker, model, rig)
     out = Path(job.output)
     out.mkdir(parents=True, exist_ok=True)

@@ -56,7 +56,7 @@ def test_keypoint_rows_jacobian_matches_finite_differences():
     rng = np.random.default_rng(1)
     candidates = [candidate(hand21_pixels(HAND, q, cam) + rng.normal(0, 3, (21, 2)),
                             rng.uniform(0.2, 1.0, 21)) for cam in (CAMERA, side)]
-    rows = KeypointRows(HAND, Rig((CAMERA, side)), candidates, 4.0, "tangent")
+    rows = KeypointRows(model_anchors(HAND), Rig((CAMERA, side)), candidates, 4.0, "tangent")
     r, J = rows(forward_kinematics(HAND, q), True)
     assert r.shape == (84,) and J.shape == (84, HAND.n_v) and len(rows) == 84
     h = 1e-6
@@ -73,14 +73,15 @@ def test_keypoint_rows_weigh_each_keypoint_by_confidence_and_sigma():
     q = bent(HAND.neutral(), 2)
     pixels = hand21_pixels(HAND, q, CAMERA)
     other = Camera.look_at("other", eye=(0, 300, 300), target=(0, 60, 0), up=(0, 0, 1))
-    exact = KeypointRows(HAND, Rig((CAMERA, other)), [candidate(pixels), None], 4.0, "tangent")
+    exact = KeypointRows(model_anchors(HAND), Rig((CAMERA, other)), [candidate(pixels), None],
+                         4.0, "tangent")
     r, _ = exact(forward_kinematics(HAND, q), False)
     assert r.shape == (42,) and np.abs(r).max() < 1e-9
     moved = pixels.copy()
     moved[8, 0] -= 8.0  # the index tip
     confidence = np.ones(21)
     confidence[8] = 0.25
-    r, _ = KeypointRows(HAND, Rig((CAMERA,)), [candidate(moved, confidence)], 4.0,
+    r, _ = KeypointRows(model_anchors(HAND), Rig((CAMERA,)), [candidate(moved, confidence)], 4.0,
                         "tangent")(forward_kinematics(HAND, q), False)
     assert r[16] == pytest.approx(1.0) and np.abs(np.delete(r, 16)).max() < 1e-9
 

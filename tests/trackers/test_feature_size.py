@@ -156,11 +156,11 @@ def test_track_measures_the_size_only_from_a_given_start_on_a_dataset(tracker):
     """``digiteyes track`` leaves ``start_size`` on for a dataset's own start, and turns
     it off for footage and for an automatic start (the keypoint tracker, which holds the
     palm where its fit put it, only for footage); ``--option start_size=true`` wins."""
-    from digiteyes.track_job import TrackJob, _tracker_options
+    from digiteyes.track_job import TrackJob, job_tracker_options
 
     def chosen(footage, auto, options=()):
         job = TrackJob(("in",), "out", "hand", options=options)
-        return _tracker_options(job, HAND, tracker, footage, auto).get("start_size", True)
+        return job_tracker_options(job, HAND, tracker, footage, auto).get("start_size", True)
 
     assert chosen(False, False) is True
     assert chosen(True, False) is False

@@ -36,7 +36,6 @@ seeds (:func:`summarise`); a variant that cannot start on some seed fails.
 from __future__ import annotations
 
 import time
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -50,8 +49,8 @@ from digiteyes.kinematics.keypoints import hand_keypoints
 from digiteyes.pipeline import recovered_state, step_frames
 from digiteyes.synth.scenarios import build_scenario
 from digiteyes.synth.setups import setup_scenario
-from digiteyes.track_job import DATASET_TRACKER, tracker_options
-from digiteyes.trackers import DEFAULT_TRACKER, FeatureTracker, Tracker, create_tracker
+from digiteyes.track_job import TrackJob, job_tracker_options
+from digiteyes.trackers import DEFAULT_TRACKER, Tracker, create_tracker
 
 SETUPS = ("desk-2cam", "webcam-1cam")
 SEEDS = (0, 1, 2)
@@ -109,16 +108,13 @@ def track_states(tracker: Tracker, frames, start: np.ndarray,
 
 
 def make_tracker(name: str, model, rig, detector: str, automatic: bool) -> Tracker:
-    """The tracker of a variant with the settings of ``digiteyes track`` on a dataset,
-    started from its true state or (``automatic``) from the images: the feature trackers
-    then keep the model's size (``start_size`` off, as ``track --init auto``; the
-    anchored one takes MediaPipe, its only detector)."""
-    if name == DEFAULT_TRACKER:
-        options = tracker_options(5, 20.0, "default", model, None, "none")
-        return FeatureTracker(model, rig, replace(options, start_size=not automatic))
-    if name == DATASET_TRACKER:
-        return create_tracker(name, model, rig, start_size=not automatic)
-    return create_tracker(name, model, rig, detector=detector)
+    """The tracker of a variant with the settings ``digiteyes track`` gives it on a
+    dataset (:func:`~digiteyes.track_job.job_tracker_options`), started from its true
+    state or (``automatic``) from the images (``--init auto``: the trackers that measure
+    the hand's size at a known start keep the model's)."""
+    job = TrackJob((), "", tracker_name=name, detector=detector)
+    return create_tracker(name, model, rig, **job_tracker_options(job, model, name, False,
+                                                                  automatic))
 
 
 def setup_entry(name: str, n_frames: int, detector: str = "classic",

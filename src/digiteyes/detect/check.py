@@ -31,14 +31,23 @@ DIGIT_KEYPOINTS = {digit: [1 + 4 * d + k for k in range(4)] for d, digit in enum
 """Each digit's four keypoints of :data:`~digiteyes.detect.hand21.HAND21_NAMES`."""
 
 
-def worst_digit_gap(tracked: np.ndarray, detected: np.ndarray) -> tuple[float, str] | None:
-    """The digit whose four keypoints lie farthest from the detected ones on average, and
-    that distance in palm lengths (the detection's wrist to middle MCP): tracked and
-    detected (21, 2) px of one image. None for a detection without a palm length."""
+def keypoint_gaps(tracked: np.ndarray, detected: np.ndarray) -> np.ndarray | None:
+    """Each keypoint's distance (21,) from the detected one in palm lengths (the
+    detection's wrist to middle MCP): tracked and detected (21, 2) px of one image. None
+    for a detection without a palm length."""
     palm = float(np.linalg.norm(detected[0] - detected[9]))
     if not palm > 0:
         return None
-    gap = np.linalg.norm(tracked - detected, axis=1) / palm
+    return np.linalg.norm(tracked - detected, axis=1) / palm
+
+
+def worst_digit_gap(tracked: np.ndarray, detected: np.ndarray) -> tuple[float, str] | None:
+    """The digit whose four keypoints lie farthest from the detected ones on average, and
+    that distance in palm lengths (:func:`keypoint_gaps`). None for a detection without a
+    palm length."""
+    gap = keypoint_gaps(tracked, detected)
+    if gap is None:
+        return None
     return max((float(gap[keys].mean()), digit) for digit, keys in DIGIT_KEYPOINTS.items())
 
 
@@ -48,13 +57,10 @@ PALM_KEYPOINTS = [0, 5, 9, 13, 17]
 
 def palm_gap(tracked: np.ndarray, detected: np.ndarray) -> float | None:
     """The mean distance of the palm's keypoints (:data:`PALM_KEYPOINTS`) from the
-    detected ones in palm lengths (the detection's wrist to middle MCP): tracked and
-    detected (21, 2) px of one image. None for a detection without a palm length."""
-    palm = float(np.linalg.norm(detected[0] - detected[9]))
-    if not palm > 0:
-        return None
-    return float(np.linalg.norm(tracked[PALM_KEYPOINTS] - detected[PALM_KEYPOINTS],
-                                axis=1).mean() / palm)
+    detected ones in palm lengths (:func:`keypoint_gaps`). None for a detection without a
+    palm length."""
+    gap = keypoint_gaps(tracked, detected)
+    return None if gap is None else float(gap[PALM_KEYPOINTS].mean())
 
 
 @dataclass

@@ -98,17 +98,18 @@ class KeypointRows:
 
     Parameters
     ----------
-    model : the tracked model (its 21 keypoint anchors, :func:`model_anchors`).
+    anchors : the tracked model's 21 keypoints, shape-frame rows (21,) and points (21, 3)
+        mm (:func:`model_anchors`).
     rig : the cameras.
     candidates : per camera the detected hand, or None.
     sigma_px : the keypoints' expected error, px.
     form : the step form of the Jacobian's columns (the tracker's).
     """
 
-    def __init__(self, model: KinematicModel, rig: Rig,
+    def __init__(self, anchors: tuple[np.ndarray, np.ndarray], rig: Rig,
                  candidates: Sequence[HandCandidate | None], sigma_px: float,
                  form: StepForm | str) -> None:
-        self.rows, self.points = model_anchors(model)
+        self.rows, self.points = anchors
         self.form = form
         self.cameras = [camera for camera, c in zip(rig, candidates, strict=True)
                         if c is not None]
@@ -191,8 +192,8 @@ class AnchoredFeatureTracker(FeatureTracker):
         """Detect the hand in every camera, near the current estimate's keypoints, and
         return its keypoints' rows (None when no camera finds it)."""
         start = time.perf_counter()
-        rows, points = model_anchors(self.model)
-        here = forward_kinematics(self.model, self.state).points(rows, points)
+        anchors = model_anchors(self.model)
+        here = forward_kinematics(self.model, self.state).points(*anchors)
         candidates, self._off_detection = [], []
         for detector, image, camera in zip(self._detectors, frames, self.rig, strict=True):
             near = camera.project(here)
@@ -206,7 +207,7 @@ class AnchoredFeatureTracker(FeatureTracker):
         timings["detection"] += time.perf_counter() - start
         if all(c is None for c in candidates):
             return None
-        return KeypointRows(self.model, self.rig, candidates, self.options.keypoint_sigma_px,
+        return KeypointRows(anchors, self.rig, candidates, self.options.keypoint_sigma_px,
                             self.parameterisation.form)
 
 
