@@ -117,3 +117,53 @@ def test_native_start_up_notices_stay_off_standard_error():
                          timeout=120)
     assert run.returncode == 0, run.stderr
     assert run.stderr.strip() == "ours", (run.stderr, time.perf_counter() - start)
+
+
+def test_grey_images_are_recognised_and_tinted_keeping_their_grey_levels():
+    """A 2-D image and an RGB image of three equal channels are grey, a colour one is
+    not; the skin tint keeps each grey level (OpenCV's own RGB-to-grey conversion gives
+    it back to within a level below the red channel's clipping) and has the skin's hue."""
+    import cv2
+
+    from digiteyes.detect.mediapipe_detector import is_grey, skin_tinted
+
+    grey = np.random.default_rng(0).integers(0, 256, (48, 64), dtype=np.uint8)
+    assert is_grey(grey) and is_grey(np.repeat(grey[..., None], 3, axis=2))
+    colour = np.repeat(grey[..., None], 3, axis=2)
+    colour[40, 60, 1] += 1  # one pixel off the every-8th sample: the full check sees it
+    assert not is_grey(colour)
+    tinted = skin_tinted(grey)
+    assert tinted.shape == (48, 64, 3) and tinted.dtype == np.uint8
+    back = cv2.cvtColor(tinted, cv2.COLOR_RGB2GRAY).astype(int)
+    unclipped = grey < 193
+    assert np.abs(back - grey)[unclipped].max() <= 1
+    assert (tinted[..., 0] >= tinted[..., 1]).all() and (tinted[..., 1] >= tinted[..., 2]).all()
+
+
+@pytest.mark.skipif(not mediapipe_available(), reason="optional extra digiteyes[mediapipe]")
+def test_the_tint_lets_mediapipe_find_a_dim_grey_hand():
+    """The webcam's grey render of the flesh hand (dim, before a dark backdrop): MediaPipe
+    finds the hand, within 0.5 palm lengths of the truth, in more frames once the grey
+    levels carry a skin hue (docs/real-data.md has the counts on real images)."""
+    from digiteyes.detect.check import palm_gap
+    from digiteyes.detect.hand21 import model_anchors
+    from digiteyes.kinematics import forward_kinematics
+    from digiteyes.synth import RenderOptions, render_views
+    from digiteyes.synth.setups import setup_scenario
+
+    scenario = setup_scenario("webcam", 1, n_frames=120)
+    camera = scenario.rig.cameras[0]
+    options = RenderOptions(appearance="flesh", noise_sigma=2.0)
+    detectors = {grey_as_skin: MediaPipeDetector(max_hands=1, grey_as_skin=grey_as_skin)
+                 for grey_as_skin in (False, True)}
+    found = dict.fromkeys(detectors, 0)
+    for frame in range(0, 120, 15):
+        state = scenario.states[frame]
+        image = render_views(scenario.model, state, scenario.rig, options, rng=frame)[0].image
+        assert image.ndim == 2
+        truth = camera.project(forward_kinematics(scenario.model, state).points(
+            *model_anchors(scenario.model)))
+        for grey_as_skin, detector in detectors.items():
+            hit = detector.detect(image)
+            found[grey_as_skin] += bool(hit) and palm_gap(truth, hit[0].keypoints) < 0.5
+    assert found[True] >= 3 and found[True] > found[False], found

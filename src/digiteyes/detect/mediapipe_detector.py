@@ -15,6 +15,16 @@ progress bar. The graph's threads write them while it starts, after the construc
 returned, so the constructor builds the graph and runs it once on a blank image with
 those notices silenced (:func:`quiet_native_stderr`); later messages, and every Python
 error, pass as usual.
+
+**Grey images.** MediaPipe's palm detector was trained on colour photographs and leans
+on the skin's hue: on a grey image (a monochrome camera like the thesis's, a grey
+dataset) it misses hands it finds in colour. Measured on real images made grey (the real
+video every 6th frame, the annotated images and the STB pair; ``docs/real-data.md``), it
+found 86 of the 126 hands that agree with its colour detections; with the grey levels
+given a skin hue first (:func:`skin_tinted`) 102. On the synthetic webcam's dim flesh
+hand in grey it found 0 of 20 frames, tinted 12. So a grey image (2-D, or three equal
+channels) is tinted before MediaPipe sees it (``grey_as_skin``, on by default); the
+keypoints are the same pixels either way.
 """
 
 from __future__ import annotations
@@ -36,6 +46,10 @@ BLANK_SIDE = 64
 INSTALL_HINT = ('the MediaPipe detector needs the optional extra: pip install '
                 '"digiteyes[mediapipe]" (mediapipe==0.10.14, models included); or use '
                 '--detector classic')
+GREY_SKIN_RGB = (1.32, 0.90, 0.69)
+"""The skin hue :func:`skin_tinted` gives a grey level: the median colour of the real
+video's hand (RGB ratio 1 : 0.68 : 0.52, sampled inside the palm in 21 frames), scaled so
+that its luma (ITU-R BT.601 weights) is 1, which keeps every pixel's grey level."""
 
 
 @contextlib.contextmanager
@@ -68,6 +82,28 @@ def mediapipe_available() -> bool:
     return True
 
 
+def is_grey(image: np.ndarray) -> bool:
+    """Whether a uint8 image holds grey levels only: 2-D, or three equal channels (a grey
+    video decoded to RGB; checked on every 8th row and column, then in full)."""
+    if image.ndim == 2:
+        return True
+    if image.ndim != 3 or image.shape[2] != 3:
+        return False
+    for view in (image[::8, ::8], image):
+        if not (np.array_equal(view[..., 0], view[..., 1])
+                and np.array_equal(view[..., 0], view[..., 2])):
+            return False
+    return True
+
+
+def skin_tinted(grey: np.ndarray) -> np.ndarray:
+    """An RGB uint8 (H, W, 3) image whose pixels have the grey levels of ``grey`` (H, W)
+    uint8 and the hue :data:`GREY_SKIN_RGB` (clipped at 255 in the red channel above
+    grey level 193)."""
+    tint = np.asarray(GREY_SKIN_RGB, dtype=np.float32)
+    return np.clip(grey.astype(np.float32)[..., None] * tint, 0.0, 255.0).astype(np.uint8)
+
+
 class MediaPipeDetector:
     """Hands by MediaPipe's palm detector and landmark network (CPU, TFLite).
 
@@ -78,17 +114,20 @@ class MediaPipeDetector:
         track landmarks between consecutive video frames (faster, smoother).
     min_confidence : detection confidence below which MediaPipe drops a hand.
     model_complexity : 0 (lite) or 1 (full) landmark network.
+    grey_as_skin : give a grey image a skin hue before detection (module docstring).
     """
 
     name = "mediapipe"
     locates_joints = True  # keypoints from a network trained on annotated joints
 
     def __init__(self, max_hands: int = 2, static_image_mode: bool = True,
-                 min_confidence: float = 0.5, model_complexity: int = 1) -> None:
+                 min_confidence: float = 0.5, model_complexity: int = 1,
+                 grey_as_skin: bool = True) -> None:
         try:
             import mediapipe as mp
         except ImportError as exc:
             raise DigitEyesError(f"{INSTALL_HINT} ({exc})") from None
+        self.grey_as_skin = grey_as_skin
         with quiet_native_stderr(), warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)
             self._hands = mp.solutions.hands.Hands(
@@ -102,13 +141,17 @@ class MediaPipeDetector:
         self._hands.close()
 
     def detect(self, image: np.ndarray, camera: Camera | None = None) -> list[HandCandidate]:
-        """Hands in an RGB (H, W, 3) or grey (H, W) uint8 image, most confident first."""
+        """Hands in an RGB (H, W, 3) or grey (H, W) uint8 image, most confident first (a
+        grey image tinted to skin first, ``grey_as_skin``)."""
         image = np.asarray(image)
-        if image.ndim == 2:
-            image = np.repeat(image[..., None], 3, axis=2)
-        if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
+        if image.dtype != np.uint8 or image.ndim not in (2, 3) or (
+                image.ndim == 3 and image.shape[2] != 3):
             raise DigitEyesError(f"MediaPipe detector: expected a uint8 RGB or grey image, got "
                                  f"{image.dtype} {image.shape}")
+        if self.grey_as_skin and is_grey(image):
+            image = skin_tinted(image if image.ndim == 2 else image[..., 0])
+        elif image.ndim == 2:
+            image = np.repeat(image[..., None], 3, axis=2)
         height, width = image.shape[:2]
         with warnings.catch_warnings():  # protobuf's deprecation notice inside MediaPipe
             warnings.simplefilter("ignore", UserWarning)
