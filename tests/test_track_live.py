@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import json
+import shutil
 import socket
 import sys
 import threading
@@ -551,17 +552,22 @@ def test_footage_without_the_extra_says_what_it_costs_and_how_to_install(tmp_pat
 def test_auto_takes_the_anchored_tracker_only_for_datasets_the_detector_sees(tmp_path,
                                                                             capsys):
     """A rendered flesh hand: MediaPipe finds it where the dataset starts, so the feature
-    tracker anchored by its keypoints; our capsule drawing: it does not, so the feature
-    tracker. The keypoint tracker, asked for by name, measures the hand's size on-line."""
-    cases = (("flesh", "auto", "features+keypoints"), ("flesh", "keypoints", "keypoints"),
-             ("model", "auto", "features"))
-    for appearance, asked, expected in cases:
-        data = tmp_path / appearance
-        if not data.exists():
-            assert main(["render", "desk-2cam", "-o", str(data), "--frames", "2",
-                         "--appearance", appearance]) == 0
-        out = tmp_path / f"{appearance}-{asked}-track"
-        assert main(["track", str(data), "-o", str(out), "--tracker", asked, "--quiet",
+    tracker anchored by its keypoints; the same images with a start 150 mm to the side of
+    the hand: it does not, so the feature tracker. The keypoint tracker, asked for by
+    name, measures the hand's size on-line."""
+    data = tmp_path / "flesh"
+    assert main(["render", "desk-2cam", "-o", str(data), "--frames", "2",
+                 "--appearance", "flesh"]) == 0
+    elsewhere = tmp_path / "elsewhere"
+    shutil.copytree(data, elsewhere)
+    start = json.loads((elsewhere / "initial_state.json").read_text())
+    start["state"]["palm.x"] += 150.0
+    (elsewhere / "initial_state.json").write_text(json.dumps(start))
+    cases = ((data, "auto", "features+keypoints"), (data, "keypoints", "keypoints"),
+             (elsewhere, "auto", "features"))
+    for dataset, asked, expected in cases:
+        out = tmp_path / f"{dataset.name}-{asked}-track"
+        assert main(["track", str(dataset), "-o", str(out), "--tracker", asked, "--quiet",
                      "--no-overlay"]) == 0
         printed = capsys.readouterr().out
         assert (f"tracker: {expected}" in printed) is (asked == "auto")

@@ -596,12 +596,12 @@ def _detector_agrees(model: KinematicModel, rig: Rig, detector: str,
     check's bound, ``DetectionCheck.max_gap``: half a palm length), and a hand found in
     at least :data:`AGREEMENT_RATE` of them (the first camera's images).
     Both are needed: the first frame alone passes our capsule drawing of the desk view
-    (the thumb's gap 0.21 palm lengths), in whose first 40 frames MediaPipe finds a hand
-    in 35 % (the flesh hand: 100 %); and the gap's old bound of 0.25 refused a flesh hand
-    0.9 times the model's size (0.26, the thumb: MediaPipe's thumb base is not the
-    model's). Not caught: our drawing of `natural` at 30 frames/s, whose hand MediaPipe
-    keeps through the first 20 frames and loses later (found in 70 % of every other frame
-    of the first 40)."""
+    (the thumb's gap 0.21 palm lengths), in whose first 40 grey frames MediaPipe finds a
+    hand in 40 % (16; the flesh hand: 100 %; measured with grey images tinted to skin,
+    :func:`~digiteyes.detect.mediapipe_detector.skin_tinted`); and the gap's old bound of
+    0.25 refused a flesh hand 0.9 times the model's size (0.26, the thumb: MediaPipe's
+    thumb base is not the model's). Not caught: our drawing of the egocentric view, a
+    hand to MediaPipe in 37 of its first 40 tinted frames."""
     from digiteyes.detect.check import DetectionCheck
     from digiteyes.detect.pose import make_detector
 
