@@ -35,7 +35,12 @@ from digiteyes.errors import CameraError, DatasetError, DigitEyesError
 from digiteyes.features import FeatureOptions
 from digiteyes.filters import OneEuroOptions
 from digiteyes.io import open_sequence, open_video_frames
-from digiteyes.io.frame_sinks import KEYPOINTS_FILE, JsonLinesStream, KeypointLog
+from digiteyes.io.frame_sinks import (
+    KEYPOINTS_FILE,
+    CameraKeypoints,
+    JsonLinesStream,
+    KeypointLog,
+)
 from digiteyes.io.image_folder import is_image_folder, open_image_folder_frames
 from digiteyes.io.safe_paths import atomic_write_json
 from digiteyes.io.track_extras import write_track_extras, write_track_model
@@ -564,11 +569,12 @@ def _open_sinks(job: TrackJob, model: KinematicModel, rig: Rig, out: Path, fps: 
                 say: Callable[[str], None]) -> list[FrameSink]:
     """``keypoints.csv`` always; the stream (smoothed too with ``job.smooth``, at ``fps``)
     and the window when asked for."""
-    sinks: list[FrameSink] = [KeypointLog(out / KEYPOINTS_FILE, model, rig)]
+    keypoints = CameraKeypoints(model, rig)  # one frame's keypoints, for every sink
+    sinks: list[FrameSink] = [KeypointLog(out / KEYPOINTS_FILE, model, rig, keypoints)]
     try:
         if job.stream is not None:
             sinks.append(JsonLinesStream(job.stream, model, rig, smooth=job.smooth,
-                                         fps=fps))
+                                         fps=fps, keypoints=keypoints))
         if job.show:
             from digiteyes.viz.live_window import open_live_window
 

@@ -9,7 +9,7 @@ import numpy as np
 
 from digiteyes.camera import Rig
 from digiteyes.camera.default import default_camera
-from digiteyes.io.frame_sinks import KeypointLog, frame_message
+from digiteyes.io.frame_sinks import CameraKeypoints, KeypointLog, frame_message
 from digiteyes.kinematics import forward_kinematics, load_model
 from digiteyes.kinematics.keypoints import keypoints
 from digiteyes.kinematics.scaling import scaled_model
@@ -26,7 +26,8 @@ def test_keypoints_of_a_result_are_those_of_the_hand_of_its_size(tmp_path):
     result = TrackResult(q, 0.0, 1.0, False, "", 1, hand_scale=0.9)
     small = scaled_model(model, 0.9)
     names, world = keypoints(small, forward_kinematics(small, q))
-    message = json.loads(json.dumps(frame_message(model, rig, 7, result, False)))
+    message = json.loads(json.dumps(frame_message(CameraKeypoints(model, rig), 7, result,
+                                                 False)))
     assert message["hand_scale"] == 0.9
     log = KeypointLog(tmp_path / "keypoints.csv", model, rig)
     log.write(7, [], result, False)
@@ -45,22 +46,21 @@ def test_keypoints_of_a_result_are_those_of_the_hand_of_its_size(tmp_path):
 
 
 def test_the_same_frames_keypoints_are_computed_once(monkeypatch):
-    """The keypoint log and the stream ask for one frame's keypoints in turn: the second
-    call returns the first's arrays; another state, scale or rig computes anew."""
-    from digiteyes.io import frame_sinks
-
+    """The keypoint log and the stream ask one run's keypoints object for a frame's
+    keypoints in turn: the second call returns the first's arrays; another state or
+    scale computes anew."""
     model = load_model("hand")
-    rig = Rig((default_camera(640, 480),))
+    keypoints = CameraKeypoints(model, Rig((default_camera(640, 480),)))
     calls = []
-    compute = frame_sinks._camera_keypoints
-    monkeypatch.setattr(frame_sinks, "_camera_keypoints",
-                        lambda *a: calls.append(a) or compute(*a))
+    compute = keypoints._compute
+    monkeypatch.setattr(keypoints, "_compute", lambda *a: calls.append(a) or compute(*a))
     q = model.neutral()
     q[6] = 400.0
-    first = frame_sinks.camera_keypoints(model, rig, q, 1.0)
-    assert frame_sinks.camera_keypoints(model, rig, q.copy(), 1.0) is first
+    first = keypoints(q, 1.0)
+    assert keypoints(q.copy(), 1.0) is first
     assert len(calls) == 1
-    frame_sinks.camera_keypoints(model, rig, q, 0.9)
-    other = Rig((default_camera(640, 480),))
-    frame_sinks.camera_keypoints(model, other, q, 0.9)
+    assert keypoints(q, 0.9) is not first
+    moved = q.copy()
+    moved[6] += 1.0
+    keypoints(moved, 0.9)
     assert len(calls) == 3

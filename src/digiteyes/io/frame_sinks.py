@@ -44,50 +44,52 @@ class TrackResult(Protocol):
     hand_scale: float
 
 
-_last_keypoints: list = [None, None, None, None]
-"""The model, rig, (state bytes, hand scale) and result of the last
-:func:`camera_keypoints` call (the objects themselves, so that their ids cannot be
-reused while kept): the keypoint log and the stream ask for the same frame's keypoints
-one after the other."""
-
-
-def camera_keypoints(model: KinematicModel, rig: Rig, q: np.ndarray, hand_scale: float = 1.0
-                     ) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
-    """Names, pixels (n_cameras, K, 2) and camera-frame points (n_cameras, K, 3), mm, of
-    the model keypoints of state ``q`` (a hand ``hand_scale`` times the model's size,
+class CameraKeypoints:
+    """The model keypoints of a state (a hand ``hand_scale`` times the model's size,
     :func:`~digiteyes.kinematics.keypoints.hand_keypoints`) in every camera of ``rig``,
     in the real images and camera frames (:meth:`~digiteyes.camera.Rig.real_pixels`; a
-    mirrored rig's points reflected back, :mod:`digiteyes.camera.mirror`). The arrays of
-    the last call are returned again for the same arguments (read them, do not write)."""
-    q = np.asarray(q, dtype=float)
-    key = (q.tobytes(), float(hand_scale))
-    last_model, last_rig, last_key, last_result = _last_keypoints
-    if last_model is model and last_rig is rig and last_key == key:
-        return last_result
-    result = _camera_keypoints(model, rig, q, hand_scale)
-    _last_keypoints[:] = [model, rig, key, result]
-    return result
+    mirrored rig's points reflected back, :mod:`digiteyes.camera.mirror`).
 
+    One per run, shared by its sinks: the keypoint log and the stream ask for the same
+    frame's keypoints one after the other, so the last call's arrays are returned again
+    for the same state and scale (read them, do not write).
+    """
 
-def _camera_keypoints(model: KinematicModel, rig: Rig, q: np.ndarray, hand_scale: float
-                      ) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
-    names, world = hand_keypoints(model, q, hand_scale)
-    world = world[0]
-    uv = np.stack([cam.project(world) for cam in rig])
-    xyz = np.stack([cam.to_camera(world) for cam in rig])
-    uv = np.stack([rig.real_pixels(p, c) for c, p in enumerate(uv)])
-    if rig.mirrored:
-        xyz = unmirror_points(xyz)
-    return names, uv, xyz
+    def __init__(self, model: KinematicModel, rig: Rig) -> None:
+        self.model = model
+        self.rig = rig
+        self._last: tuple[tuple[bytes, float], tuple] | None = None
+
+    def __call__(self, q: np.ndarray, hand_scale: float = 1.0
+                 ) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
+        """Names, pixels (n_cameras, K, 2) and camera-frame points (n_cameras, K, 3), mm,
+        of the keypoints of state ``q``."""
+        q = np.asarray(q, dtype=float)
+        key = (q.tobytes(), float(hand_scale))
+        if self._last is None or self._last[0] != key:
+            self._last = key, self._compute(q, hand_scale)
+        return self._last[1]
+
+    def _compute(self, q: np.ndarray, hand_scale: float
+                 ) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
+        names, world = hand_keypoints(self.model, q, hand_scale)
+        world = world[0]
+        rig = self.rig
+        uv = np.stack([rig.real_pixels(cam.project(world), c) for c, cam in enumerate(rig)])
+        xyz = np.stack([cam.to_camera(world) for cam in rig])
+        if rig.mirrored:
+            xyz = unmirror_points(xyz)
+        return names, uv, xyz
 
 
 class KeypointLog:
     """Write ``keypoints.csv`` (flushed per row, like ``states.csv``)."""
 
-    def __init__(self, path: str | Path, model: KinematicModel, rig: Rig) -> None:
+    def __init__(self, path: str | Path, model: KinematicModel, rig: Rig,
+                 keypoints: CameraKeypoints | None = None) -> None:
         self.path = Path(path)
-        self.model = model
         self.rig = rig
+        self.keypoints = keypoints or CameraKeypoints(model, rig)
         try:
             self._handle = open(self.path, "w", newline="", encoding="utf-8")
         except OSError as exc:
@@ -98,7 +100,7 @@ class KeypointLog:
     def write(self, index: int, images: Sequence[np.ndarray], result: TrackResult,
               reinitialised: bool) -> None:
         """Append the keypoints of ``result.state``."""
-        _, uv, xyz = camera_keypoints(self.model, self.rig, result.state, result.hand_scale)
+        _, uv, xyz = self.keypoints(result.state, result.hand_scale)
         row = [str(index)]
         for c in range(len(self.rig)):
             for k in range(uv.shape[1]):
@@ -117,7 +119,7 @@ def keypoint_columns(model: KinematicModel, rig: Rig) -> list[str]:
             for axis in ("u_px", "v_px", "x_mm", "y_mm", "z_mm")]
 
 
-def frame_message(model: KinematicModel, rig: Rig, index: int, result: TrackResult,
+def frame_message(keypoints: CameraKeypoints, index: int, result: TrackResult,
                   reinitialised: bool) -> dict:
     """One frame as a JSON-ready object: ``frame``, ``time`` (Unix s), ``lost``,
     ``reinitialised``, ``residual_rms_px``, ``state`` (by name; mm, rad), ``hand_scale``
@@ -130,9 +132,9 @@ def frame_message(model: KinematicModel, rig: Rig, index: int, result: TrackResu
         "lost": bool(result.lost),
         "reinitialised": bool(reinitialised),
         "residual_rms_px": rms if np.isfinite(rms) else None,
-        "state": state_by_name(model, result.state),
+        "state": state_by_name(keypoints.model, result.state),
         "hand_scale": float(result.hand_scale),
-        "keypoints": keypoints_by_camera(model, rig, result.state, result.hand_scale),
+        "keypoints": keypoints_by_camera(keypoints, result.state, result.hand_scale),
     }
 
 
@@ -141,16 +143,16 @@ def state_by_name(model: KinematicModel, state: np.ndarray) -> dict[str, float]:
     return {n: float(v) for n, v in zip(model.state_names, state, strict=True)}
 
 
-def keypoints_by_camera(model: KinematicModel, rig: Rig, state: np.ndarray,
+def keypoints_by_camera(keypoints: CameraKeypoints, state: np.ndarray,
                         hand_scale: float = 1.0) -> dict:
     """``{camera: {keypoint: {"uv_px": [u, v], "xyz_mm": [x, y, z]}}}`` of a state (n_q,)
     of a hand ``hand_scale`` times the model's size: the projection (px) and the point in
     the camera's frame (mm), rounded to 0.01."""
-    names, uv, xyz = camera_keypoints(model, rig, state, hand_scale)
+    names, uv, xyz = keypoints(state, hand_scale)
     return {cam.name: {n: {"uv_px": [round(float(u), 2) for u in uv[c, k]],
                            "xyz_mm": [round(float(v), 2) for v in xyz[c, k]]}
                        for k, n in enumerate(names)}
-            for c, cam in enumerate(rig)}
+            for c, cam in enumerate(keypoints.rig)}
 
 
 def parse_stream_target(target: str) -> tuple[str, int] | None:
@@ -177,9 +179,9 @@ class JsonLinesStream:
 
     def __init__(self, target: str, model: KinematicModel, rig: Rig,
                  out: TextIO | None = None, smooth: OneEuroOptions | None = None,
-                 fps: float = 10.0) -> None:
+                 fps: float = 10.0, keypoints: CameraKeypoints | None = None) -> None:
         self.model = model
-        self.rig = rig
+        self.keypoints = keypoints or CameraKeypoints(model, rig)
         self._socket = None
         self._filter = None if smooth is None else OneEuroFilter(model, fps, smooth)
         address = parse_stream_target(target)
@@ -197,12 +199,12 @@ class JsonLinesStream:
               reinitialised: bool) -> None:
         if self._out is None:
             return
-        message = frame_message(self.model, self.rig, index, result, reinitialised)
+        message = frame_message(self.keypoints, index, result, reinitialised)
         if self._filter is not None:
             smoothed = self._filter.follow(result.state, result.lost)
             message["state_smoothed"] = state_by_name(self.model, smoothed)
-            message["keypoints_smoothed"] = keypoints_by_camera(self.model, self.rig,
-                                                                smoothed, result.hand_scale)
+            message["keypoints_smoothed"] = keypoints_by_camera(self.keypoints, smoothed,
+                                                                result.hand_scale)
         try:
             self._out.write(json.dumps(message) + "\n")
             self._out.flush()
