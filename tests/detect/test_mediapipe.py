@@ -119,21 +119,31 @@ def test_native_start_up_notices_stay_off_standard_error():
     assert run.stderr.strip() == "ours", (run.stderr, time.perf_counter() - start)
 
 
-def test_grey_images_are_recognised_and_tinted_keeping_their_grey_levels():
-    """A 2-D image and an RGB image of three equal channels are grey, a colour one is
-    not; the skin tint keeps each grey level (OpenCV's own RGB-to-grey conversion gives
-    it back to within a level below the red channel's clipping) and has the skin's hue."""
+def test_grey_images_are_recognised_and_tinted_keeping_their_grey_levels(tmp_path):
+    """A 2-D image, RGB of three equal channels and a grey video as decoded (channels a
+    level or two apart after chroma subsampling) are grey; a colour frame is not. The skin
+    tint keeps each grey level (OpenCV's own RGB-to-grey conversion gives it back to
+    within a level below the red channel's clipping) and has the skin's hue."""
     import cv2
 
     from digiteyes.detect.mediapipe_detector import is_grey, skin_tinted
+    from digiteyes.io.video import VideoReader
 
-    grey = np.random.default_rng(0).integers(0, 256, (48, 64), dtype=np.uint8)
+    rng = np.random.default_rng(0)
+    grey = cv2.GaussianBlur(rng.integers(0, 256, (96, 128), dtype=np.uint8), (9, 9), 3)
     assert is_grey(grey) and is_grey(np.repeat(grey[..., None], 3, axis=2))
+    path = tmp_path / "grey.mp4"
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 10.0, (128, 96))
+    writer.write(cv2.cvtColor(grey, cv2.COLOR_GRAY2BGR))
+    writer.release()
+    with VideoReader(path) as reader:
+        decoded = reader.read()
+    assert not np.array_equal(decoded[..., 0], decoded[..., 1]) and is_grey(decoded)
     colour = np.repeat(grey[..., None], 3, axis=2)
-    colour[40, 60, 1] += 1  # one pixel off the every-8th sample: the full check sees it
+    colour[..., 0] = np.clip(colour[..., 0].astype(int) + 20, 0, 255)  # a reddish cast
     assert not is_grey(colour)
     tinted = skin_tinted(grey)
-    assert tinted.shape == (48, 64, 3) and tinted.dtype == np.uint8
+    assert tinted.shape == (96, 128, 3) and tinted.dtype == np.uint8
     back = cv2.cvtColor(tinted, cv2.COLOR_RGB2GRAY).astype(int)
     unclipped = grey < 193
     assert np.abs(back - grey)[unclipped].max() <= 1
