@@ -18,7 +18,8 @@ towards or away from the camera where one view cannot tell; when that fit leaves
 keypoint beyond ``max_error_px``, a fit from scratch is tried too (:meth:`KeypointTracker.
 _fit`: taken when it costs less without turning the palm over, or when the warm fit does
 not explain the keypoints); a fit that moves the hand farther than a hand could move
-(``max_jump``) is refused. A frame in which no camera finds a hand,
+(``max_jump``) is refused, and so is one beyond a single frame's bound that explains the
+hand's silhouette no better than the held estimate. A frame in which no camera finds a hand,
 or no fit explains the keypoints near the last estimate, holds the previous state and is
 flagged lost.
 
@@ -134,8 +135,11 @@ class KeypointTrackerOptions(SilhouetteLossOptions, LossHoldOptions):
         (wrist to middle fingertip) per frame since the last fit taken (counting at most
         :data:`JUMP_FRAMES` frames) is refused: a hand does not cross half a metre
         between frames, a detector that labels part of the hand (or something else)
-        makes the fit do so. A hand that comes back far from where it was lost is taken
-        up by the run loop's re-detection, which restarts the tracker.
+        makes the fit do so. A fit beyond one frame's bound (after frames without a fit)
+        is taken only when it explains the hand's silhouette better than the held
+        estimate (where the silhouette rule is on and sees the hand). A hand that comes
+        back far from where it was lost is taken up by the run loop's re-detection,
+        which restarts the tracker.
     start_size : with one camera, fit the hand's scale on the first frame with the palm
         held at the start state's position (module docstring); False keeps the model's
         size.
@@ -278,6 +282,9 @@ class KeypointTracker:
         self._size_pending = False  # the start's frame only: later, the hand has moved
         if fit is None and observations:
             fit, iterations = self._fit(observations)
+        worse_silhouette = fit is not None and self._worse_silhouette(frames, fit)
+        if worse_silhouette:
+            fit = None
         size = None
         if fit is not None and self._adapts_size and len(observations) >= 2:
             size, size_iterations = self._measure_size(observations, fit)
@@ -287,6 +294,8 @@ class KeypointTracker:
         reprojection = np.full((len(self.rig), 21), np.nan)
         if fit is None:
             reason = ("no hand detected" if not observations else
+                      "a fit far from the last estimate explains the hand's silhouette "
+                      "worse than it" if worse_silhouette else
                       "no fit explains the keypoints near the last estimate")
             lost, rms = True, float("nan")
             self._since_fit += 1
@@ -434,12 +443,30 @@ class KeypointTracker:
         errors = fit.reprojection_px[np.isfinite(fit.reprojection_px)]
         return bool(np.all(errors <= self.options.max_error_px))
 
+    def _jump_mm(self, fit: PoseFit) -> float:
+        """How far ``fit`` moves the keypoints' centroid from the frame's start estimate
+        (mm)."""
+        return float(np.linalg.norm(fit.keypoints_world.mean(axis=0) - self._here.mean(axis=0)))
+
     def _near(self, fit: PoseFit) -> bool:
         """Whether ``fit`` keeps the hand within ``max_jump`` hand lengths per frame since
         the last fit taken (keypoints' centroid, mm; from the frame's start estimate)."""
-        jump = float(np.linalg.norm(fit.keypoints_world.mean(axis=0) - self._here.mean(axis=0)))
         frames = min(self._since_fit, JUMP_FRAMES)
-        return jump <= self.options.max_jump * self._hand_length * frames
+        return self._jump_mm(fit) <= self.options.max_jump * self._hand_length * frames
+
+    def _worse_silhouette(self, frames: Sequence[np.ndarray], fit: PoseFit) -> bool:
+        """Whether ``fit``, which moves the hand farther than one frame's ``max_jump``
+        (possible after frames without a fit), explains the hand's silhouette
+        (:meth:`~digiteyes.trackers.silhouette_loss.SilhouetteLoss.mismatch`) no better
+        than the held estimate: then it is refused. On the webcam render a detection of
+        part of the hand after six frames without one put the hand 364 mm farther away,
+        and the track stayed there (docs/keypoint-tracker.md). False where the rule is off
+        or sees no camera (a textured backdrop)."""
+        if not self.options.silhouette_check or \
+                self._jump_mm(fit) <= self.options.max_jump * self._hand_length:
+            return False
+        scores = self.silhouette_loss.mismatches(frames, [fit.scaled_state(), self.state])
+        return scores is not None and scores[0] >= scores[1]
 
     def _keypoints_here(self) -> np.ndarray:
         """The 21 keypoints (21, 3) mm of the current estimate, at the current size."""
