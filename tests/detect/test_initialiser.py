@@ -161,13 +161,15 @@ def test_two_cameras_measure_the_hands_size_at_the_start(hand, camera, posed):
     the model's size, then ``size_hand`` measures the size within 0.02, moves the
     initialiser to a model of that size, and returns the state that poses the hand where
     it is; a hand 1.02 times the size keeps the model's; detections the sized fit does not
-    match (one view's keypoints 40 px off), or one camera, keep the model's too."""
+    match (one view's keypoints 40 px off), a size outside ``HAND_SCALE_RANGE`` (0.5: part
+    of a hand labelled as a whole one), or one camera, keep the model's too."""
     side = Camera.look_at("side", eye=(300, 0, 350), target=(0, 0, 0), up=(0, -1, 0))
     rig = Rig((camera, side))
     q = posed(hand, 3)
     images = [np.zeros((480, 640), np.uint8)] * 2
     for size, shift_px, cameras, expected in ((0.9, 0.0, rig, 0.9), (1.1, 0.0, rig, 1.1),
                                               (1.02, 0.0, rig, 1.0), (0.9, 40.0, rig, 1.0),
+                                              (0.5, 0.0, rig, 1.0),
                                               (0.9, 0.0, Rig((camera,)), 1.0)):
         true_hand = scaled_model(hand, size)
         points = forward_kinematics(true_hand, q).points(*model_anchors(true_hand))

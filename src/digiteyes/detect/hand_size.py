@@ -53,6 +53,11 @@ def scale_from_length(model: KinematicModel, hand_length_mm: float) -> float:
     return hand_length_mm / model_hand_length(model)
 
 
+HAND_SCALE_RANGE = (0.6, 1.6)
+"""Hand sizes, relative to the model file, that a measurement may return; one outside is
+a detection of something else (part of the hand labelled as a whole one)."""
+
+
 def scale_from_fits(fits: Sequence[PoseFit]) -> tuple[float, float, int]:
     """Median, spread (median absolute deviation, as a fraction) and count of the fitted
     scales of several frames (fits whose scale was fitted, i.e. two cameras or 3D)."""

@@ -26,6 +26,7 @@ from itertools import chain
 import numpy as np
 
 from digiteyes.camera import Rig
+from digiteyes.detect.hand_size import HAND_SCALE_RANGE
 from digiteyes.detect.model_fit import FitOptions, KeypointObservation, PoseFit, fit_keypoints
 from digiteyes.detect.pose import PoseResult, estimate_pose, make_detector
 from digiteyes.errors import DatasetError, DigitEyesError
@@ -119,8 +120,10 @@ class AutoInitialiser:
     def size_hand(self, state: np.ndarray) -> tuple[np.ndarray, float]:
         """The hand's size from the last detections (:attr:`last`, those that gave the
         start ``state``), fitted again with the scale free, when two or more cameras saw
-        the hand, that fit's median reprojection error is at most :data:`SIZE_FIT_MAX_PX`
-        and its size lies more than :data:`MIN_SIZE_CHANGE` from 1 (Rehg Sec. 2.2.3 names
+        the hand, that fit's median reprojection error is at most :data:`SIZE_FIT_MAX_PX`,
+        its size lies more than :data:`MIN_SIZE_CHANGE` from 1 and within
+        :data:`~digiteyes.detect.hand_size.HAND_SCALE_RANGE` (the webcam pair's dim grey
+        hand, of which MediaPipe labelled a part in both views, measured 0.5) (Rehg Sec. 2.2.3 names
         the hand's scale among the parameters to calibrate; a second camera observes it).
 
         Returns ``(state, scale)``: the state that poses the measured hand (palm in mm, a
@@ -143,8 +146,9 @@ class AutoInitialiser:
         finally:
             self.seconds += time.perf_counter() - started
         errors = fit.reprojection_px[np.isfinite(fit.reprojection_px)]
+        low, high = HAND_SCALE_RANGE
         if (not errors.size or np.median(errors) > SIZE_FIT_MAX_PX
-                or abs(fit.scale - 1.0) <= MIN_SIZE_CHANGE):
+                or abs(fit.scale - 1.0) <= MIN_SIZE_CHANGE or not low <= fit.scale <= high):
             return state, 1.0
         self.model = scaled_model(self.model, fit.scale, name=self.model.name)
         return fit.scaled_state(), float(fit.scale)

@@ -26,7 +26,8 @@ keypoints are the same pixels either way. On real images made grey (the real vid
 112 of the 126 hands, against 86 in grey alone and 103 with every image tinted: the tint
 throughout also costs precision where grey already works (the real video made grey,
 tracked: keypoints 3.7 px from the colour video's track in the median frame against
-2.8; ``benchmarks/real_grey.py``). On the synthetic webcam's dim flesh hand in grey: 0 of 20 frames, 12 with the tint.
+2.8; ``benchmarks/real_grey.py``). On the synthetic webcam's dim flesh hand in grey: 0
+of 20 frames, 12 with the tint.
 """
 
 from __future__ import annotations

@@ -72,7 +72,7 @@ import numpy as np
 from digiteyes.camera import Rig
 from digiteyes.detect.candidate import HandCandidate, HandDetector
 from digiteyes.detect.hand21 import model_anchors
-from digiteyes.detect.hand_size import model_hand_length
+from digiteyes.detect.hand_size import HAND_SCALE_RANGE, model_hand_length
 from digiteyes.detect.link_lengths import segment_lengths, triangulate
 from digiteyes.detect.model_fit import FitOptions, KeypointObservation, PoseFit, fit_keypoints
 from digiteyes.detect.pose import DETECTORS, make_detector
@@ -91,7 +91,7 @@ JUMP_FRAMES = 4
 """The frames without a fit that widen the jump bound of ``max_jump`` at most."""
 START_POSITION_SIGMA_MM = 5.0
 """How closely the first frame's size fit holds the palm to the start's position (mm)."""
-START_SCALE_RANGE = (0.6, 1.6)
+START_SCALE_RANGE = HAND_SCALE_RANGE
 """Hand scales (relative to the model file) the size fit at the start (and a frame's size
 measurement) may return; outside them the model's size is kept (the measurement
 ignored)."""
