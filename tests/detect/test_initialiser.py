@@ -193,6 +193,33 @@ def test_two_cameras_measure_the_hands_size_at_the_start(hand, camera, posed):
         assert np.linalg.norm(refit - points, axis=1).mean() < 4.0
 
 
+def test_the_size_is_taken_only_where_the_palm_measures_it_too(hand, camera, posed):
+    """Detections of a hand 0.9 times the model's size whose fingers' keypoints sit short
+    of the model's (each digit's last three keypoints drawn towards its base, as MediaPipe
+    places a flesh hand's fingertips in some views): a fit of all 21 reads a smaller hand
+    than the palm's triangulated keypoints do, and the model's size is kept; with the
+    keypoints where the model has them both read 0.9."""
+    from digiteyes.detect.hand_size import palm_scale
+
+    side = Camera.look_at("side", eye=(300, 0, 350), target=(0, 0, 0), up=(0, -1, 0))
+    rig = Rig((camera, side))
+    true_hand = scaled_model(hand, 0.9)
+    points = forward_kinematics(true_hand, posed(hand, 3)).points(*model_anchors(true_hand))
+    short = points.copy()
+    for base in (1, 5, 9, 13, 17):
+        digit = slice(base + 1, base + 4)
+        short[digit] = points[base] + 0.6 * (points[digit] - points[base])
+    images = [np.zeros((480, 640), np.uint8)] * 2
+    for keypoints, expected in ((points, 0.9), (short, 1.0)):
+        init = AutoInitialiser(hand, rig, "classic")
+        init._detector = ProjectingDetector(keypoints)
+        start = init(images)
+        assert start is not None
+        palm = palm_scale(hand, rig, [c.keypoints for c in init.last.candidates])
+        assert palm == pytest.approx(0.9, abs=0.02)
+        assert init.size_hand(start)[1] == pytest.approx(expected, abs=0.02)
+
+
 def test_a_recovery_fits_a_hand_of_the_size_the_tracker_measured(hand, camera, posed):
     """Asked for a hand 0.9 times the model's size (a tracker that measured it), the
     initialiser returns the state of the scaled model that poses the detected hand; at the

@@ -58,6 +58,37 @@ HAND_SCALE_RANGE = (0.6, 1.6)
 a detection of something else (part of the hand labelled as a whole one)."""
 
 
+PALM_KEYPOINTS = (0, 5, 9, 13, 17)
+"""The wrist and the four finger MCPs (:data:`~digiteyes.detect.hand21.HAND21_NAMES`): a
+rigid set whose places a detector and the model agree on."""
+
+
+def palm_scale(model: KinematicModel, rig: Rig,
+               keypoints: Sequence[np.ndarray | None]) -> float | None:
+    """The hand's size relative to ``model`` from the palm alone: the palm's keypoints
+    (:data:`PALM_KEYPOINTS`) triangulated from the cameras that found the hand
+    (``keypoints``: (21, 2) px per camera of ``rig``, None where none), and the median
+    over their pairs of the distance's ratio to the model's. None with fewer than two
+    cameras or fewer than three palm points triangulated.
+
+    The palm is rigid and its keypoints are placed alike by a detector and the model;
+    the fingers' keypoints sit by the detector's convention (on our flesh hand MediaPipe
+    puts each fingertip 15-45 % of the distal segment short of the model's tip point;
+    docs/initialisation.md, "Where the two-camera size is biased")."""
+    if sum(k is not None for k in keypoints) < 2:
+        return None
+    points = triangulate(rig, [None if k is None else
+                               np.asarray(k, dtype=float)[list(PALM_KEYPOINTS)]
+                               for k in keypoints])
+    nominal = palm_points(model)[list(PALM_KEYPOINTS)]
+    seen = np.flatnonzero(np.isfinite(points).all(axis=1))
+    if len(seen) < 3:
+        return None
+    ratios = [np.linalg.norm(points[a] - points[b]) / np.linalg.norm(nominal[a] - nominal[b])
+              for i, a in enumerate(seen) for b in seen[i + 1:]]
+    return float(np.median(ratios))
+
+
 def scale_from_fits(fits: Sequence[PoseFit]) -> tuple[float, float, int]:
     """Median, spread (median absolute deviation, as a fraction) and count of the fitted
     scales of several frames (fits whose scale was fitted, i.e. two cameras or 3D)."""

@@ -26,7 +26,7 @@ from itertools import chain
 import numpy as np
 
 from digiteyes.camera import Rig
-from digiteyes.detect.hand_size import HAND_SCALE_RANGE
+from digiteyes.detect.hand_size import HAND_SCALE_RANGE, palm_scale
 from digiteyes.detect.model_fit import FitOptions, KeypointObservation, PoseFit, fit_keypoints
 from digiteyes.detect.pose import PoseResult, estimate_pose, make_detector
 from digiteyes.errors import DatasetError, DigitEyesError
@@ -123,7 +123,11 @@ class AutoInitialiser:
         the hand, that fit's median reprojection error is at most :data:`SIZE_FIT_MAX_PX`,
         its size lies more than :data:`MIN_SIZE_CHANGE` from 1 and within
         :data:`~digiteyes.detect.hand_size.HAND_SCALE_RANGE` (the webcam pair's dim grey
-        hand, of which MediaPipe labelled a part in both views, measured 0.5) (Rehg Sec. 2.2.3 names
+        hand, of which MediaPipe labelled a part in both views, measured 0.5), and the
+        palm alone (:func:`~digiteyes.detect.hand_size.palm_scale`) measures the same
+        size within :data:`MIN_SIZE_CHANGE`: the fingers' keypoints sit by the
+        detector's convention, which in some views reads a hand of the model's size at
+        0.9 (docs/initialisation.md) (Rehg Sec. 2.2.3 names
         the hand's scale among the parameters to calibrate; a second camera observes it).
 
         Returns ``(state, scale)``: the state that poses the measured hand (palm in mm, a
@@ -149,6 +153,10 @@ class AutoInitialiser:
         low, high = HAND_SCALE_RANGE
         if (not errors.size or np.median(errors) > SIZE_FIT_MAX_PX
                 or abs(fit.scale - 1.0) <= MIN_SIZE_CHANGE or not low <= fit.scale <= high):
+            return state, 1.0
+        palm = palm_scale(self.model, self.rig, [None if c is None else c.keypoints
+                                                 for c in self.last.candidates])
+        if palm is None or abs(palm - fit.scale) > MIN_SIZE_CHANGE:
             return state, 1.0
         self.model = scaled_model(self.model, fit.scale, name=self.model.name)
         return fit.scaled_state(), float(fit.scale)
