@@ -40,6 +40,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from real_video import DEFAULT_DATA, RESULTS, VIDEO
 
 from digiteyes.benchmarks._machine import machine_info
 from digiteyes.detect.check import palm_gap
@@ -50,9 +51,6 @@ from digiteyes.detect.mediapipe_detector import (
 )
 from digiteyes.track_job import TrackJob, run_track_job
 
-DEFAULT_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
-RESULTS = Path(__file__).resolve().parent / "results"
-VIDEO = Path("real_video") / "human_hand_video.mp4"
 IMAGES = (("FreiHAND", "annotated_images/tests/data/freihand", "*.jpg"),
           ("InterHand2.6M", "annotated_images/tests/data/interhand2.6m", "*.jpg"),
           ("OneHand10K", "annotated_images/tests/data/onehand10k", "*.jpg"),

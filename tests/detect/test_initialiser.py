@@ -210,9 +210,9 @@ def test_the_size_is_taken_only_where_the_palm_measures_it_too(hand, camera, pos
         digit = slice(base + 1, base + 4)
         short[digit] = points[base] + 0.6 * (points[digit] - points[base])
     images = [np.zeros((480, 640), np.uint8)] * 2
-    for keypoints, expected in ((points, 0.9), (short, 1.0)):
+    for detected, expected in ((points, 0.9), (short, 1.0)):
         init = AutoInitialiser(hand, rig, "classic")
-        init._detector = ProjectingDetector(keypoints)
+        init._detector = ProjectingDetector(detected)
         start = init(images)
         assert start is not None
         palm = palm_scale(hand, rig, [c.keypoints for c in init.last.candidates])
