@@ -119,16 +119,20 @@ class AutoInitialiser:
 
     def size_hand(self, state: np.ndarray) -> tuple[np.ndarray, float]:
         """The hand's size from the last detections (:attr:`last`, those that gave the
-        start ``state``), fitted again with the scale free, when two or more cameras saw
-        the hand, that fit's median reprojection error is at most :data:`SIZE_FIT_MAX_PX`,
-        its size lies more than :data:`MIN_SIZE_CHANGE` from 1 and within
-        :data:`~digiteyes.detect.hand_size.HAND_SCALE_RANGE` (the webcam pair's dim grey
-        hand, of which MediaPipe labelled a part in both views, measured 0.5), and the
-        palm alone (:func:`~digiteyes.detect.hand_size.palm_scale`) measures the same
-        size within :data:`MIN_SIZE_CHANGE`: the fingers' keypoints sit by the
-        detector's convention, which in some views reads a hand of the model's size at
-        0.9 (docs/initialisation.md) (Rehg Sec. 2.2.3 names
-        the hand's scale among the parameters to calibrate; a second camera observes it).
+        start ``state``) when two or more cameras saw the hand: they are fitted again with
+        the scale free, and the size is taken when
+
+        * that fit's median reprojection error is at most :data:`SIZE_FIT_MAX_PX`;
+        * the size lies more than :data:`MIN_SIZE_CHANGE` from 1, and within
+          :data:`~digiteyes.detect.hand_size.HAND_SCALE_RANGE` (the webcam pair's dim grey
+          hand, of which MediaPipe labelled a part in both views, measured 0.5);
+        * the palm alone (:func:`~digiteyes.detect.hand_size.palm_scale`) measures the
+          same size within :data:`MIN_SIZE_CHANGE`: the fingers' keypoints sit by the
+          detector's convention, which in some views reads a hand of the model's size at
+          0.9 (docs/initialisation.md).
+
+        Rehg Sec. 2.2.3 names the hand's scale among the parameters to calibrate; a second
+        camera observes it.
 
         Returns ``(state, scale)``: the state that poses the measured hand (palm in mm, a
         state of ``scaled_model(model, scale)``) and its size relative to :attr:`model`,
