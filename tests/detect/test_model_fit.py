@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from digiteyes.camera import Camera
-from digiteyes.detect.hand21 import HAND21_NAMES, TIPS, model_anchors
+from digiteyes.detect.hand21 import HAND21_NAMES, PALM, TIPS, model_anchors
 from digiteyes.detect.model_fit import (
     FitOptions,
     KeypointFitProblem,
@@ -219,10 +219,10 @@ def test_a_palm_ippe_puts_behind_the_camera_is_placed_by_sqpnp(hand, camera, pos
     monkeypatch.setattr(model_fit.cv2, "solvePnPGeneric", lambda *a, **k: behind)
     starts = model_fit.starts_from_image(hand, obs, 1.0)
     assert len(starts) == 1
-    palm = camera.to_camera(true_points(hand, starts[0]))[list(model_fit.PLANAR_PALM)]
+    palm = camera.to_camera(true_points(hand, starts[0]))[list(PALM)]
     assert (palm[:, 2] > 0).all()
-    uv = camera.project(true_points(hand, starts[0]))[list(model_fit.PLANAR_PALM)]
-    assert np.linalg.norm(uv - obs.keypoints[list(model_fit.PLANAR_PALM)], axis=1).mean() < 15
+    uv = camera.project(true_points(hand, starts[0]))[list(PALM)]
+    assert np.linalg.norm(uv - obs.keypoints[list(PALM)], axis=1).mean() < 15
 
 
 def test_holding_the_palm_position_fits_the_size_one_camera_cannot_see(hand, camera, posed):

@@ -22,13 +22,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from digiteyes.camera import Rig
-from digiteyes.detect.hand21 import DIGITS, model_anchors
+from digiteyes.detect.hand21 import DIGIT_KEYPOINTS, PALM, model_anchors
 from digiteyes.detect.pose import make_detector
 from digiteyes.detect.side import TRACKED_SIDE, SideFollower, pick_candidate
 from digiteyes.kinematics import KinematicModel, forward_kinematics
-
-DIGIT_KEYPOINTS = {digit: [1 + 4 * d + k for k in range(4)] for d, digit in enumerate(DIGITS)}
-"""Each digit's four keypoints of :data:`~digiteyes.detect.hand21.HAND21_NAMES`."""
 
 
 def keypoint_gaps(tracked: np.ndarray, detected: np.ndarray) -> np.ndarray | None:
@@ -51,16 +48,12 @@ def worst_digit_gap(tracked: np.ndarray, detected: np.ndarray) -> tuple[float, s
     return max((float(gap[keys].mean()), digit) for digit, keys in DIGIT_KEYPOINTS.items())
 
 
-PALM_KEYPOINTS = [0, 5, 9, 13, 17]
-"""The wrist and the four finger MCPs of :data:`~digiteyes.detect.hand21.HAND21_NAMES`."""
-
-
 def palm_gap(tracked: np.ndarray, detected: np.ndarray) -> float | None:
-    """The mean distance of the palm's keypoints (:data:`PALM_KEYPOINTS`) from the
+    """The mean distance of the palm's keypoints (:data:`~digiteyes.detect.hand21.PALM`) from the
     detected ones in palm lengths (:func:`keypoint_gaps`). None for a detection without a
     palm length."""
     gap = keypoint_gaps(tracked, detected)
-    return None if gap is None else float(gap[PALM_KEYPOINTS].mean())
+    return None if gap is None else float(gap[list(PALM)].mean())
 
 
 @dataclass

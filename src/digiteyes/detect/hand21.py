@@ -31,6 +31,12 @@ TIPS = (4, 8, 12, 16, 20)
 PALM_FIXED = (0, 1, 5, 9, 13, 17)
 """Keypoints fixed in the palm frame of the model (wrist, thumb CMC, four MCPs): a rigid
 palm pose aligns them."""
+PALM = (0, 5, 9, 13, 17)
+"""The wrist and the four finger MCPs: coplanar in the model's palm frame, rigid, and
+placed alike by a detector and the model (the fingers' keypoints sit by each detector's
+convention)."""
+DIGIT_KEYPOINTS = {digit: [1 + 4 * d + k for k in range(4)] for d, digit in enumerate(DIGITS)}
+"""Each digit's four keypoints (base to tip)."""
 BONES = tuple((0 if k % 4 == 1 else k - 1, k) for k in range(1, 21))
 """Parent-child pairs (20) for drawing skeletons."""
 

@@ -30,6 +30,7 @@ import numpy as np
 
 from digiteyes.camera import Rig
 from digiteyes.detect.candidate import HandDetector
+from digiteyes.detect.hand21 import PALM
 from digiteyes.detect.link_lengths import measured_lengths, triangulate, with_link_lengths
 from digiteyes.detect.model_fit import PoseFit, palm_points
 from digiteyes.detect.pose import estimate_pose
@@ -58,15 +59,10 @@ HAND_SCALE_RANGE = (0.6, 1.6)
 a detection of something else (part of the hand labelled as a whole one)."""
 
 
-PALM_KEYPOINTS = (0, 5, 9, 13, 17)
-"""The wrist and the four finger MCPs (:data:`~digiteyes.detect.hand21.HAND21_NAMES`): a
-rigid set whose places a detector and the model agree on."""
-
-
 def palm_scale(model: KinematicModel, rig: Rig,
                keypoints: Sequence[np.ndarray | None]) -> float | None:
     """The hand's size relative to ``model`` from the palm alone: the palm's keypoints
-    (:data:`PALM_KEYPOINTS`) triangulated from the cameras that found the hand
+    (:data:`~digiteyes.detect.hand21.PALM`) triangulated from the cameras that found the hand
     (``keypoints``: (21, 2) px per camera of ``rig``, None where none), and the median
     over their pairs of the distance's ratio to the model's. None with fewer than two
     cameras or fewer than three palm points triangulated.
@@ -78,9 +74,9 @@ def palm_scale(model: KinematicModel, rig: Rig,
     if sum(k is not None for k in keypoints) < 2:
         return None
     points = triangulate(rig, [None if k is None else
-                               np.asarray(k, dtype=float)[list(PALM_KEYPOINTS)]
+                               np.asarray(k, dtype=float)[list(PALM)]
                                for k in keypoints])
-    nominal = palm_points(model)[list(PALM_KEYPOINTS)]
+    nominal = palm_points(model)[list(PALM)]
     seen = np.flatnonzero(np.isfinite(points).all(axis=1))
     if len(seen) < 3:
         return None

@@ -49,7 +49,15 @@ import numpy as np
 
 from digiteyes.camera import Camera
 from digiteyes.detect.candidate import HandCandidate
-from digiteyes.detect.hand21 import BONES, DIGITS, HAND21_NAMES, PALM_FIXED, model_anchors
+from digiteyes.detect.hand21 import (
+    BONES,
+    DIGIT_KEYPOINTS,
+    DIGITS,
+    HAND21_NAMES,
+    PALM,
+    PALM_FIXED,
+    model_anchors,
+)
 from digiteyes.errors import DigitEyesError
 from digiteyes.kinematics import (
     KinematicModel,
@@ -63,12 +71,8 @@ from digiteyes.kinematics.procrustes import kabsch
 from digiteyes.kinematics.rotations import quaternion_from_matrix
 from digiteyes.solvers import GaussNewtonOptions, gauss_newton, robust_cost
 
-PLANAR_PALM = (0, 5, 9, 13, 17)
-"""Wrist and the four MCPs: coplanar in the palm frame (z = 0)."""
 SCOUT_ITERATIONS = 3
 """Iterations of each scouting fit (extended and curled fingers) before the refinement."""
-DIGIT_KEYPOINTS = {d: [1 + 4 * i + j for j in range(4)] for i, d in enumerate(DIGITS)}
-"""The four keypoints of each digit (base to tip)."""
 
 
 @dataclass(frozen=True)
@@ -365,8 +369,8 @@ def starts_from_image(model: KinematicModel, obs: KeypointObservation,
     when neither puts the palm in front of the camera (a palm seen nearly edge-on, whose
     detected keypoints no planar palm of the model's shape matches well), the general
     PnP solution (SQPnP) instead."""
-    palm = scale * palm_points(model)[list(PLANAR_PALM)]
-    image = np.asarray(obs.keypoints, dtype=float)[list(PLANAR_PALM)]
+    palm = scale * palm_points(model)[list(PALM)]
+    image = np.asarray(obs.keypoints, dtype=float)[list(PALM)]
     if not np.isfinite(image).all():
         raise DigitEyesError("model fit: the wrist and the four MCP keypoints are needed to "
                              "place the palm")
