@@ -83,7 +83,7 @@ DATASET_TRACKER = "features+keypoints"
 """The tracker ``auto`` chooses for a dataset whose hand a learned detector finds where
 its start is: the feature tracker with the detector's keypoints in its solves
 (docs/anchored-features.md), the most accurate on the flesh hand's renders (mean
-fingertip error over the accuracy table 14.8 mm, the keypoint tracker 16.4) and before a
+fingertip error over the accuracy table 14.3 mm, the keypoint tracker 16.2) and before a
 cluttered backdrop; too slow for footage's 60 frames/s at 1280x720."""
 DEFAULT_MODEL = "hand"
 """Model of videos and cameras when none is named."""
@@ -295,7 +295,7 @@ def resolve_tracker(name: str, footage: bool, detector: str,
     feature tracker is more than half a palm length off MediaPipe's keypoints in 93 % of
     frames and flags 7, the keypoint tracker in none (docs/keypoint-tracker.md); on the
     flesh hand's renders the mean fingertip error over the accuracy table is 22.9 mm for
-    the feature tracker, 16.4 for the keypoint tracker and 14.8 for the two joined
+    the feature tracker, 16.2 for the keypoint tracker and 14.3 for the two joined
     (docs/anchored-features.md)."""
     if name != AUTO_TRACKER:
         return name

@@ -105,13 +105,16 @@ def is_grey(image: np.ndarray) -> bool:
     return bool(np.count_nonzero(spread > GREY_SPREAD) <= 0.01 * spread.size)
 
 
+_SKIN_TABLES = [np.ascontiguousarray(channel) for channel in np.clip(np.rint(
+    np.arange(256.0)[:, None] * np.asarray(GREY_SKIN_RGB)), 0, 255).astype(np.uint8).T]
+"""Per RGB channel, the lookup table (256,) uint8 of :func:`skin_tinted`."""
+
+
 def skin_tinted(grey: np.ndarray) -> np.ndarray:
     """An RGB uint8 (H, W, 3) image whose pixels have the grey levels of ``grey`` (H, W)
     uint8 and the hue :data:`GREY_SKIN_RGB` (clipped at 255 in the red channel above
     grey level 193)."""
-    levels = np.arange(256, dtype=float)[:, None] * np.asarray(GREY_SKIN_RGB)
-    table = np.clip(np.rint(levels), 0, 255).astype(np.uint8)  # (256, 3)
-    return cv2.merge([cv2.LUT(grey, table[:, c].copy()) for c in range(3)])
+    return cv2.merge([cv2.LUT(grey, table) for table in _SKIN_TABLES])
 
 
 class MediaPipeDetector:
