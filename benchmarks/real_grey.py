@@ -1,4 +1,5 @@
-"""Real-data benchmark: MediaPipe on real images made grey, with and without the skin tint.
+"""Real-data benchmark: MediaPipe on real images made grey, with and without the skin tint,
+and upright or also turned.
 
 Usage::
 
@@ -8,13 +9,16 @@ A monochrome camera (the thesis's) or a grey dataset gives MediaPipe no skin hue
 misses hands it finds in colour. :class:`~digiteyes.detect.mediapipe_detector.
 MediaPipeDetector` therefore looks again, at the image tinted to skin
 (:func:`~digiteyes.detect.mediapipe_detector.skin_tinted`), where it finds no hand in a
-grey image (``grey_as_skin``). Two measurements, on one core:
+grey image (``grey_as_skin``). In still-image mode it also looks at an image without a
+hand turned by quarter turns (``look_turned``). Two measurements, on one core:
 
 * **Detection** (still-image mode) on the real video (every :data:`VIDEO_STEP`-th frame),
-  the annotated images and the STB pair, each made grey (OpenCV's RGB-to-grey): hands
-  found in colour, in grey alone, in every image tinted, and with the rule. A grey
-  image's hand counts when its palm lies within half a palm length of the colour image's
-  detection (or anywhere when colour found none).
+  the annotated images and the STB pair, in colour and made grey (OpenCV's RGB-to-grey):
+  hands found in colour upright and with the turned looks, in grey alone, in every image
+  tinted, with the tint's rule, and with the rule and the turned looks (the detector's
+  defaults). A hand found in a grey image, or only turned, counts when its palm lies
+  within half a palm length of the upright colour image's detection (or anywhere when
+  that found none).
 * **Tracking** the real video made grey (``digiteyes track --init auto``, what ``auto``
   runs on footage: the keypoint tracker), with the rule and with every frame tinted,
   against the colour video's track: frames tracked and lost, and the distance of the
@@ -75,22 +79,28 @@ def video_frames(path: Path, step: int = 1) -> Iterator[np.ndarray]:
 
 
 def detection_counts(images: list[np.ndarray]) -> dict[str, int]:
-    """Hands found in ``images`` (RGB) in colour, and made grey: alone, always tinted, with
-    the rule (module docstring)."""
-    plain = MediaPipeDetector(max_hands=1, grey_as_skin=False)
-    rule = MediaPipeDetector(max_hands=1)
-    counts = {"images": len(images), "colour": 0, "grey": 0, "always_tinted": 0, "rule": 0}
+    """Hands found in ``images`` (RGB) in colour, upright and also turned, and made grey:
+    alone, always tinted, with the tint's rule, with the rule and the turned looks
+    (module docstring)."""
+    plain = MediaPipeDetector(max_hands=1, grey_as_skin=False, look_turned=False)
+    rule = MediaPipeDetector(max_hands=1, look_turned=False)
+    turned = MediaPipeDetector(max_hands=1, grey_as_skin=False)
+    full = MediaPipeDetector(max_hands=1)  # the defaults: the tint's rule, turned looks
+    counts = {"images": len(images), "colour": 0, "colour_turned": 0, "grey": 0,
+              "always_tinted": 0, "rule": 0, "rule_turned": 0}
     for rgb in images:
         colour = plain.detect(rgb)
         grey = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
         counts["colour"] += bool(colour)
-        for key, found in (("grey", plain.detect(grey)),
+        for key, found in (("colour_turned", colour or turned.detect(rgb)),
+                           ("grey", plain.detect(grey)),
                            ("always_tinted", plain.detect(skin_tinted(grey))),
-                           ("rule", rule.detect(grey))):
+                           ("rule", rule.detect(grey)),
+                           ("rule_turned", full.detect(grey))):
             counts[key] += bool(found) and (
                 not colour or palm_gap(colour[0].keypoints, found[0].keypoints) < 0.5)
-    plain.close()
-    rule.close()
+    for detector in (plain, rule, turned, full):
+        detector.close()
     return counts
 
 
@@ -180,10 +190,11 @@ def main(argv: list[str] | None = None) -> int:
     args.json.parent.mkdir(parents=True, exist_ok=True)
     args.json.write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
     print("MediaPipe on real images made grey (hands found; still-image mode)")
-    print(f"{'images':32s} {'n':>4s} {'colour':>7s} {'grey':>5s} {'tinted':>7s} {'rule':>5s}")
+    print(f"{'images':32s} {'n':>4s} {'colour':>7s} {'+turned':>8s} {'grey':>5s} "
+          f"{'tinted':>7s} {'rule':>5s} {'+turned':>8s}")
     for name, c in detection.items():
-        print(f"{name:32s} {c['images']:4d} {c['colour']:7d} {c['grey']:5d} "
-              f"{c['always_tinted']:7d} {c['rule']:5d}")
+        print(f"{name:32s} {c['images']:4d} {c['colour']:7d} {c['colour_turned']:8d} "
+              f"{c['grey']:5d} {c['always_tinted']:7d} {c['rule']:5d} {c['rule_turned']:8d}")
     print("\nthe real video tracked (--init auto), against the colour video's track")
     for name, row in tracking.items():
         gap = row["gap_to_colour_track_px"]

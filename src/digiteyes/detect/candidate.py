@@ -52,6 +52,30 @@ class HandCandidate:
                        handedness=side, keypoints_3d=points,
                        mask=None if self.mask is None else self.mask[:, ::-1].copy())
 
+    def unturned(self, quarter_turns: int, width: int, height: int) -> HandCandidate:
+        """The same hand in the image before it was turned clockwise by ``quarter_turns``
+        quarter turns (``numpy.rot90(image, -quarter_turns)``; ``width`` x ``height`` px
+        is the size of the image before the turn). Pixels, box and mask are turned back;
+        3D points, whose x and y axes follow the image's (MediaPipe's world landmarks),
+        are turned back about their z axis. The side is kept: a turn is not a mirror."""
+        turns = quarter_turns % 4
+        u, v = np.asarray(self.keypoints, dtype=float).T
+        # where a pixel of the turned image lies in the image before the turn
+        pixel_back = {0: lambda a, b: (a, b), 1: lambda a, b: (b, height - 1 - a),
+                      2: lambda a, b: (width - 1 - a, height - 1 - b),
+                      3: lambda a, b: (width - 1 - b, a)}[turns]
+        keypoints = np.stack(pixel_back(u, v), axis=1)
+        x0, y0, x1, y1 = self.bbox
+        corners = np.stack(pixel_back(np.array([x0, x1]), np.array([y0, y1])), axis=1)
+        points = None
+        if self.keypoints_3d is not None:
+            x, y, z = np.asarray(self.keypoints_3d, dtype=float).T
+            vector_back = {0: (x, y), 1: (y, -x), 2: (-x, -y), 3: (-y, x)}[turns]
+            points = np.stack((*vector_back, z), axis=1)
+        mask = None if self.mask is None else np.ascontiguousarray(np.rot90(self.mask, turns))
+        return replace(self, keypoints=keypoints, bbox=bbox_of(corners), keypoints_3d=points,
+                       mask=mask)
+
     def to_json(self) -> dict:
         """A JSON-ready dict (no mask)."""
         out = {"detector": self.detector, "confidence": float(self.confidence),

@@ -28,6 +28,18 @@ throughout also costs precision where grey already works (the real video made gr
 tracked: keypoints 3.7 px from the colour video's track in the median frame against
 2.8; ``benchmarks/real_grey.py``). On the synthetic webcam's dim flesh hand in grey: 0
 of 20 frames, 12 with the tint.
+
+**Hands held sideways or upside down.** The palm detector also misses some hands that it
+finds once the image is turned: of the 20 annotated real images (``../shared/data``),
+one FreiHAND hand only a quarter turn clockwise, and InterHand's grey thumbs-up only a
+quarter or a half turn. So in still-image mode (``pose``, the automatic start and its
+re-detections), an image in which no hand is found is looked at again turned a quarter
+turn clockwise, then anticlockwise, then by a half turn (:data:`TURNS`), until one finds
+a hand; its keypoints and 3D points are turned back
+(:meth:`~digiteyes.detect.candidate.HandCandidate.unturned`; ``look_turned``, on by
+default). An image without a hand then costs four looks instead of one. Video mode does
+not turn: MediaPipe follows each hand from its landmarks in the frame before, which a
+turned frame would break, and the trackers ask again at the next frame anyway.
 """
 
 from __future__ import annotations
@@ -109,6 +121,11 @@ _SKIN_TABLES = [np.ascontiguousarray(channel) for channel in np.clip(np.rint(
     np.arange(256.0)[:, None] * np.asarray(GREY_SKIN_RGB)), 0, 255).astype(np.uint8).T]
 """Per RGB channel, the lookup table (256,) uint8 of :func:`skin_tinted`."""
 
+TURNS = (1, 3, 2)
+"""Quarter turns clockwise of the image's second looks in still-image mode (module
+docstring): a quarter turn either way before the half turn, since hands held sideways are
+commoner than hands upside down."""
+
 
 def skin_tinted(grey: np.ndarray) -> np.ndarray:
     """An RGB uint8 (H, W, 3) image whose pixels have the grey levels of ``grey`` (H, W)
@@ -129,6 +146,8 @@ class MediaPipeDetector:
     model_complexity : 0 (lite) or 1 (full) landmark network.
     grey_as_skin : in a grey image without a hand, look again with the image tinted to
         skin (module docstring).
+    look_turned : in still-image mode, in an image without a hand, look again at it
+        turned by quarter turns (:data:`TURNS`, module docstring); ignored in video mode.
     """
 
     name = "mediapipe"
@@ -136,12 +155,13 @@ class MediaPipeDetector:
 
     def __init__(self, max_hands: int = 2, static_image_mode: bool = True,
                  min_confidence: float = 0.5, model_complexity: int = 1,
-                 grey_as_skin: bool = True) -> None:
+                 grey_as_skin: bool = True, look_turned: bool = True) -> None:
         try:
             import mediapipe as mp
         except ImportError as exc:
             raise DigitEyesError(f"{INSTALL_HINT} ({exc})") from None
         self.grey_as_skin = grey_as_skin
+        self.look_turned = look_turned and static_image_mode
         with quiet_native_stderr(), warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)
             self._hands = mp.solutions.hands.Hands(
@@ -157,7 +177,8 @@ class MediaPipeDetector:
     def detect(self, image: np.ndarray, camera: Camera | None = None) -> list[HandCandidate]:
         """Hands in an RGB (H, W, 3) or grey (H, W) uint8 image, most confident first (in a
         grey image where MediaPipe finds none, those it finds once the image is tinted to
-        skin, ``grey_as_skin``)."""
+        skin, ``grey_as_skin``; then, in still-image mode, those it finds in the image
+        turned, ``look_turned``)."""
         image = np.asarray(image)
         if image.dtype != np.uint8 or image.ndim not in (2, 3) or (
                 image.ndim == 3 and image.shape[2] != 3):
@@ -167,8 +188,21 @@ class MediaPipeDetector:
             image = np.repeat(image[..., None], 3, axis=2)
         found = self._detect_rgb(image)
         if not found and self.grey_as_skin and is_grey(image):
-            found = self._detect_rgb(skin_tinted(cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)))
+            image = skin_tinted(cv2.cvtColor(image, cv2.COLOR_RGB2GRAY))
+            found = self._detect_rgb(image)
+        if not found and self.look_turned:
+            found = self._detect_turned(image)
         return found
+
+    def _detect_turned(self, image: np.ndarray) -> list[HandCandidate]:
+        """Hands in ``image`` turned by each of :data:`TURNS` in turn, until one finds
+        any, in the coordinates of ``image``."""
+        height, width = image.shape[:2]
+        for turns in TURNS:
+            found = self._detect_rgb(np.rot90(image, -turns))
+            if found:
+                return [c.unturned(turns, width, height) for c in found]
+        return []
 
     def _detect_rgb(self, image: np.ndarray) -> list[HandCandidate]:
         """Hands in an RGB (H, W, 3) uint8 image, most confident first."""
