@@ -216,6 +216,19 @@ class KeypointFitProblem:
             k = model.base_state
             self.position_from = options.scale * np.asarray(motion_from, dtype=float)[k + 4:k + 7]
             self._position_columns = model.q_to_v[k + 4:k + 7]
+        # the Jacobians of the priors on the joint angles, the step and the scale: constant
+        n = model.n_v
+        self._sigma_joint = np.radians(options.sigma_joint_deg)
+        self._joint_jacobian = np.zeros((len(self.angle_states), n + 1))
+        self._joint_jacobian[np.arange(len(self.angle_states)), self.angle_columns] = \
+            1.0 / self._sigma_joint
+        if self.motion_from is not None:
+            # the step from the start, in tangent coordinates; its Jacobian with respect to
+            # a step is the identity up to the rotation's second-order terms
+            self._motion_jacobian = np.zeros((n, n + 1))
+            self._motion_jacobian[np.arange(n), np.arange(n)] = self._motion_weights
+        self._scale_jacobian = np.zeros((1, n + 1))
+        self._scale_jacobian[0, n] = 1.0 / options.sigma_scale
 
     def _shape_target(self, obs: KeypointObservation) -> np.ndarray | None:
         """The detector's shape of ``obs`` about its centroid, brought to the size of the
@@ -265,20 +278,13 @@ class KeypointFitProblem:
             if jacobian:
                 block = np.concatenate([s * Jp, p[..., None]], axis=2) * w3[..., None]
                 jac.append(block.reshape(63, n + 1))
-        sigma_joint = np.radians(self.options.sigma_joint_deg)
-        parts.append((q[self.angle_states] - self.prior_mean) / sigma_joint)
+        parts.append((q[self.angle_states] - self.prior_mean) / self._sigma_joint)
         if jacobian:
-            block = np.zeros((len(self.angle_states), n + 1))
-            block[np.arange(len(self.angle_states)), self.angle_columns] = 1.0 / sigma_joint
-            jac.append(block)
+            jac.append(self._joint_jacobian)
         if self.motion_from is not None:
-            # the step from the start, in tangent coordinates; its Jacobian with respect to
-            # a step is the identity up to the rotation's second-order terms
             parts.append(difference(self.model, self.motion_from, q) * self._motion_weights)
             if jacobian:
-                block = np.zeros((n, n + 1))
-                block[np.arange(n), np.arange(n)] = self._motion_weights
-                jac.append(block)
+                jac.append(self._motion_jacobian)
         if self.position_from is not None:
             # the palm's position in mm, s t: d/d(step) = s I on the translation
             # columns (translation steps add), d/ds = t
@@ -293,9 +299,7 @@ class KeypointFitProblem:
                 jac.append(block)
         parts.append(np.array([(s - self.options.scale) / self.options.sigma_scale]))
         if jacobian:
-            row = np.zeros((1, n + 1))
-            row[0, n] = 1.0 / self.options.sigma_scale
-            jac.append(row)
+            jac.append(self._scale_jacobian)
         r = np.concatenate(parts)
         if not jacobian:
             return r, None

@@ -208,3 +208,43 @@ def integrate_kernel(q, dv, q_to_v, base_state, out):  # pragma: no cover - comp
             out[n, k + 1] = nx * inv
             out[n, k + 2] = ny * inv
             out[n, k + 3] = nz * inv
+
+
+@njit(cache=True)
+def difference_kernel(q0, q1, q_to_v, base_state, out):  # pragma: no cover - compiled
+    """Tangent steps from the states ``q0`` to ``q1`` (N, n_q) into ``out`` (N, n_v), the
+    inverse of :func:`integrate_kernel`: numbers with a tangent index subtract; the base
+    rotation's step is the rotation vector of ``q1 * conj(q0)`` (both normalised, angle in
+    [0, pi])."""
+    n_states, n_q = q0.shape
+    for n in range(n_states):
+        for i in range(n_q):
+            j = q_to_v[i]
+            if j >= 0:
+                out[n, j] = q1[n, i] - q0[n, i]
+        if base_state >= 0:
+            k = base_state
+            w0 = q0[n, k]
+            x0 = q0[n, k + 1]
+            y0 = q0[n, k + 2]
+            z0 = q0[n, k + 3]
+            w1 = q1[n, k]
+            x1 = q1[n, k + 1]
+            y1 = q1[n, k + 2]
+            z1 = q1[n, k + 3]
+            w = w1 * w0 + x1 * x0 + y1 * y0 + z1 * z0  # q1 * conj(q0)
+            x = -w1 * x0 + x1 * w0 - y1 * z0 + z1 * y0
+            y = -w1 * y0 + x1 * z0 + y1 * w0 - z1 * x0
+            z = -w1 * z0 - x1 * y0 + y1 * x0 + z1 * w0
+            inv = 1.0 / np.sqrt(w * w + x * x + y * y + z * z)
+            if w < 0.0:
+                inv = -inv
+            w *= inv
+            x *= inv
+            y *= inv
+            z *= inv
+            vector = np.sqrt(x * x + y * y + z * z)
+            scale = 2.0 if vector < 1e-12 else 2.0 * np.arctan2(vector, w) / vector
+            out[n, k] = x * scale
+            out[n, k + 1] = y * scale
+            out[n, k + 2] = z * scale

@@ -17,10 +17,9 @@ import numpy as np
 
 from digiteyes.errors import StateError
 from digiteyes.jsonfile import read_json_object
-from digiteyes.kinematics._kernels import integrate_kernel
+from digiteyes.kinematics._kernels import difference_kernel, integrate_kernel
 from digiteyes.kinematics.forward import as_state_batch
 from digiteyes.kinematics.model import KinematicModel
-from digiteyes.kinematics.rotations import quaternion_multiply, rotvec_from_quaternion
 
 UNIT_QUATERNION_TOLERANCE = 1e-6
 
@@ -71,18 +70,22 @@ def integrate(model: KinematicModel, q: np.ndarray, dv: np.ndarray) -> np.ndarra
 
 
 def difference(model: KinematicModel, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
-    """Tangent step ``dv`` with ``integrate(model, q0, dv) == q1`` (rotation angle <= pi)."""
+    """Tangent step ``dv`` with ``integrate(model, q0, dv) == q1`` (rotation angle <= pi).
+    Accepts single states or batches (broadcast against each other)."""
     q0 = np.asarray(q0, dtype=float)
     q1 = np.asarray(q1, dtype=float)
-    shape = np.broadcast_shapes(q0.shape, q1.shape)
-    dv = np.zeros((*shape[:-1], model.n_v))
-    plain = model.q_to_v >= 0
-    dv[..., model.q_to_v[plain]] = (q1 - q0)[..., plain]
-    if model.base_state is not None:
-        k = model.base_state
-        conj = q0[..., k:k + 4] * np.array([1.0, -1.0, -1.0, -1.0])
-        dv[..., k:k + 3] = rotvec_from_quaternion(quaternion_multiply(q1[..., k:k + 4], conj))
-    return dv
+    base = -1 if model.base_state is None else model.base_state
+    if q0.ndim == 1 and q1.ndim == 1:  # one pair: skip the broadcasting machinery
+        out = np.zeros((1, model.n_v))
+        difference_kernel(np.ascontiguousarray(q0).reshape(1, -1),
+                          np.ascontiguousarray(q1).reshape(1, -1), model.q_to_v, base, out)
+        return out[0]
+    batch = np.broadcast_shapes(q0.shape[:-1], q1.shape[:-1])
+    a = np.ascontiguousarray(np.broadcast_to(q0, (*batch, model.n_q)).reshape(-1, model.n_q))
+    b = np.ascontiguousarray(np.broadcast_to(q1, (*batch, model.n_q)).reshape(-1, model.n_q))
+    out = np.zeros((len(a), model.n_v))
+    difference_kernel(a, b, model.q_to_v, base, out)
+    return out.reshape(*batch, model.n_v)
 
 
 def resample_states(model: KinematicModel, states: np.ndarray, speed: float) -> np.ndarray:
