@@ -615,7 +615,7 @@ def _detector_agrees(model: KinematicModel, rig: Rig, detector: str,
     worst = check.worst_digit(frames[0], state)
     if worst is None or worst[0] > check.max_gap:
         return False
-    still = make_detector(detector, model)
+    still = make_detector(detector, model, look_turned=False)  # frames, as the start's
     found = sum(bool(still.detect(images[0], rig[0])) for images in frames)
     getattr(still, "close", lambda: None)()
     return found >= AGREEMENT_RATE * len(frames)

@@ -205,3 +205,26 @@ def test_a_hand_missed_upright_is_found_in_the_turned_image():
     assert len(found) == 1
     error = np.linalg.norm(found[0].keypoints - truth, axis=1)
     assert error.mean() < 25.0, error
+
+
+@pytest.mark.skipif(not (mediapipe_available() and (FREIHAND / "00065475.jpg").is_file()),
+                    reason="needs the mediapipe extra and ../shared/data")
+def test_single_images_are_turned_and_frames_of_footage_are_not(hand):
+    """``pose`` finds FreiHAND's sideways fist (turned); the automatic start of a track,
+    which looks at frames of footage, does not turn them and finds no hand there."""
+    import cv2
+
+    from digiteyes.camera import Rig
+    from digiteyes.camera.default import default_camera
+    from digiteyes.detect.initialiser import AutoInitialiser
+    from digiteyes.detect.pose import estimate_pose, make_detector
+
+    rgb = cv2.cvtColor(cv2.imread(str(FREIHAND / "00065475.jpg")), cv2.COLOR_BGR2RGB)
+    rig = Rig((default_camera(224, 224),))
+    assert make_detector("mediapipe").look_turned
+    assert not make_detector("mediapipe", look_turned=False).look_turned
+    assert not make_detector("mediapipe", video=True).look_turned
+    pose = estimate_pose([rgb], rig, make_detector("mediapipe", hand, max_hands=2), hand)
+    assert pose.candidates[0] is not None
+    start = AutoInitialiser(hand, rig, "mediapipe")
+    assert start([rgb]) is None and start.found == 0

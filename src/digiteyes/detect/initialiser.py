@@ -84,8 +84,11 @@ class AutoInitialiser:
     _detector: object = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
+        # frames of footage: no turned second looks (a miss costs a frame; on the dim
+        # webcam render a turned look fitted a whole hand onto the thumb, a start 420 mm
+        # off, where the classic detector's was 14 mm off; docs/initialisation.md)
         self._detector = make_detector(self.detector, self.model, classic_fallback=True,
-                                       max_hands=MAX_HANDS)
+                                       max_hands=MAX_HANDS, look_turned=False)
         self._options = FitOptions(fit_scale=False)
 
     @property

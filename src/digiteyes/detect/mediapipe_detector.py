@@ -32,14 +32,19 @@ of 20 frames, 12 with the tint.
 **Hands held sideways or upside down.** The palm detector also misses some hands that it
 finds once the image is turned: of the 20 annotated real images (``../shared/data``),
 one FreiHAND hand only a quarter turn clockwise, and InterHand's grey thumbs-up only a
-quarter or a half turn. So in still-image mode (``pose``, the automatic start and its
-re-detections), an image in which no hand is found is looked at again turned a quarter
-turn clockwise, then anticlockwise, then by a half turn (:data:`TURNS`), until one finds
-a hand; its keypoints and 3D points are turned back
+quarter or a half turn. So in still-image mode, an image in which no hand is found is
+looked at again turned a quarter turn clockwise, then anticlockwise, then by a half turn
+(:data:`TURNS`), until one finds a hand; its keypoints and 3D points are turned back
 (:meth:`~digiteyes.detect.candidate.HandCandidate.unturned`; ``look_turned``, on by
-default). An image without a hand then costs four looks instead of one. Video mode does
-not turn: MediaPipe follows each hand from its landmarks in the frame before, which a
-turned frame would break, and the trackers ask again at the next frame anyway.
+default). An image without a hand then costs four looks instead of one. For single
+images only (``pose``, ``calibrate-hand``): the automatic start and the re-detections of
+a track look at frames of footage without turning them
+(:func:`~digiteyes.detect.pose.make_detector`'s ``look_turned``), because there a miss
+costs one frame and a false find a wrong start, and the turned looks find more false
+hands: on the dim webcam render's first frames, where MediaPipe finds no hand upright,
+one fitted a whole hand onto the thumb (a start 420 mm off, where the classic detector's
+is 14 mm off). Video mode never turns: MediaPipe follows each hand from its landmarks in
+the frame before, which a turned frame would break.
 """
 
 from __future__ import annotations

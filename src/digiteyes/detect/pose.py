@@ -30,7 +30,7 @@ DETECTORS = ("auto", "mediapipe", "mediapipe-lite", "classic")
 
 def make_detector(name: str, model: KinematicModel | None = None,
                   video: bool = False, classic_fallback: bool = False,
-                  max_hands: int = 1) -> HandDetector:
+                  max_hands: int = 1, look_turned: bool = True) -> HandDetector:
     """``"mediapipe"`` (needs the extra; its full landmark network), ``"mediapipe-lite"``
     (its lite landmark network: faster, see docs/initialisation.md for what it costs),
     ``"classic"`` or ``"auto"`` (MediaPipe when installed, else classic). ``video``:
@@ -41,19 +41,25 @@ def make_detector(name: str, model: KinematicModel | None = None,
     (:class:`~digiteyes.detect.fallback.FallbackDetector`); what ``track`` and ``pose``
     use, not ``calibrate-hand``, which measures segments from joints a network located.
     ``max_hands``: hands MediaPipe returns at most (the classic detector finds one); more
-    than one lets the caller pick the tracked hand (:mod:`digiteyes.detect.side`)."""
+    than one lets the caller pick the tracked hand (:mod:`digiteyes.detect.side`).
+    ``look_turned``: MediaPipe in still-image mode looks again at an image without a hand
+    turned by quarter turns (:mod:`~digiteyes.detect.mediapipe_detector`); on for single
+    images, off for frames of footage (:class:`~digiteyes.detect.initialiser.
+    AutoInitialiser`), where a miss costs a frame and a false find a wrong start."""
     from digiteyes.detect.classic import ClassicDetector
     from digiteyes.detect.fallback import FallbackDetector
     from digiteyes.detect.mediapipe_detector import MediaPipeDetector, mediapipe_available
 
     if name == "auto" and classic_fallback and mediapipe_available():
-        return FallbackDetector(make_detector("mediapipe", model, video, max_hands=max_hands),
+        return FallbackDetector(make_detector("mediapipe", model, video, max_hands=max_hands,
+                                              look_turned=look_turned),
                                 ClassicDetector(model))
     if name == "auto":
         name = "mediapipe" if mediapipe_available() else "classic"
     if name in ("mediapipe", "mediapipe-lite"):
         return MediaPipeDetector(max_hands=max_hands, static_image_mode=not video,
-                                 model_complexity=0 if name == "mediapipe-lite" else 1)
+                                 model_complexity=0 if name == "mediapipe-lite" else 1,
+                                 look_turned=look_turned)
     if name == "classic":
         return ClassicDetector(model)
     raise DigitEyesError(f"unknown detector {name!r}; choose one of {', '.join(DETECTORS)}")
