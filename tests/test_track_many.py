@@ -12,13 +12,13 @@ import pytest
 
 from digiteyes.cli import main
 from digiteyes.io import read_state_log
+from digiteyes.io.safe_paths import distinct_names
 from digiteyes.kinematics import load_model
 from digiteyes.track_job import TrackJob, run_track_job
 from digiteyes.track_many import (
     DONE_MARKER,
     SUMMARY_FILE,
     ClusterError,
-    output_names,
     track_many,
 )
 
@@ -51,8 +51,10 @@ def datasets(tmp_path_factory):
 
 def test_output_names_are_distinct(tmp_path):
     (tmp_path / "a").mkdir()
-    assert output_names([str(tmp_path / "a"), "x/b.mp4", "y/b.mp4", "b.avi"]) == \
+    assert distinct_names([str(tmp_path / "a"), "x/b.mp4", "y/b.mp4", "b.avi"]) == \
         ["a", "b", "b-2", "b-3"]
+    # an input already named like a suffixed one keeps its name
+    assert distinct_names(["x.mp4", "x.avi", "x-2.mp4"]) == ["x", "x-3", "x-2"]
 
 
 def test_two_workers_track_every_input_and_report_failures(local_ray, datasets, tmp_path):

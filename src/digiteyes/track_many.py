@@ -30,6 +30,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from digiteyes.errors import DigitEyesError
+from digiteyes.io.safe_paths import distinct_names
 from digiteyes.track_job import TrackJob, run_track_job
 
 DONE_MARKER = "DONE.json"
@@ -79,19 +80,6 @@ class TrackManySummary:
                 "address": self.address, "inputs": [asdict(r) for r in self.results]}
 
 
-def output_names(inputs: Sequence[str]) -> list[str]:
-    """A distinct folder name per input: the file's stem or the folder's name, suffixed
-    ``-2``, ``-3``, ... when two inputs share it."""
-    names: list[str] = []
-    seen: dict[str, int] = {}
-    for item in inputs:
-        path = Path(item)
-        stem = (path.name if path.is_dir() else path.stem) or "input"
-        seen[stem] = seen.get(stem, 0) + 1
-        names.append(stem if seen[stem] == 1 else f"{stem}-{seen[stem]}")
-    return names
-
-
 def is_done(folder: str | Path) -> bool:
     """True when ``folder`` holds the completion marker of a finished input."""
     return (Path(folder) / DONE_MARKER).is_file()
@@ -131,11 +119,12 @@ def track_in_worker(job: TrackJob) -> dict:
 
 
 def plan_jobs(inputs: Sequence[str], out_dir: str | Path, template: TrackJob) -> list[TrackJob]:
-    """One job per input, output ``out_dir/<name>`` (:func:`output_names`), the other
-    settings from ``template``, no progress bar of its own."""
+    """One job per input, output ``out_dir/<name>``
+    (:func:`~digiteyes.io.safe_paths.distinct_names`), the other settings from
+    ``template``, no progress bar of its own."""
     root = Path(out_dir)
     return [replace(template, inputs=(str(item),), output=str(root / name), progress=False)
-            for item, name in zip(inputs, output_names(inputs), strict=True)]
+            for item, name in zip(inputs, distinct_names(inputs), strict=True)]
 
 
 def _ray():

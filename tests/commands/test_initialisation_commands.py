@@ -86,6 +86,28 @@ def test_pose_of_a_left_hand_is_the_mirror_image_of_the_right_hands(hand_image, 
     assert float(rows[0]["x_cam_mm"]) == pytest.approx(wrist[0], abs=0.01)
 
 
+def test_pose_keeps_the_results_of_images_of_the_same_name(hand_image, tmp_path):
+    """``a/hand.png`` and ``b/hand.png`` (the second the first turned upside down): two
+    results, each of its own image, neither overwritten."""
+    image, rig, _ = hand_image
+    first, second = tmp_path / "a" / "hand.png", tmp_path / "b" / "hand.png"
+    for path, picture in ((first, cv2.imread(str(image))),
+                          (second, cv2.rotate(cv2.imread(str(image)), cv2.ROTATE_180))):
+        path.parent.mkdir()
+        cv2.imwrite(str(path), picture)
+    out = tmp_path / "out"
+    assert main(["pose", str(first), str(second), "--rig", str(rig), "--detector", "classic",
+                 "-o", str(out)]) == 0
+    records = [json.loads((out / name).read_text()) for name in ("hand.json", "hand-2.json")]
+    assert [r["images"] for r in records] == [[str(first)], [str(second)]]
+    # turning the image by a half turn about its centre (the principal point) turns the
+    # hand about the optical axis: (x, y, z) -> (-x, -y, z) in the camera frame
+    wrists = [np.array(r["hand"]["keypoints_camera_mm"]["front"]["wrist"]) for r in records]
+    np.testing.assert_allclose(wrists[1], wrists[0] * [-1, -1, 1], atol=10.0)
+    assert sorted(p.name for p in out.iterdir()) == ["hand-2.csv", "hand-2.json", "hand.csv",
+                                                     "hand.json"]
+
+
 def test_pose_without_a_rig_uses_the_default_camera(hand_image, tmp_path):
     image, _, _ = hand_image
     assert main(["pose", str(image), "--detector", "classic", "-o", str(tmp_path)]) == 0

@@ -14,7 +14,8 @@ from digiteyes.detect.pose import DETECTORS
 @click.argument("images", nargs=-1, required=True,
                 type=click.Path(exists=True, dir_okay=False, path_type=Path))
 @click.option("-o", "--output", required=True, type=click.Path(file_okay=False, path_type=Path),
-              help="Folder for <image>.json and <image>.csv (created).")
+              help="Folder for <image>.json and <image>.csv (created; images of the same "
+                   "name get <image>-2, -3, ...).")
 @click.option("--rig", type=click.Path(exists=True, dir_okay=False, path_type=Path),
               help="Rig file (JSON or OpenCV YAML). With N cameras the images are taken N at "
                    "a time, in rig order. Default: one camera with a 60 deg field of view.")
@@ -53,6 +54,7 @@ def pose(images: tuple[Path, ...], output: Path, rig: Path | None, detector: str
     )
     from digiteyes.detect.side import TRACKED_SIDE
     from digiteyes.errors import DigitEyesError
+    from digiteyes.io.safe_paths import distinct_names
     from digiteyes.kinematics import load_model
 
     model = load_model(model_name)
@@ -65,7 +67,8 @@ def pose(images: tuple[Path, ...], output: Path, rig: Path | None, detector: str
     output.mkdir(parents=True, exist_ok=True)
     options = FitOptions(scale=hand_scale)
     found = 0
-    for start in range(0, len(images), per_set):
+    names = distinct_names(images[::per_set])  # a/x.jpg and b/x.jpg: x and x-2
+    for start, name in zip(range(0, len(images), per_set), names, strict=True):
         paths = images[start:start + per_set]
         frames = []
         for path in paths:
@@ -82,10 +85,9 @@ def pose(images: tuple[Path, ...], output: Path, rig: Path | None, detector: str
             cams = mirrored_rig(real)
             result = estimate_pose(mirror_images(frames), cams, det, model, options,
                                    TRACKED_SIDE)
-        stem = paths[0].stem
         write_pose_json(pose_to_json(result, cams, [str(p) for p in paths]),
-                        output / f"{stem}.json")
-        write_pose_csv(result, cams, output / f"{stem}.csv")
+                        output / f"{name}.json")
+        write_pose_csv(result, cams, output / f"{name}.csv")
         found += result.fit is not None
         ms = 1000 * sum(result.seconds.values())
         if result.fit is None:

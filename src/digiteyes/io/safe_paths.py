@@ -8,6 +8,9 @@
   :func:`remove_listed`).
 * Files appear under their final name only when whole: they are written to a temporary
   name in the same folder and renamed (:func:`atomic_write_bytes`, :func:`atomic_path`).
+* Outputs named after inputs get a name of their own even where two inputs share a stem
+  (``a/x.jpg`` and ``b/x.jpg``), so that one does not overwrite the other
+  (:func:`distinct_names`).
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 from digiteyes.errors import DatasetError, DigitEyesError
@@ -61,6 +64,23 @@ def inside(folder: Path, relative: object, what: str, where: str,
     if resolved != base and base not in resolved.parents:
         raise error(f"{where}: {what} {relative!r} points outside {folder}")
     return path
+
+
+def distinct_names(paths: Sequence[str | Path]) -> list[str]:
+    """A distinct name per input: a file's stem or a folder's name, suffixed ``-2``,
+    ``-3``, ... where an earlier input took it, skipping the suffixed names that other
+    inputs bear as their own (``x``, ``x``, ``x-2`` give ``x``, ``x-3``, ``x-2``)."""
+    stems = [(path.name if path.is_dir() else path.stem) or "input"
+             for path in map(Path, paths)]
+    own, taken, names = set(stems), set(), []
+    for stem in stems:
+        name, count = stem, 1
+        while name in taken or (count > 1 and name in own):
+            count += 1
+            name = f"{stem}-{count}"
+        taken.add(name)
+        names.append(name)
+    return names
 
 
 def _tmp_name(path: Path) -> Path:
