@@ -109,7 +109,17 @@ class LayeredTemplateOptions(SilhouetteLossOptions, LossHoldOptions, FingerSearc
     template_weight : the template error is multiplied by this (1 / grey level^2), so a
         residual of ``1 / sqrt(template_weight)`` grey levels weighs like a pixel of
         feature residual against the conditioning ``S``.
-    conditioning : ``S`` weights (rotation, translation, joint angle) of eq. 2.22.
+    conditioning : ``S`` weights (rotation, translation, joint angle) of eq. 2.22. A
+        thousand times the feature tracker's (1, 10, 1000): ``S`` must stand in
+        proportion to the curvature ``H`` of the error it stabilises, and the template
+        error sums thousands of pixels a link (correlated: the LoG filter and the
+        template's own mismatch), so its ``H`` is 100-1000 times the features' for the
+        same motion. With the features' ``S`` the template solve was undamped along the
+        near-null directions (a finger's three flexions towards the camera trade
+        against each other): on ``two-finger-occlusion`` the unmoved middle finger's DIP
+        drifted that way, carried on by the velocity prediction, to its limit (1.57 rad)
+        on every seed and appearance; with ``S`` x 1000 it stays within 0.04-0.06 rad
+        (docs/templates.md, "Conditioning").
     prediction : ``"none"`` or ``"constant-velocity"``.
     clip_to_limits : clip joint states into their limits after every step.
     edge_features : stack edge features of unoccluded links (the combined tracker).
@@ -151,7 +161,7 @@ class LayeredTemplateOptions(SilhouetteLossOptions, LossHoldOptions, FingerSearc
     solver: str = "gauss-newton"
     step_size: float = 1e-4
     template_weight: float = 0.1
-    conditioning: tuple[float, float, float] = (1.0, 10.0, 1000.0)
+    conditioning: tuple[float, float, float] = (1e3, 1e4, 1e6)
     prediction: PredictionKind = "constant-velocity"
     clip_to_limits: bool = True
     edge_features: bool = False
