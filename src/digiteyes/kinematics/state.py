@@ -47,45 +47,40 @@ def validate_state(model: KinematicModel, q: np.ndarray, *, normalize: bool = Fa
     return Q if batched else Q[0]
 
 
+def _state_kernel(kernel, model: KinematicModel, a: np.ndarray, b: np.ndarray,
+                  width: int) -> np.ndarray:
+    """``kernel(a, b, q_to_v, base_state, out)`` on one pair of rows, or on batches
+    broadcast against each other; ``out`` has ``width`` columns (the result's last
+    axis)."""
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    base = -1 if model.base_state is None else model.base_state
+    if a.ndim == 1 and b.ndim == 1:  # one pair: skip the broadcasting machinery
+        out = np.zeros((1, width))
+        kernel(np.ascontiguousarray(a).reshape(1, -1), np.ascontiguousarray(b).reshape(1, -1),
+               model.q_to_v, base, out)
+        return out[0]
+    batch = np.broadcast_shapes(a.shape[:-1], b.shape[:-1])
+    rows = [np.ascontiguousarray(np.broadcast_to(x, (*batch, x.shape[-1])).reshape(
+        -1, x.shape[-1])) for x in (a, b)]
+    out = np.zeros((len(rows[0]), width))
+    kernel(*rows, model.q_to_v, base, out)
+    return out.reshape(*batch, width)
+
+
 def integrate(model: KinematicModel, q: np.ndarray, dv: np.ndarray) -> np.ndarray:
     """Retraction: the state reached from ``q`` by the tangent step ``dv`` (n_v numbers).
 
     Base rotation: ``R <- exp([dv_rot]x) R`` (world frame), quaternion renormalised;
     everything else adds. Accepts single states or batches (broadcast against each other).
     """
-    q = np.asarray(q, dtype=float)
-    dv = np.asarray(dv, dtype=float)
-    base = -1 if model.base_state is None else model.base_state
-    if q.ndim == 1 and dv.ndim == 1:  # one state: skip the broadcasting machinery
-        out = np.empty((1, model.n_q))
-        integrate_kernel(np.ascontiguousarray(q).reshape(1, -1),
-                         np.ascontiguousarray(dv).reshape(1, -1), model.q_to_v, base, out)
-        return out[0]
-    batch = np.broadcast_shapes(q.shape[:-1], dv.shape[:-1])
-    q2 = np.ascontiguousarray(np.broadcast_to(q, (*batch, model.n_q)).reshape(-1, model.n_q))
-    dv2 = np.ascontiguousarray(np.broadcast_to(dv, (*batch, model.n_v)).reshape(-1, model.n_v))
-    out = np.empty_like(q2)
-    integrate_kernel(q2, dv2, model.q_to_v, base, out)
-    return out.reshape(*batch, model.n_q)
+    return _state_kernel(integrate_kernel, model, q, dv, model.n_q)
 
 
 def difference(model: KinematicModel, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
     """Tangent step ``dv`` with ``integrate(model, q0, dv) == q1`` (rotation angle <= pi).
     Accepts single states or batches (broadcast against each other)."""
-    q0 = np.asarray(q0, dtype=float)
-    q1 = np.asarray(q1, dtype=float)
-    base = -1 if model.base_state is None else model.base_state
-    if q0.ndim == 1 and q1.ndim == 1:  # one pair: skip the broadcasting machinery
-        out = np.zeros((1, model.n_v))
-        difference_kernel(np.ascontiguousarray(q0).reshape(1, -1),
-                          np.ascontiguousarray(q1).reshape(1, -1), model.q_to_v, base, out)
-        return out[0]
-    batch = np.broadcast_shapes(q0.shape[:-1], q1.shape[:-1])
-    a = np.ascontiguousarray(np.broadcast_to(q0, (*batch, model.n_q)).reshape(-1, model.n_q))
-    b = np.ascontiguousarray(np.broadcast_to(q1, (*batch, model.n_q)).reshape(-1, model.n_q))
-    out = np.zeros((len(a), model.n_v))
-    difference_kernel(a, b, model.q_to_v, base, out)
-    return out.reshape(*batch, model.n_v)
+    return _state_kernel(difference_kernel, model, q0, q1, model.n_v)
 
 
 def resample_states(model: KinematicModel, states: np.ndarray, speed: float) -> np.ndarray:
