@@ -185,7 +185,8 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
                       for n in ("two-finger-occlusion", "natural")]
     topts = options.templates
     settings = {"iterations_per_frame": options.iterations_per_frame,
-                "template_weight": options.template_weight, "log": asdict(topts.log),
+                "template_weight": options.template_weight,
+                "conditioning": list(options.conditioning), "log": asdict(topts.log),
                 "window": topts.window, "refresh_rate": topts.refresh_rate,
                 "filter_pad_px": topts.filter_pad_px, "finger_search": options.finger_search,
                 "seeds": list(seeds), "noise_sigma": NOISE_SIGMA}
