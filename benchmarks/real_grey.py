@@ -39,7 +39,8 @@ import csv
 import json
 import sys
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
+from itertools import islice
 from pathlib import Path
 
 import cv2
@@ -53,6 +54,7 @@ from digiteyes.detect.mediapipe_detector import (
     mediapipe_available,
     skin_tinted,
 )
+from digiteyes.io.video import VideoReader, VideoWriter, frame_rate
 from digiteyes.track_job import TrackJob, run_track_job
 
 IMAGES = (("FreiHAND", "annotated_images/tests/data/freihand", "*.jpg"),
@@ -62,20 +64,6 @@ IMAGES = (("FreiHAND", "annotated_images/tests/data/freihand", "*.jpg"),
           ("STB pair", "stb_sample/images", "**/*.png"))
 VIDEO_STEP = 6
 """Every how many frames of the real video the detection is measured."""
-
-
-def video_frames(path: Path, step: int = 1) -> Iterator[np.ndarray]:
-    """Every ``step``-th frame of a video, RGB."""
-    capture = cv2.VideoCapture(str(path))
-    index = 0
-    while True:
-        ok, frame = capture.read()
-        if not ok:
-            break
-        if index % step == 0:
-            yield cv2.cvtColor(frame, cv2.COLOR_BGR2RGB)
-        index += 1
-    capture.release()
 
 
 def detection_counts(images: list[np.ndarray]) -> dict[str, int]:
@@ -106,16 +94,12 @@ def detection_counts(images: list[np.ndarray]) -> dict[str, int]:
 
 def write_video(source: Path, target: Path, convert: Callable[[np.ndarray], np.ndarray]
                 ) -> None:
-    """``source`` with every frame converted (RGB to RGB), as an MPEG-4 video."""
-    capture = cv2.VideoCapture(str(source))
-    fps = capture.get(cv2.CAP_PROP_FPS)
-    size = (int(capture.get(cv2.CAP_PROP_FRAME_WIDTH)),
-            int(capture.get(cv2.CAP_PROP_FRAME_HEIGHT)))
-    capture.release()
-    writer = cv2.VideoWriter(str(target), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)
-    for rgb in video_frames(source):
-        writer.write(cv2.cvtColor(convert(rgb), cv2.COLOR_RGB2BGR))
-    writer.release()
+    """``source`` with every frame converted (RGB to RGB), as a video at its frame rate
+    (the library's reader and writer: H.264)."""
+    with VideoReader(source) as reader, VideoWriter(target, frame_rate(source) or 30.0,
+                                                     codec="h264") as writer:
+        for rgb in reader:
+            writer.write(convert(rgb))
 
 
 def grey_rgb(rgb: np.ndarray) -> np.ndarray:
@@ -176,7 +160,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     machine = machine_info()
     sources = {f"real video, every {VIDEO_STEP}th frame":
-               list(video_frames(args.data / VIDEO, VIDEO_STEP))}
+               list(islice(VideoReader(args.data / VIDEO), 0, None, VIDEO_STEP))}
     for name, folder, pattern in IMAGES:
         paths = sorted((args.data / folder).glob(pattern))
         sources[name] = [cv2.cvtColor(cv2.imread(str(p)), cv2.COLOR_BGR2RGB) for p in paths]

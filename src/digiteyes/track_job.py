@@ -570,11 +570,10 @@ def _open_sinks(job: TrackJob, model: KinematicModel, rig: Rig, out: Path, fps: 
     """``keypoints.csv`` always; the stream (smoothed too with ``job.smooth``, at ``fps``)
     and the window when asked for."""
     keypoints = CameraKeypoints(model, rig)  # one frame's keypoints, for every sink
-    sinks: list[FrameSink] = [KeypointLog(out / KEYPOINTS_FILE, model, rig, keypoints)]
+    sinks: list[FrameSink] = [KeypointLog(out / KEYPOINTS_FILE, keypoints)]
     try:
         if job.stream is not None:
-            sinks.append(JsonLinesStream(job.stream, model, rig, smooth=job.smooth,
-                                         fps=fps, keypoints=keypoints))
+            sinks.append(JsonLinesStream(job.stream, keypoints, smooth=job.smooth, fps=fps))
         if job.show:
             from digiteyes.viz.live_window import open_live_window
 

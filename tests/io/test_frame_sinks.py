@@ -29,7 +29,7 @@ def test_keypoints_of_a_result_are_those_of_the_hand_of_its_size(tmp_path):
     message = json.loads(json.dumps(frame_message(CameraKeypoints(model, rig), 7, result,
                                                  False)))
     assert message["hand_scale"] == 0.9
-    log = KeypointLog(tmp_path / "keypoints.csv", model, rig)
+    log = KeypointLog(tmp_path / "keypoints.csv", CameraKeypoints(model, rig))
     log.write(7, [], result, False)
     log.close()
     with open(tmp_path / "keypoints.csv", newline="", encoding="utf-8") as handle:

@@ -59,19 +59,13 @@ class HandCandidate:
         3D points, whose x and y axes follow the image's (MediaPipe's world landmarks),
         are turned back about their z axis. The side is kept: a turn is not a mirror."""
         turns = quarter_turns % 4
-        u, v = np.asarray(self.keypoints, dtype=float).T
-        # where a pixel of the turned image lies in the image before the turn
-        pixel_back = {0: lambda a, b: (a, b), 1: lambda a, b: (b, height - 1 - a),
-                      2: lambda a, b: (width - 1 - a, height - 1 - b),
-                      3: lambda a, b: (width - 1 - b, a)}[turns]
-        keypoints = np.stack(pixel_back(u, v), axis=1)
+        keypoints = _turned_back(self.keypoints, turns, width, height)
         x0, y0, x1, y1 = self.bbox
-        corners = np.stack(pixel_back(np.array([x0, x1]), np.array([y0, y1])), axis=1)
+        corners = _turned_back(np.array([[x0, y0], [x1, y1]]), turns, width, height)
         points = None
-        if self.keypoints_3d is not None:
-            x, y, z = np.asarray(self.keypoints_3d, dtype=float).T
-            vector_back = {0: (x, y), 1: (y, -x), 2: (-x, -y), 3: (-y, x)}[turns]
-            points = np.stack((*vector_back, z), axis=1)
+        if self.keypoints_3d is not None:  # a vector turns as a pixel of a 1 x 1 image
+            xyz = np.asarray(self.keypoints_3d, dtype=float)
+            points = np.column_stack([_turned_back(xyz[:, :2], turns, 1, 1), xyz[:, 2]])
         mask = None if self.mask is None else np.ascontiguousarray(np.rot90(self.mask, turns))
         return replace(self, keypoints=keypoints, bbox=bbox_of(corners), keypoints_3d=points,
                        mask=mask)
@@ -86,6 +80,15 @@ class HandCandidate:
                                        in zip(self.names, self.keypoint_confidence,
                                               strict=True)}}
         return out
+
+
+def _turned_back(points: np.ndarray, turns: int, width: int, height: int) -> np.ndarray:
+    """Where pixels (P, 2) of an image turned clockwise by ``turns`` quarter turns lie in
+    the image before the turn (``width`` x ``height`` px)."""
+    u, v = np.asarray(points, dtype=float).T
+    back = ((u, v), (v, height - 1 - u), (width - 1 - u, height - 1 - v),
+            (width - 1 - v, u))[turns]
+    return np.column_stack(back)
 
 
 def bbox_of(points: np.ndarray, margin: float = 0.0) -> tuple[float, float, float, float]:

@@ -23,11 +23,11 @@ equal channels, :func:`is_grey`) in which it finds no hand it looks once more, a
 image given a skin hue (:func:`skin_tinted`; ``grey_as_skin``, on by default); the
 keypoints are the same pixels either way. On real images made grey (the real video every
 6th frame, the annotated images and the STB pair; docs/initialisation.md) it then finds
-112 of the 126 hands, against 86 in grey alone and 103 with every image tinted: the tint
-throughout also costs precision where grey already works (the real video made grey,
-tracked: keypoints 3.7 px from the colour video's track in the median frame against
-2.8; ``benchmarks/real_grey.py``). On the synthetic webcam's dim flesh hand in grey: 0
-of 20 frames, 12 with the tint.
+112 of the 126 hands, against 86 in grey alone and 103 with every image tinted; and
+where grey already works the tint throughout does not make the keypoints better (the
+real video made grey, tracked: 3.8 px from the colour video's track in the median frame
+against 3.7 with the rule; ``benchmarks/real_grey.py``). On the synthetic webcam's dim
+flesh hand in grey: 0 of 20 frames, 12 with the tint.
 
 **Hands held sideways or upside down.** The palm detector also misses some hands that it
 finds once the image is turned: of the 20 annotated real images (``../shared/data``),

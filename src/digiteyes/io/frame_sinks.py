@@ -85,17 +85,16 @@ class CameraKeypoints:
 class KeypointLog:
     """Write ``keypoints.csv`` (flushed per row, like ``states.csv``)."""
 
-    def __init__(self, path: str | Path, model: KinematicModel, rig: Rig,
-                 keypoints: CameraKeypoints | None = None) -> None:
+    def __init__(self, path: str | Path, keypoints: CameraKeypoints) -> None:
         self.path = Path(path)
-        self.rig = rig
-        self.keypoints = keypoints or CameraKeypoints(model, rig)
+        self.keypoints = keypoints
+        self.rig = keypoints.rig
         try:
             self._handle = open(self.path, "w", newline="", encoding="utf-8")
         except OSError as exc:
             raise DatasetError(f"{self.path}: cannot create ({exc.strerror or exc})") from None
         self._writer = csv.writer(self._handle)
-        self._writer.writerow(["frame", *keypoint_columns(model, rig)])
+        self._writer.writerow(["frame", *keypoint_columns(keypoints.model, keypoints.rig)])
 
     def write(self, index: int, images: Sequence[np.ndarray], result: TrackResult,
               reinitialised: bool) -> None:
@@ -177,13 +176,12 @@ class JsonLinesStream:
     one, as ``states-smoothed.csv``), for live use.
     """
 
-    def __init__(self, target: str, model: KinematicModel, rig: Rig,
-                 out: TextIO | None = None, smooth: OneEuroOptions | None = None,
-                 fps: float = 10.0, keypoints: CameraKeypoints | None = None) -> None:
-        self.model = model
-        self.keypoints = keypoints or CameraKeypoints(model, rig)
+    def __init__(self, target: str, keypoints: CameraKeypoints, out: TextIO | None = None,
+                 smooth: OneEuroOptions | None = None, fps: float = 10.0) -> None:
+        self.keypoints = keypoints
+        self.model = keypoints.model
         self._socket = None
-        self._filter = None if smooth is None else OneEuroFilter(model, fps, smooth)
+        self._filter = None if smooth is None else OneEuroFilter(self.model, fps, smooth)
         address = parse_stream_target(target)
         if address is None:
             self._out = out or sys.stdout

@@ -43,7 +43,7 @@ fit at the current size, a short fit with the scale free starts from it
 (:data:`SIZE_ITERATIONS`). The measurements of frames that are not lost, in which two
 cameras or more found the hand, and whose
 size fit explains the keypoints well (:data:`SIZE_MAX_RMS`) with a scale within
-:data:`START_SCALE_RANGE` are averaged, a running
+:data:`~digiteyes.detect.hand_size.HAND_SCALE_RANGE` are averaged, a running
 mean of the first ``size_frames`` and then an exponential average with that time
 constant (frames): the size settles within the first frames and then follows only what
 persists, not a frame's bad detection. One camera cannot measure it (a hand ``s`` times
@@ -91,10 +91,6 @@ JUMP_FRAMES = 4
 """The frames without a fit that widen the jump bound of ``max_jump`` at most."""
 START_POSITION_SIGMA_MM = 5.0
 """How closely the first frame's size fit holds the palm to the start's position (mm)."""
-START_SCALE_RANGE = HAND_SCALE_RANGE
-"""Hand scales (relative to the model file) the size fit at the start (and a frame's size
-measurement) may return; outside them the model's size is kept (the measurement
-ignored)."""
 SEGMENT_FRAMES = 10
 """Frames that must measure a finger segment before :attr:`KeypointTracker.
 measured_segments` reports the segments."""
@@ -341,13 +337,13 @@ class KeypointTracker:
         """The hand's scale measured in this frame: a short fit with the scale free from
         the frame's ``fit`` (:data:`SIZE_ITERATIONS`); None when it does not explain the
         keypoints (or not within :data:`SIZE_MAX_RMS`) or leaves
-        :data:`START_SCALE_RANGE`. Also the iterations spent."""
+        :data:`~digiteyes.detect.hand_size.HAND_SCALE_RANGE`. Also the iterations spent."""
         options = replace(self._fit_options, fit_scale=True, iterations=SIZE_ITERATIONS)
         try:
             measured = fit_keypoints(self.model, observations, options=options, q0=fit.q)
         except DigitEyesError:
             return None, 0
-        low, high = START_SCALE_RANGE
+        low, high = HAND_SCALE_RANGE
         errors = measured.reprojection_px[np.isfinite(measured.reprojection_px)]
         if not (self._explains(measured) and low <= measured.scale <= high
                 and np.sqrt(np.mean(errors ** 2)) <= SIZE_MAX_RMS * self.options.sigma_px):
@@ -391,15 +387,15 @@ class KeypointTracker:
     def _fit_size(self, observations: list[KeypointObservation]) -> tuple[PoseFit | None, int]:
         """The first frame's fit with the hand's scale free and the palm held to the start
         state's position; the scale is kept when the fit explains the keypoints and the
-        scale lies in :data:`START_SCALE_RANGE`. Returns that fit (None otherwise: the
-        frame is fitted as any other) and its iterations."""
+        scale lies in :data:`~digiteyes.detect.hand_size.HAND_SCALE_RANGE`. Returns that fit
+        (None otherwise: the frame is fitted as any other) and its iterations."""
         options = replace(self._fit_options, fit_scale=True,
                           hold_position_mm=START_POSITION_SIGMA_MM)
         try:
             fit = fit_keypoints(self.model, observations, options=options, q0=self.state)
         except DigitEyesError:
             return None, 0
-        low, high = START_SCALE_RANGE
+        low, high = HAND_SCALE_RANGE
         if not (self._explains(fit) and low <= fit.scale <= high):
             return None, fit.iterations
         self._set_scale(fit.scale)
