@@ -49,6 +49,27 @@ def test_gradient_matches_finite_differences(setup, tau, fd_gradient):
         assert np.abs(ev.gradient_boundary).max() > 1e-3 * scale
 
 
+@pytest.mark.parametrize("tau", [0.0, 1.5])
+def test_error_without_derivatives_is_the_same_error(setup, tau):
+    """The residual-only pass (a solve's final state) gives the full pass's error,
+    residuals, visibility and pixels, and no derivatives."""
+    scenario, images, model, cam, templates = setup
+    q = integrate(model, scenario.states[12],
+                  np.r_[0.8, -0.5, 0.6, 0.05, -0.04, 0.06, 0.03, -0.02, 0.04])
+    kin = forward_kinematics(model, q)
+    planes = templates.planes(kin, cam)
+    full = evaluate_layered(templates, images[12], cam, kin, planes, None, tau, margin=2.0)
+    bare = evaluate_layered(templates, images[12], cam, kin, planes, None, tau, margin=2.0,
+                            derivatives=False)
+    assert full.energy > 0 and bare.energy == full.energy
+    for name in ("residuals", "visibility", "pixels"):
+        np.testing.assert_array_equal(getattr(bare, name), getattr(full, name))
+    assert bare.H is None and bare.gradient is None and bare.gradient_boundary is None
+    with pytest.raises(ValueError, match="form_rows"):
+        evaluate_layered(templates, images[12], cam, kin, planes, None, tau,
+                         form_rows=True, derivatives=False)
+
+
 def test_boundary_term_alone_matches_finite_differences_of_visibility(setup, fd_gradient):
     """With the residuals frozen, E changes only through V: that is eq. 3.12's part."""
     scenario, images, model, cam, templates = setup

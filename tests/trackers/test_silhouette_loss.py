@@ -33,6 +33,34 @@ def test_check_separates_a_wrong_finger(desk):
 
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_connected_to_keeps_exactly_the_components_near_the_seed(seed):
+    """Against the definition, over the whole image: of random blobs and specks, the
+    components with a pixel within the seed's reach are kept whole, the others dropped
+    (the function works inside boxes; the result must not show it)."""
+    from digiteyes.features.foreground import connected_to
+
+    rng = np.random.default_rng(seed)
+    mask = np.zeros((240, 320), np.uint8)
+    for _ in range(int(rng.integers(2, 9))):
+        centre = (int(rng.integers(0, 320)), int(rng.integers(0, 240)))
+        axes = (int(rng.integers(1, 40)), int(rng.integers(1, 40)))
+        cv2.ellipse(mask, centre, axes, float(rng.uniform(0, 180)), 0.0, 360.0, 1, -1)
+    mask[rng.random(mask.shape) < 0.002] = 1
+    seed_mask = np.zeros(mask.shape, bool)
+    r, c = int(rng.integers(20, 200)), int(rng.integers(20, 280))
+    seed_mask[r:r + 30, c:c + 20] = True
+    reach = 5
+    count, parts = cv2.connectedComponents(mask, connectivity=8)
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1,) * 2)
+    near = cv2.dilate(seed_mask.astype(np.uint8), kernel) > 0
+    touching = set(np.unique(parts[near & (mask > 0)]).tolist())
+    expected = np.isin(parts, sorted(touching)) & (mask > 0) if count > 2 else mask > 0
+    kept = connected_to(mask, seed_mask, reach)
+    assert kept.dtype == np.uint8 and np.array_equal(kept > 0, expected)
+    assert not connected_to(mask, np.zeros(mask.shape, bool), reach).any() or count <= 2
+
+
 def test_foreground_away_from_the_hand_does_not_count(desk):
     """A second hand-sized blob elsewhere on the backdrop (another hand, an arm) is no part
     of this hand: the check at the right state reads the same with it; a pose that has

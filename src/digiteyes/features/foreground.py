@@ -156,25 +156,32 @@ def digit_links(model: KinematicModel) -> dict[str, np.ndarray]:
 
 
 def connected_to(mask: np.ndarray, seed: np.ndarray, reach_px: int) -> np.ndarray:
-    """The parts of ``mask`` (H, W) uint8 connected (8-neighbourhood) to pixels within
-    ``reach_px`` of ``seed`` (H, W) bool: the hand's own foreground, without another
-    hand, an arm or a person elsewhere in the picture, which no pose of this hand
-    explains (module docstring). ``mask`` itself when it is one piece or none."""
+    """The parts of ``mask`` (H, W) uint8 (0 and one other value) connected
+    (8-neighbourhood) to pixels within ``reach_px`` of ``seed`` (H, W) bool: the hand's
+    own foreground, without another hand, an arm or a person elsewhere in the picture,
+    which no pose of this hand explains (module docstring). ``mask`` itself when it is one piece or none.
+
+    Beyond the labelling, the work is local: the components that touch the seed are
+    found inside the seed's box, and each is drawn by a flood fill from one of its
+    pixels (a cost of its own area, not the image's)."""
     count, parts = cv2.connectedComponents(mask, connectivity=8)
     if count <= 2:
         return mask
-    ys, xs = np.nonzero(seed)
-    if not len(ys):
+    x, y, w, h = cv2.boundingRect(seed.view(np.uint8))
+    if not w:
         return np.zeros_like(mask)
     # the seed grown by reach_px, inside its own box (all that can touch it)
-    y0, x0 = max(ys.min() - reach_px, 0), max(xs.min() - reach_px, 0)
-    y1, x1 = ys.max() + reach_px + 1, xs.max() + reach_px + 1
+    y0, x0 = max(y - reach_px, 0), max(x - reach_px, 0)
+    y1, x1 = y + h + reach_px, x + w + reach_px
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach_px + 1,) * 2)
-    grown = cv2.dilate(seed[y0:y1, x0:x1].astype(np.uint8), kernel)
-    keep = np.zeros(count, np.uint8)  # a lookup per component: 1 where it touches
-    keep[parts[y0:y1, x0:x1][(grown > 0) & (mask[y0:y1, x0:x1] > 0)]] = 1
-    keep[0] = 0  # the backdrop
-    return keep[parts]
+    grown = cv2.dilate(seed[y0:y1, x0:x1].view(np.uint8), kernel)
+    rows, cols = np.nonzero((grown > 0) & (mask[y0:y1, x0:x1] > 0))
+    _, first = np.unique(parts[y0:y1, x0:x1][rows, cols], return_index=True)
+    filled = np.zeros((mask.shape[0] + 2, mask.shape[1] + 2), np.uint8)
+    flags = 8 | cv2.FLOODFILL_MASK_ONLY | cv2.FLOODFILL_FIXED_RANGE | (1 << 8)
+    for i in first:  # one pixel of each component that touches the seed
+        cv2.floodFill(mask, filled, (int(cols[i] + x0), int(rows[i] + y0)), 0, 0, 0, flags)
+    return filled[1:-1, 1:-1]
 
 
 def silhouette_check(model: KinematicModel, kin: Kinematics, camera: Camera,

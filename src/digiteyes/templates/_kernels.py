@@ -76,7 +76,7 @@ def _add_outline_terms(j, kind, c, gp, b_pts, b_r):  # pragma: no cover - compil
 def layered_kernel(image, pix_part, p_world, w, Jp, values, weights, twists, occ_start,
                    occ_index, win_kind, win_pts, win_r, win_dpts, win_dr, tau, margin, H6,
                    g6, b6, b_pts, b_r, r_out, v_out, rows_region, rows_dv,
-                   form_rows):  # pragma: no cover - compiled
+                   form_rows, derivatives):  # pragma: no cover - compiled
     """One pass over the template pixels of one camera; returns the layered error
     ``E = sum_i weight_i V_i r_i^2 / 2``.
 
@@ -88,7 +88,9 @@ def layered_kernel(image, pix_part, p_world, w, Jp, values, weights, twists, occ
     (part k's twist coordinates, ``b6[k]``), the occluder's outline points
     (``b_pts[j]``, px) and its radius (``b_r[j]``); the caller chains them with the
     twists and window Jacobians. With ``form_rows`` the per-pixel rows ``dr/dv`` and
-    ``dV/dv`` are written out too (for tests and the generic solvers).
+    ``dV/dv`` are written out too (for tests and the generic solvers). Without
+    ``derivatives`` only ``E``, ``r`` and ``V`` are computed (``Jp`` and ``twists`` are
+    not read; the accumulators stay as given).
     """
     height, width = image.shape
     n_v = twists.shape[2]
@@ -119,6 +121,8 @@ def layered_kernel(image, pix_part, p_world, w, Jp, values, weights, twists, occ
         v_out[i] = V
         wt = weights[i]
         energy += 0.5 * wt * V * r * r
+        if not derivatives:
+            continue
         px, py, pz = p_world[i, 0], p_world[i, 1], p_world[i, 2]
         ax = Jp[i, 0, 0] * ix + Jp[i, 1, 0] * iy
         ay = Jp[i, 0, 1] * ix + Jp[i, 1, 1] * iy

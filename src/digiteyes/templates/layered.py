@@ -160,8 +160,9 @@ class LayeredEvaluation:
     ----------
     energy : ``E`` (grey levels squared).
     H, gradient : (n_v, n_v) Gauss-Newton matrix of the region terms and the full
-        gradient ``dE/dv`` (region + boundary).
-    gradient_region, gradient_boundary : the two parts of the gradient (eq. 3.10, 3.12).
+        gradient ``dE/dv`` (region + boundary); None when evaluated without derivatives.
+    gradient_region, gradient_boundary : the two parts of the gradient (eq. 3.10, 3.12);
+        None without derivatives.
     residuals, visibility, pixels : (P,) ``r``, (P,) ``V`` and (P, 2) image positions of
         the template pixels.
     windows, order : the windows and the visibility order used.
@@ -169,10 +170,10 @@ class LayeredEvaluation:
     """
 
     energy: float
-    H: np.ndarray
-    gradient: np.ndarray
-    gradient_region: np.ndarray
-    gradient_boundary: np.ndarray
+    H: np.ndarray | None
+    gradient: np.ndarray | None
+    gradient_region: np.ndarray | None
+    gradient_boundary: np.ndarray | None
     residuals: np.ndarray
     visibility: np.ndarray
     pixels: np.ndarray
@@ -202,8 +203,8 @@ def evaluate_layered(templates: CameraTemplates, image: np.ndarray, camera: Came
                      kin: Kinematics, planes: list[TemplatePlane],
                      order: VisibilityOrder | None, tau: float,
                      form_rows: bool = False, p_shape: np.ndarray | None = None,
-                     margin: float = 0.0, twists: np.ndarray | None = None
-                     ) -> LayeredEvaluation:
+                     margin: float = 0.0, twists: np.ndarray | None = None,
+                     derivatives: bool = True) -> LayeredEvaluation:
     """The layered template error and its derivatives (module docstring) for one camera.
 
     Parameters
@@ -222,7 +223,11 @@ def evaluate_layered(templates: CameraTemplates, image: np.ndarray, camera: Came
         to an occluding outline no longer look like the template.
     twists : the parts' twists (:func:`~digiteyes.templates.deformation.part_twists`) at
         this state if already computed (they do not depend on the camera).
+    derivatives : False computes only the error, residuals and visibility (``H`` and the
+        gradients None): what a state's final check and the template refresh need.
     """
+    if form_rows and not derivatives:
+        raise ValueError("form_rows needs derivatives")
     if p_shape is None:
         p_shape = templates.shape_points(planes)
     parts = templates.parts
@@ -230,12 +235,16 @@ def evaluate_layered(templates: CameraTemplates, image: np.ndarray, camera: Came
     if order is None:
         order = predict_visibility(parts, windows, camera, margin)
     occ_start, occ_index = order.csr()
-    if twists is None:
-        twists = part_twists(parts, kin)
+    K, P = len(parts), len(p_shape)
     p_world = world_points(templates, kin, p_shape)
-    w, Jp = camera.project_with_jacobian(p_world)
-    K, n_v = len(parts), twists.shape[2]
-    P = len(p_shape)
+    if derivatives:
+        if twists is None:
+            twists = part_twists(parts, kin)
+        w, Jp = camera.project_with_jacobian(p_world)
+    else:  # placeholders the kernel does not read
+        twists, Jp = np.zeros((K, 6, 0)), np.zeros((0, 2, 3))
+        w = camera.project(p_world)
+    n_v = twists.shape[2]
     H6 = np.zeros((K, 6, 6))
     g6 = np.zeros((K, 6))
     b6 = np.zeros((K, 6))
@@ -249,7 +258,9 @@ def evaluate_layered(templates: CameraTemplates, image: np.ndarray, camera: Came
                             templates.weights, twists, occ_start, occ_index, windows.kind,
                             windows.points, windows.radius, windows.d_points,
                             windows.d_radius, float(tau), float(margin), H6, g6, b6,
-                            b_pts, b_r, r, V, rows_r, rows_v, form_rows)
+                            b_pts, b_r, r, V, rows_r, rows_v, form_rows, derivatives)
+    if not derivatives:
+        return LayeredEvaluation(float(energy), None, None, None, None, r, V, w, windows, order)
     g_boundary = (np.einsum("kan,ka->n", twists, b6)
                   + np.einsum("kqcn,kqc->n", windows.d_points, b_pts)
                   + b_r @ windows.d_radius)
@@ -294,7 +305,8 @@ def acquire_templates(parts: tuple[TemplatePart, ...], image: np.ndarray, camera
     templates = CameraTemplates(parts, np.concatenate(abs_), np.concatenate(part_of), slices,
                                 np.zeros(P, dtype=np.float32), np.zeros(P, dtype=np.float32),
                                 np.ones(P, dtype=np.float32), np.array(sides))
-    ev = evaluate_layered(templates, image, camera, kin, planes, None, 0.0, margin=margin)
+    ev = evaluate_layered(templates, image, camera, kin, planes, None, 0.0, margin=margin,
+                          derivatives=False)
     seen = ev.visibility >= 1.0
     observed = (ev.residuals + templates.values).astype(np.float32)
     templates.values[:] = np.where(seen, observed, 0.0)

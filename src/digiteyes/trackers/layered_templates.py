@@ -35,6 +35,7 @@ import time
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -217,7 +218,7 @@ class TemplateDetails:
     evaluations : the layered error of each camera at the final state (residuals ``r``,
         visibility ``V``, image positions, windows).
     planes : the template planes of each camera used in this frame.
-    segmentations : (H, W) int16 part index per pixel of each camera (list priority).
+    image_sizes : (width, height) px of each camera's image.
     visible_fraction : share of the acquired template pixels that were visible.
     residual_rms : visibility-weighted template residual RMS, grey levels.
     feature_links : links whose edge features were used (combined tracker), per camera.
@@ -237,7 +238,7 @@ class TemplateDetails:
     events: list[list[tuple[str, int, int]]]
     evaluations: list[LayeredEvaluation]
     planes: list[list[TemplatePlane]]
-    segmentations: list[np.ndarray]
+    image_sizes: list[tuple[int, int]]
     visible_fraction: float
     residual_rms: float
     feature_links: list[list[str]]
@@ -246,6 +247,14 @@ class TemplateDetails:
     finger_rms: dict[str, float]
     residual_lost: bool = False
     searched: bool = False
+
+    @cached_property
+    def segmentations(self) -> list[np.ndarray]:
+        """(H, W) int16 part index per pixel of each camera (list priority), drawn when
+        first asked for (the overlay does; tracking does not need it)."""
+        return [segment_image(ev.windows, order, width, height)
+                for ev, order, (width, height) in zip(self.evaluations, self.orders,
+                                                      self.image_sizes, strict=True)]
 
 
 class LayeredTemplateTracker:
@@ -370,7 +379,7 @@ class LayeredTemplateTracker:
                       for g, windows in zip(greys, setup["windows"], strict=True)]
             timings["filtering"] += time.perf_counter() - tic
         q, summary = self._solve(predicted, images, greys, setup, timings)
-        final = self._evaluate_all(q, images, setup, timings)
+        final = self._evaluate_all(q, images, setup, timings, derivatives=False)
         verdict = None
         searched = False
         if self.options.silhouette_check:
@@ -411,7 +420,7 @@ class LayeredTemplateTracker:
         found, summary = self._solve(start, images, greys, setup, timings)
         if not self.finger_recovery.improves(greys, q, found):
             return None
-        final = self._evaluate_all(found, images, setup, timings)
+        final = self._evaluate_all(found, images, setup, timings, derivatives=False)
         return (found, summary, final, setup, self.silhouette_loss.check(greys, found, predicted),
                 moved)
 
@@ -453,18 +462,20 @@ class LayeredTemplateTracker:
                 int(np.ceil(high[1])) + 1)
 
     def _evaluate_all(self, q: np.ndarray, images: list[np.ndarray], setup: dict,
-                      timings: dict[str, float], kin=None) -> list[LayeredEvaluation]:
+                      timings: dict[str, float], kin=None, derivatives: bool = True
+                      ) -> list[LayeredEvaluation]:
         """The layered template error of every camera at ``q`` (the parts' twists,
-        which do not depend on the camera, computed once)."""
+        which do not depend on the camera, computed once); without ``derivatives`` the
+        error, residuals and visibility alone (a solve's final state)."""
         kin = forward_kinematics(self.model, q) if kin is None else kin
         tic = time.perf_counter()
-        twists = part_twists(self.parts, kin)
+        twists = part_twists(self.parts, kin) if derivatives else None
         evaluations = [evaluate_layered(self.templates[c], images[c], self.rig[c], kin,
                                         setup["planes"][c], setup["orders"][c],
                                         self.options.templates.tau,
                                         p_shape=setup["points"][c],
                                         margin=self.options.templates.occlusion_margin_px,
-                                        twists=twists)
+                                        twists=twists, derivatives=derivatives)
                        for c in range(len(self.rig))]
         timings["residual"] += time.perf_counter() - tic
         return evaluations
@@ -567,16 +578,13 @@ class LayeredTemplateTracker:
             refreshed = sum(refresh_templates(t, ev, opts.templates)
                             for t, ev in zip(self.templates, final, strict=True))
             timings["refresh"] = time.perf_counter() - tic
-        segmentations = [segment_image(ev.windows, order, cam.width, cam.height)
-                         for ev, order, cam in zip(final, setup["orders"], self.rig,
-                                                   strict=True)]
         feature_links = ([self._unoccluded_links(o) for o in setup["orders"]]
                          if opts.edge_features else [[] for _ in self.rig])
         finger_rms = self._finger_rms(final)
         details = TemplateDetails(
             list(self.templates), setup["orders"], setup["events"], final, setup["planes"],
-            segmentations, visible_fraction, rms, feature_links, refreshed, summary,
-            finger_rms, bool(residual_reasons))
+            [(cam.width, cam.height) for cam in self.rig], visible_fraction, rms,
+            feature_links, refreshed, summary, finger_rms, bool(residual_reasons))
         reasons = residual_reasons + (verdict.reasons if verdict else [])
         finger_lost = {f: bool(v > opts.max_residual_rms) for f, v in finger_rms.items()}
         for finger, lost in (verdict.finger_lost if verdict else {}).items():
