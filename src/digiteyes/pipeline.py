@@ -205,7 +205,8 @@ def recovered_state(tracker: Tracker, images: Sequence[np.ndarray], result: Trac
     fresh = np.asarray(fresh, dtype=float)
     rule = getattr(tracker, "silhouette_loss", None)
     if rule is not None:
-        now, new = rule.mismatch(images, result.state), rule.mismatch(images, fresh)
+        now = rule.mismatch(images, result.state, colours=images)
+        new = rule.mismatch(images, fresh, colours=images)
         if now is not None and new is not None and new >= now:
             return None
     restart(tracker, fresh)

@@ -18,6 +18,7 @@ SUITES = {
     "accuracy": "digiteyes.benchmarks.accuracy",
     "auto-start": "digiteyes.benchmarks.auto_start",
     "hand-size": "digiteyes.benchmarks.hand_size",
+    "clutter-flag": "digiteyes.benchmarks.clutter_flag",
 }
 TRACKER_SUITES = ("accuracy",)
 """Suites that take ``--trackers`` and ``--workers``."""

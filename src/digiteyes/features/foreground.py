@@ -132,7 +132,8 @@ class SilhouetteCheck:
     model's pixels of each link (what the z-buffer shows of it); ``box``: (rows, cols)
     slices of the image box the comparison was made in (every model and foreground pixel
     lies inside it); ``unexplained_mask``, ``model_mask``: bool images of that box, the
-    unexplained foreground pixels and the model's pixels.
+    unexplained foreground pixels and the model's pixels; ``camera``: the index of the
+    camera in its rig (set by the caller that checks several).
     """
 
     unexplained: float
@@ -143,6 +144,7 @@ class SilhouetteCheck:
     box: tuple[slice, slice] | None = None
     unexplained_mask: np.ndarray | None = None
     model_mask: np.ndarray | None = None
+    camera: int = 0
 
 
 def digit_links(model: KinematicModel) -> dict[str, np.ndarray]:
@@ -159,7 +161,8 @@ def connected_to(mask: np.ndarray, seed: np.ndarray, reach_px: int) -> np.ndarra
     """The parts of ``mask`` (H, W) uint8 (0 and one other value) connected
     (8-neighbourhood) to pixels within ``reach_px`` of ``seed`` (H, W) bool: the hand's
     own foreground, without another hand, an arm or a person elsewhere in the picture,
-    which no pose of this hand explains (module docstring). ``mask`` itself when it is one piece or none.
+    which no pose of this hand explains (module docstring). ``mask`` itself when it is
+    one piece or none.
 
     Beyond the labelling, the work is local: the components that touch the seed are
     found inside the seed's box, and each is drawn by a flood fill from one of its

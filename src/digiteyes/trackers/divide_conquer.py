@@ -464,7 +464,7 @@ class DivideConquerTracker:
         if opt.silhouette_check:
             t = time.perf_counter()
             verdict = self.silhouette_loss.check([prepare_image(f) for f in frames], q,
-                                                 predicted)
+                                                 predicted, colours=frames)
             reasons += verdict.reasons
             finger_lost = verdict.finger_lost
             timings["silhouette"] = time.perf_counter() - t

@@ -566,14 +566,14 @@ class FeatureTracker:
         timings["linear_solve"] = summary.timings["linear_solve"]
         final = problem.evaluation_at(q)
         start = time.perf_counter()
-        verdict = (self.silhouette_loss.check(images, q, predicted)
+        verdict = (self.silhouette_loss.check(images, q, predicted, colours=frames)
                    if self.options.silhouette_check else None)
         timings["silhouette"] = time.perf_counter() - start
         searched = False
         digits = [] if verdict is None else self.finger_recovery.digits_to_search(verdict)
         if digits:
             start = time.perf_counter()
-            found = self._search_fingers(problem, images, q, predicted, digits)
+            found = self._search_fingers(problem, images, frames, q, predicted, digits)
             if found is not None:
                 q, summary, final, verdict, moved = found
                 self.finger_recovery.placed(moved)
@@ -597,22 +597,22 @@ class FeatureTracker:
         return None
 
     def _search_fingers(self, problem: FeatureProblem, images: list[np.ndarray],
-                        q: np.ndarray, predicted: np.ndarray,
+                        frames: Sequence[np.ndarray], q: np.ndarray, predicted: np.ndarray,
                         digits: list[str]) -> tuple | None:
         """The silhouette finger search of ``digits`` from ``q`` and a solve
-        from its result; (state, summary, evaluation, verdict, digits moved) of that solve
-        if it explains the silhouette better than ``q``, else None. The solve's timings go
-        to the search's stage."""
-        searched = self.finger_recovery.search(images, q, digits)
+        from its result (``images`` grey, ``frames`` as they came); (state, summary,
+        evaluation, verdict, digits moved) of that solve if it explains the silhouette
+        better than ``q``, else None. The solve's timings go to the search's stage."""
+        searched = self.finger_recovery.search(images, q, digits, colours=frames)
         if searched is None:
             return None
         start, moved = searched
         problem.timings = dict.fromkeys(problem.timings, 0.0)
         found, summary = gauss_newton(problem, start, self.solver_options)
-        if not self.finger_recovery.improves(images, q, found):
+        if not self.finger_recovery.improves(images, q, found, colours=frames):
             return None
         return (found, summary, problem.evaluation_at(found),
-                self.silhouette_loss.check(images, found, predicted), moved)
+                self.silhouette_loss.check(images, found, predicted, colours=frames), moved)
 
     def _size_settings(self) -> dict:
         """The tracker's feature settings for the size measurement

@@ -120,13 +120,14 @@ def digit_candidates(model: KinematicModel, state: np.ndarray, levels: int
 
 def search_fingers(model: KinematicModel, rule: SilhouetteLoss, images: Sequence[np.ndarray],
                    state: np.ndarray, levels: int = 5, margin: float = 0.02,
-                   rounds: int = 2, digits: Sequence[str] | None = None
+                   rounds: int = 2, digits: Sequence[str] | None = None,
+                   colours: Sequence[np.ndarray] | None = None
                    ) -> tuple[np.ndarray, tuple[str, ...]] | None:
     """The silhouette finger search (module docstring) from ``state`` (n_q,) in ``images``
-    (one per camera, rig order), moving only ``digits`` (None: every digit): the better
-    state and the digits moved, or None when no digit moved (or the rule checks no
-    camera)."""
-    current = rule.mismatches(images, [state], symmetric=True)
+    (one per camera, rig order; ``colours`` the frames as they came, for the rule's colour
+    model), moving only ``digits`` (None: every digit): the better state and the digits
+    moved, or None when no digit moved (or the rule checks no camera)."""
+    current = rule.mismatches(images, [state], symmetric=True, colours=colours)
     if current is None:
         return None
     best_state, best = np.array(state, dtype=float), current[0]
@@ -139,7 +140,7 @@ def search_fingers(model: KinematicModel, rule: SilhouetteLoss, images: Sequence
             if not keep.any():
                 break
             candidates, digit_of = candidates[keep], digit_of[keep]
-        scores = rule.mismatches(images, list(candidates), symmetric=True)
+        scores = rule.mismatches(images, list(candidates), symmetric=True, colours=colours)
         k = int(np.argmin(scores))
         if not scores[k] < best - margin:
             break
@@ -179,21 +180,25 @@ class FingerRecovery:
         return []
 
     def improves(self, images: Sequence[np.ndarray], state: np.ndarray,
-                 found: np.ndarray) -> bool:
+                 found: np.ndarray, colours: Sequence[np.ndarray] | None = None) -> bool:
         """Whether ``found`` (the solve from a search's result) explains the hand's
-        silhouette in ``images`` better than ``state`` (the symmetric difference): the
-        test a tracker's re-solve must pass to replace its first estimate."""
-        before, after = self.rule.mismatches(images, [state, found], symmetric=True)
+        silhouette in ``images`` (``colours``: the frames as they came) better than
+        ``state`` (the symmetric difference): the test a tracker's re-solve must pass to
+        replace its first estimate."""
+        before, after = self.rule.mismatches(images, [state, found], symmetric=True,
+                                             colours=colours)
         return after < before
 
     def search(self, images: Sequence[np.ndarray], state: np.ndarray,
-               digits: Sequence[str] | None = None
+               digits: Sequence[str] | None = None,
+               colours: Sequence[np.ndarray] | None = None
                ) -> tuple[np.ndarray, tuple[str, ...]] | None:
         """:func:`search_fingers` with this track's settings, moving only ``digits``
         (None: every digit)."""
         return search_fingers(self.model, self.rule, images, state,
                               self.options.finger_search_levels,
-                              self.options.finger_search_margin, digits=digits)
+                              self.options.finger_search_margin, digits=digits,
+                              colours=colours)
 
     def hold(self, loss_hold: LossHold, result: TrackResult, searched: bool) -> TrackResult:
         """``result`` through the track's :class:`~digiteyes.trackers.loss_hold.LossHold`;

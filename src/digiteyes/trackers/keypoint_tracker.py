@@ -306,7 +306,7 @@ class KeypointTracker:
         if self.options.silhouette_check:
             start = time.perf_counter()
             verdict = self.silhouette_loss.check([prepare_image(f) for f in frames],
-                                                 self.state, predicted)
+                                                 self.state, predicted, colours=frames)
             timings["silhouette"] = time.perf_counter() - start
             finger_lost = verdict.finger_lost
             if verdict.reasons:
@@ -461,7 +461,8 @@ class KeypointTracker:
         if not self.options.silhouette_check or \
                 self._jump_mm(fit) <= self.options.max_jump * self._hand_length:
             return False
-        scores = self.silhouette_loss.mismatches(frames, [fit.scaled_state(), self.state])
+        scores = self.silhouette_loss.mismatches(frames, [fit.scaled_state(), self.state],
+                                                 colours=frames)
         return scores is not None and scores[0] >= scores[1]
 
     def _keypoints_here(self) -> np.ndarray:

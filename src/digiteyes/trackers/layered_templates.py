@@ -384,12 +384,12 @@ class LayeredTemplateTracker:
         searched = False
         if self.options.silhouette_check:
             tic = time.perf_counter()
-            verdict = self.silhouette_loss.check(greys, q, predicted)
+            verdict = self.silhouette_loss.check(greys, q, predicted, colours=frames)
             timings["silhouette"] = time.perf_counter() - tic
             digits = self.finger_recovery.digits_to_search(verdict)
             if digits:
                 tic = time.perf_counter()
-                found = self._search_fingers(q, greys, predicted, timings, digits)
+                found = self._search_fingers(q, greys, frames, predicted, timings, digits)
                 if found is not None:
                     q, summary, final, setup, verdict, moved = found
                     self.finger_recovery.placed(moved)
@@ -404,25 +404,26 @@ class LayeredTemplateTracker:
         timings["total"] = time.perf_counter() - start_total
         return self.finger_recovery.hold(self.loss_hold, result, searched)
 
-    def _search_fingers(self, q: np.ndarray, greys: list[np.ndarray], predicted: np.ndarray,
+    def _search_fingers(self, q: np.ndarray, greys: list[np.ndarray],
+                        frames: Sequence[np.ndarray], predicted: np.ndarray,
                         timings: dict[str, float], digits: list[str]) -> tuple | None:
         """The silhouette finger search of ``digits`` from ``q`` and a solve
-        from its result; (state, summary, evaluations, setup, verdict, digits moved) of that
-        solve if it explains the silhouette better than ``q``, else None. The solve filters
-        whole images: a moved finger may lie beyond the region filtered for the
-        prediction."""
-        searched = self.finger_recovery.search(greys, q, digits)
+        from its result (``frames`` as they came, for the silhouette's colour model);
+        (state, summary, evaluations, setup, verdict, digits moved) of that solve if it
+        explains the silhouette better than ``q``, else None. The solve filters whole
+        images: a moved finger may lie beyond the region filtered for the prediction."""
+        searched = self.finger_recovery.search(greys, q, digits, colours=frames)
         if searched is None:
             return None
         start, moved = searched
         images = [self.options.templates.log.apply(g) for g in greys]
         setup = self._frame_setup(start, timings)
         found, summary = self._solve(start, images, greys, setup, timings)
-        if not self.finger_recovery.improves(greys, q, found):
+        if not self.finger_recovery.improves(greys, q, found, colours=frames):
             return None
         final = self._evaluate_all(found, images, setup, timings, derivatives=False)
-        return (found, summary, final, setup, self.silhouette_loss.check(greys, found, predicted),
-                moved)
+        return (found, summary, final, setup,
+                self.silhouette_loss.check(greys, found, predicted, colours=frames), moved)
 
     def _frame_setup(self, predicted: np.ndarray, timings: dict[str, float]) -> dict:
         """Planes, pixel points and visibility orders at the predicted state."""

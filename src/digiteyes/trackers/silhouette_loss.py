@@ -37,14 +37,20 @@ hand (docs/accuracy.md) and are the same for every tracker.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from digiteyes.camera import Rig
 from digiteyes.camera.working_size import resize_images, resized_camera, working_size
 from digiteyes.errors import DigitEyesError
+from digiteyes.features.colour_foreground import (
+    ColourForeground,
+    fit_colour_foreground,
+    is_colour,
+)
 from digiteyes.features.foreground import (
+    MARGIN_PX,
     Foreground,
     SilhouetteCheck,
     digit_links,
@@ -79,6 +85,15 @@ curled under the palm: 0)."""
 
 
 @dataclass(frozen=True)
+class WorkingImage:
+    """One camera's image as the rule works on it (:data:`CHECK_MAX_SIDE`): ``grey``
+    (H, W) and, for a colour image with the colour model on, ``colour`` (H, W, 3) RGB."""
+
+    grey: np.ndarray
+    colour: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
 class SilhouetteLossOptions:
     """The silhouette rule's settings, shared by every tracker's options class (which
     inherits them, so ``--option silhouette_check=false`` works for any tracker).
@@ -92,6 +107,10 @@ class SilhouetteLossOptions:
     flag_hidden_fingers : also flag a digit whose end the estimate hides in every checked
         camera while it showed at the start state (where a hidden finger lies, no
         silhouette can say).
+    colour_foreground : over a textured backdrop, where no grey threshold separates the
+        hand, find it in colour images by a colour model learned on the first frame
+        (:mod:`~digiteyes.features.colour_foreground`; the camera stays unchecked when
+        the model does not separate that frame).
     """
 
     silhouette_check: bool = True
@@ -100,6 +119,7 @@ class SilhouetteLossOptions:
     max_finger_outside: float = MAX_FINGER_OUTSIDE
     max_hidden_unexplained: float = MAX_HIDDEN_UNEXPLAINED
     flag_hidden_fingers: bool = False
+    colour_foreground: bool = True
 
 
 @dataclass(frozen=True)
@@ -128,6 +148,7 @@ class SilhouetteLoss:
     max_hidden_unexplained : the hidden-digit threshold (a fraction in (0, 1]; 1 turns
         the rule off).
     flag_hidden_fingers : flag every digit the estimate hides (module docstring).
+    colour_foreground : the colour model over a textured backdrop (module docstring).
 
     Raises :class:`~digiteyes.errors.DigitEyesError` for a negative or non-integer
     tolerance or a threshold that is not positive.
@@ -137,7 +158,7 @@ class SilhouetteLoss:
                  max_unexplained: float = MAX_UNEXPLAINED,
                  max_finger_outside: float = MAX_FINGER_OUTSIDE,
                  max_hidden_unexplained: float = MAX_HIDDEN_UNEXPLAINED,
-                 flag_hidden_fingers: bool = False) -> None:
+                 flag_hidden_fingers: bool = False, colour_foreground: bool = True) -> None:
         if isinstance(tolerance_px, bool) or not isinstance(tolerance_px, int | np.integer) \
                 or tolerance_px < 0:
             raise DigitEyesError(f"silhouette_tolerance_px must be an integer >= 0, got "
@@ -158,6 +179,7 @@ class SilhouetteLoss:
         self.max_finger_outside = max_finger_outside
         self.max_hidden_unexplained = max_hidden_unexplained
         self.flag_hidden_fingers = flag_hidden_fingers
+        self.colour_foreground = colour_foreground
         self._digit_links = digit_links(model)
         self._digit_ends = {d: np.array([i for i, link in enumerate(model.links)
                                          if link.name in (f"{d}.distal", f"{d}.tip")], dtype=int)
@@ -170,47 +192,52 @@ class SilhouetteLoss:
         """The rule with the settings of a tracker's options."""
         return cls(model, rig, options.silhouette_tolerance_px, options.max_unexplained,
                    options.max_finger_outside, options.max_hidden_unexplained,
-                   options.flag_hidden_fingers)
+                   options.flag_hidden_fingers, options.colour_foreground)
 
     def reset(self) -> None:
         """Forget the foreground and the baseline: the next :meth:`check` fits them."""
-        self.foreground: list[Foreground | None] | None = None
-        self._unexplained_baseline: list[float] | None = None
-        self._outside_baseline: list[dict[str, float]] = []
+        self.foreground: list[Foreground | ColourForeground | None] | None = None
+        self._unexplained_baseline: dict[int, float] | None = None
+        self._outside_baseline: dict[int, dict[str, float]] = {}
         self._shown_baseline: set[str] = set()
 
     def check(self, images: Sequence[np.ndarray], state: np.ndarray,
-              reference: np.ndarray) -> SilhouetteVerdict:
-        """The rule for one frame: grey ``images`` (H, W), one per camera in rig order,
-        the estimated ``state`` (n_q,), and ``reference`` (n_q,), the state the track
-        started from (used on the first frame after a reset: the foreground is fitted,
-        and the baselines measured, at that state, so that an estimate already wrong in
-        the first frame is not taken as the norm)."""
-        images = resize_images(images, self._rig)
+              reference: np.ndarray, colours: Sequence[np.ndarray] | None = None
+              ) -> SilhouetteVerdict:
+        """The rule for one frame: ``images`` (H, W) grey (any image type is made grey),
+        one per camera in rig order, the estimated ``state`` (n_q,), and ``reference``
+        (n_q,), the state the track started from (used on the first frame after a reset:
+        the foreground is fitted, and the baselines measured, at that state, so that an
+        estimate already wrong in the first frame is not taken as the norm).
+        ``colours``: the same frames as they came (RGB where in colour), for the colour
+        model over a textured backdrop."""
+        images = self._working_images(images, colours)
         if self.foreground is None:
             kin0 = forward_kinematics(self.model, reference)
-            self.foreground = [fit_foreground(image, model_labels(self.model, kin0, camera))
+            self.foreground = [self._fit(image, model_labels(self.model, kin0, camera))
                                for image, camera in zip(images, self._rig, strict=True)]
         if self._unexplained_baseline is None:
             baseline = self._checks(images, forward_kinematics(self.model, reference))
-            self._unexplained_baseline = [c.unexplained for c in baseline]
-            self._outside_baseline = [dict(c.finger_outside) for c in baseline]
+            self._unexplained_baseline = {c.camera: c.unexplained for c in baseline}
+            self._outside_baseline = {c.camera: dict(c.finger_outside) for c in baseline}
             self._shown_baseline = {d for d in DIGITS if self.end_shown(d, baseline)}
         checks = self._checks(images, forward_kinematics(self.model, state))
         reasons, fingers, shown = self._reasons(checks, state)
         return SilhouetteVerdict(reasons, fingers, checks, shown)
 
-    def mismatch(self, images: Sequence[np.ndarray], state: np.ndarray) -> float | None:
+    def mismatch(self, images: Sequence[np.ndarray], state: np.ndarray,
+                 colours: Sequence[np.ndarray] | None = None) -> float | None:
         """How badly ``state`` (n_q,) explains the hand's silhouette in ``images`` (any
-        image type, one per camera): per checked camera, the hand pixels it leaves
-        unexplained per model pixel plus the mean share of its fingers' pixels over the
-        backdrop, summed over the cameras. None before the first :meth:`check` or when no
-        camera is checked (a textured backdrop)."""
-        scores = self.mismatches(images, [state])
+        image type, one per camera; ``colours`` as for :meth:`check`): per checked
+        camera, the hand pixels it leaves unexplained per model pixel plus the mean share
+        of its fingers' pixels over the backdrop, summed over the cameras. None before
+        the first :meth:`check` or when no camera is checked."""
+        scores = self.mismatches(images, [state], colours=colours)
         return None if scores is None else scores[0]
 
     def mismatches(self, images: Sequence[np.ndarray], states: Sequence[np.ndarray],
-                   symmetric: bool = False) -> list[float] | None:
+                   symmetric: bool = False, colours: Sequence[np.ndarray] | None = None
+                   ) -> list[float] | None:
         """:meth:`mismatch` of each of ``states`` (the foreground masks found once). With
         ``symmetric``, the second term is instead the share of all the model's pixels
         over the backdrop: the symmetric difference of the two silhouettes per model
@@ -218,8 +245,7 @@ class SilhouetteLoss:
         pixels are left unexplained), as it does from the mean over the fingers seen."""
         if not self.foreground or all(fg is None for fg in self.foreground):
             return None
-        masks = self._masks(resize_images([prepare_image(image) for image in images],
-                                          self._rig))
+        masks = self._masks(self._working_images(images, colours))
         scores = []
         for state in states:
             checks = self._checks_masks(masks, forward_kinematics(self.model, state))
@@ -230,24 +256,50 @@ class SilhouetteLoss:
                 for c in checks)))
         return scores
 
-    def _masks(self, images: Sequence[np.ndarray]) -> list[np.ndarray | None]:
+    def _working_images(self, images: Sequence[np.ndarray],
+                        colours: Sequence[np.ndarray] | None) -> list[WorkingImage]:
+        """Each camera's image at the rule's size (:data:`CHECK_MAX_SIDE`): the grey
+        levels of ``images`` (made grey, then resized), and the colours of ``colours``
+        where a frame is in colour and the colour model is on (or still to be fitted)."""
+        greys = resize_images([prepare_image(image) for image in images], self._rig)
+        wanted = colours is not None and self.colour_foreground and (
+            self.foreground is None
+            or any(isinstance(fg, ColourForeground) for fg in self.foreground))
+        if not wanted or not any(is_colour(image) for image in colours):
+            return [WorkingImage(grey) for grey in greys]
+        resized = resize_images(list(colours), self._rig)
+        return [WorkingImage(grey, colour if is_colour(colour) else None)
+                for grey, colour in zip(greys, resized, strict=True)]
+
+    def _fit(self, image: WorkingImage, labels: np.ndarray
+             ) -> Foreground | ColourForeground | None:
+        """The grey foreground of the first frame, else (a textured backdrop) its colour
+        model when the image is in colour and the option is on, else None."""
+        grey = fit_foreground(image.grey, labels)
+        if grey is not None or image.colour is None:
+            return grey
+        return fit_colour_foreground(image.colour, labels, MARGIN_PX)
+
+    def _masks(self, images: Sequence[WorkingImage]) -> list[np.ndarray | None]:
         """The foreground mask of each camera's image (None where not checked)."""
-        return [None if fg is None else fg.mask(image)
+        return [None if fg is None else
+                fg.mask(image.grey) if not isinstance(fg, ColourForeground) else
+                None if image.colour is None else fg.mask(image.colour)
                 for image, fg in zip(images, self.foreground, strict=True)]
 
     def _checks_masks(self, masks: list[np.ndarray | None], kin: Kinematics
                       ) -> list[SilhouetteCheck]:
-        return [silhouette_check(self.model, kin, camera, mask, self.tolerance_px)
-                for mask, camera in zip(masks, self._rig, strict=True) if mask is not None]
+        """The silhouette comparison in every camera with a mask, each marked with its
+        camera's index."""
+        return [replace(silhouette_check(self.model, kin, camera, mask, self.tolerance_px),
+                        camera=i)
+                for i, (mask, camera) in enumerate(zip(masks, self._rig, strict=True))
+                if mask is not None]
 
-    def _checks(self, images: Sequence[np.ndarray], kin: Kinematics) -> list[SilhouetteCheck]:
+    def _checks(self, images: Sequence[WorkingImage], kin: Kinematics
+                ) -> list[SilhouetteCheck]:
         """The silhouette comparison in every camera whose foreground could be fitted."""
         return self._checks_masks(self._masks(images), kin)
-
-    def _checked_cameras(self) -> list:
-        """The cameras whose foreground could be fitted (the order of the checks)."""
-        return [camera for camera, fg in zip(self._rig, self.foreground, strict=True)
-                if fg is not None]
 
     def hidden_digits(self, checks: Sequence[SilhouetteCheck]) -> list[str]:
         """The digits whose end showed at the start state and that the estimate of
@@ -265,8 +317,8 @@ class SilhouetteLoss:
             return {}
         kin = forward_kinematics(self.model, open_digits(self.model, state, digits))
         shares: dict[str, float] = {}
-        for check, camera in zip(checks, self._checked_cameras(), strict=True):
-            labels = model_labels(self.model, kin, camera)
+        for check in checks:
+            labels = model_labels(self.model, kin, self._rig[check.camera])
             for digit in digits:
                 share = unexplained_where_open(check, labels, self._digit_links[digit])
                 if share is not None:
@@ -277,11 +329,14 @@ class SilhouetteLoss:
                  ) -> tuple[list[str], dict[str, bool], tuple[str, ...]]:
         reasons: list[str] = []
         fingers: dict[str, bool] = {}
-        for camera, (check, base, outside_base) in enumerate(zip(
-                checks, self._unexplained_baseline, self._outside_baseline, strict=True)):
+        for check in checks:
+            base = self._unexplained_baseline.get(check.camera)
+            if base is None:  # not checked at the start state: nothing to compare with
+                continue
+            outside_base = self._outside_baseline[check.camera]
             if check.unexplained - base > self.max_unexplained:
-                reasons.append(f"camera {camera}: {check.unexplained:.0%} of the model's area "
-                               f"of the hand unexplained (at the start state {base:.0%})")
+                reasons.append(f"camera {check.camera}: {check.unexplained:.0%} of the model's "
+                               f"area of the hand unexplained (at the start state {base:.0%})")
             for finger, outside in check.finger_outside.items():
                 excess = outside - outside_base.get(finger, 0.0)
                 fingers[finger] = fingers.get(finger, False) or excess > self.max_finger_outside

@@ -1,0 +1,152 @@
+"""Loss-flag benchmark over a textured backdrop: the silhouette rule's colour model.
+
+The accuracy benchmark (:mod:`digiteyes.benchmarks.accuracy`) renders grey images over
+black cloth, where the silhouette loss rule works from a grey threshold. Over clutter no
+threshold separates the hand, and before the colour model
+(:mod:`digiteyes.features.colour_foreground`) the rule stayed off there: a track that had
+left the hand was flagged only by the trackers' residual rules, which rarely notice. This
+suite renders the independent flesh hand in colour over the ``clutter`` backdrop (random
+coloured shapes, some of them skin-coloured) for the camera setups of the accuracy table,
+tracks each from its true first state with :data:`TRACKERS`, once with the colour model
+off and once on (``colour_foreground``), and scores the loss flag against the truth
+(:mod:`digiteyes.evaluate.truth_loss`: a frame is truly lost when its mean fingertip
+error exceeds 30 mm or a fingertip 50 mm). The tracks are the same both ways (the flag
+does not move the estimate of these trackers, unless a finger search is switched on);
+only the flag differs. Per setup it also reports how the colour model split the first
+frame of each camera (hand pixels it keeps, backdrop pixels it takes for hand) and
+whether it was accepted.
+
+Run it with ``digiteyes bench clutter-flag [--json FILE] [--quick]``; docs/accuracy.md
+explains the result.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+from typing import Any
+
+from digiteyes.benchmarks._machine import emit, machine_info, machine_lines
+from digiteyes.benchmarks.accuracy import SETUPS, row_figures, scenario_for
+from digiteyes.benchmarks.tracker import _one_thread, render_sequence, track_sequence
+from digiteyes.features.colour_foreground import fit_colour_foreground
+from digiteyes.features.foreground import MARGIN_PX, fit_foreground, model_labels
+from digiteyes.features.slices import prepare_image
+from digiteyes.kinematics import forward_kinematics
+from digiteyes.trackers import tracker_entry
+
+TRACKERS = ("features", "templates", "divide-conquer")
+"""The trackers of the seeds with a silhouette rule and no learned detector."""
+FRAMES = 60
+"""Frames per sequence (the index finger's whole curl and more)."""
+QUICK_FRAMES = 4
+
+
+def colour_fits(sequence: Any) -> list[dict[str, Any]]:
+    """How each camera's first frame is split at the true first state: whether the grey
+    threshold fits (a plain backdrop), else the colour model's figures (None when the
+    model was refused)."""
+    model = sequence.scenario.model
+    kin = forward_kinematics(model, sequence.scenario.initial_state)
+    out = []
+    for camera, image in zip(sequence.rig, sequence.images[0], strict=True):
+        labels = model_labels(model, kin, camera)
+        grey = fit_foreground(prepare_image(image), labels) is not None
+        colour = None if grey else fit_colour_foreground(image, labels, MARGIN_PX)
+        out.append({"camera": camera.name, "grey_threshold": grey,
+                    "colour_model": None if colour is None else
+                    {"hand_recall": colour.hand_recall,
+                     "backdrop_share": colour.backdrop_share}})
+    return out
+
+
+def measure(frames: int) -> list[dict[str, Any]]:
+    """Every setup of the accuracy table, rendered in colour over clutter, tracked by every
+    tracker of :data:`TRACKERS` with the colour model off and on (one thread)."""
+    rows = []
+    with _one_thread():
+        for source in dict.fromkeys(s for s, _ in SETUPS.values()):
+            rendered = render_sequence(scenario_for(source, "exact", frames),
+                                       background="clutter", appearance="flesh",
+                                       color=True)
+            for label, (setup_source, cameras) in SETUPS.items():
+                if setup_source != source:
+                    continue
+                sequence = rendered.cameras(cameras)
+                fits = colour_fits(sequence)
+                for name in TRACKERS:
+                    for colour in (False, True):
+                        options = replace(tracker_entry(name).options_type(),
+                                          colour_foreground=colour)
+                        outcome = track_sequence(sequence, options, f"{name} {label}",
+                                                 tracker=name)
+                        figures = row_figures(sequence, outcome)
+                        rows.append({"tracker": name, "setup": label, "colour_model": colour,
+                                     "cameras": fits} | {
+                            k: figures[k] for k in ("fingertip_err_mm_mean",
+                                                    "truly_lost_frames", "lost_frames",
+                                                    "flag", "frames")})
+    return rows
+
+
+def totals(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """Per tracker and colour setting, the flag's confusion counts summed over the setups,
+    with precision and recall."""
+    out: dict[str, Any] = {}
+    for row in rows:
+        key = f"{row['tracker']} colour {'on' if row['colour_model'] else 'off'}"
+        t = out.setdefault(key, {"true_positive": 0, "false_positive": 0,
+                                 "false_negative": 0})
+        for count in t:
+            t[count] += int(row["flag"][count])
+    for t in out.values():
+        flagged = t["true_positive"] + t["false_positive"]
+        lost = t["true_positive"] + t["false_negative"]
+        t["precision"] = t["true_positive"] / flagged if flagged else None
+        t["recall"] = t["true_positive"] / lost if lost else None
+    return out
+
+
+def run(json_path: str | None = None, quick: bool = False) -> dict:
+    """Measure (:func:`measure`), print the table, write JSON to ``json_path``."""
+    started = time.perf_counter()
+    frames = QUICK_FRAMES if quick else FRAMES
+    rows = measure(frames)
+    result = {"benchmark": "clutter-flag", "quick": quick, "machine": machine_info(),
+              "settings": {"frames": frames, "trackers": list(TRACKERS),
+                           "appearance": "flesh", "background": "clutter", "color": True},
+              "rows": rows, "totals": totals(rows)}
+    result["wall_seconds"] = time.perf_counter() - started
+    return emit(result, format_table(result), json_path)
+
+
+def _pct(value: float | None) -> str:
+    return "-" if value is None else f"{100 * value:.0f}%"
+
+
+def format_table(result: dict[str, Any]) -> str:
+    """One line per tracker and setup (flag without | with the colour model), the colour
+    model's first-frame split per camera, and the totals."""
+    lines = [f"clutter-flag benchmark{' (quick)' if result['quick'] else ''}",
+             *machine_lines(result["machine"]),
+             f"flesh hand in colour over clutter, {result['settings']['frames']} frames, "
+             "true first state; flag: flagged frames, precision / recall against the truth",
+             "", f"{'tracker':<16} {'setup':<16} {'tip mm':>7} {'truly lost':>10} "
+                 f"{'flag, colour off':>22} {'flag, colour on':>22}  colour model per camera "
+                 "(hand kept / backdrop taken)"]
+    rows = result["rows"]
+    for off, on in zip(rows[0::2], rows[1::2], strict=True):
+        cams = ", ".join("grey" if c["grey_threshold"] else "refused" if c["colour_model"] is
+                         None else f"{100 * c['colour_model']['hand_recall']:.0f}% / "
+                         f"{100 * c['colour_model']['backdrop_share']:.1f}%"
+                         for c in on["cameras"])
+        cells = [f"{r['lost_frames']:>3} {_pct(r['flag']['precision']):>5} / "
+                 f"{_pct(r['flag']['recall']):>4}" for r in (off, on)]
+        lines.append(f"{on['tracker']:<16} {on['setup']:<16} "
+                     f"{on['fingertip_err_mm_mean']:>7.1f} {on['truly_lost_frames']:>10} "
+                     f"{cells[0]:>22} {cells[1]:>22}  {cams}")
+    lines += ["", "totals over the setups (precision / recall):"]
+    lines += [f"  {key:<32} {_pct(t['precision'])} / {_pct(t['recall'])}  "
+              f"(TP {t['true_positive']}, FP {t['false_positive']}, FN {t['false_negative']})"
+              for key, t in result["totals"].items()]
+    return "\n".join(lines)
