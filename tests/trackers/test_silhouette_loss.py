@@ -350,3 +350,33 @@ def test_colour_frames_change_nothing_over_a_plain_backdrop(desk):
         assert a.reasons == b.reasons
         assert [c.unexplained for c in a.checks] == [c.unexplained for c in b.checks]
     assert type(given.foreground[0]).__name__ == "Foreground"
+
+
+def test_a_start_with_much_unexplained_hand_is_not_judged_by_it(desk):
+    """An arm in view, which the model lacks, leaves much of the foreground unexplained
+    at the start; as it moves, that share moves by more than a finger's. Such a camera
+    is not judged by the unexplained-pixels test; the finger tests still see a finger
+    the state has wrong."""
+    from digiteyes.trackers.silhouette_loss import MAX_START_UNEXPLAINED
+
+    model, rig, q, _, image, image_curled = desk
+    camera = rig.cameras[0]
+    hand = model_labels(model, forward_kinematics(model, q), camera) >= 0
+    rows, cols = np.nonzero(hand)
+    level = float(np.median(image[hand]))
+
+    def with_arm(im, width):
+        """A bright band from the hand's lowest row to the image's edge, ``width`` px."""
+        out = im.copy()
+        bottom, centre = int(rows.max()), int(np.median(cols))
+        out[bottom - 20:, centre - width // 2:centre + width // 2] = level
+        return out
+
+    rule = SilhouetteLoss(model, rig)
+    start = rule.check([with_arm(image, 90)], q, q)
+    assert start.reasons == [] and rule._unexplained_baseline[0] > MAX_START_UNEXPLAINED
+    moved = rule.check([with_arm(image, 150)], q, q)  # the arm turns: more of it shows
+    assert moved.checks[0].unexplained - rule._unexplained_baseline[0] > rule.max_unexplained
+    assert moved.reasons == []
+    wrong = rule.check([with_arm(image_curled, 90)], q, q)
+    assert wrong.reasons and wrong.finger_lost["index"]

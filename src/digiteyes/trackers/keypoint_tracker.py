@@ -141,6 +141,14 @@ class KeypointTrackerOptions(SilhouetteLossOptions, LossHoldOptions):
         size.
     size_frames : with two or more cameras, the time constant (frames) of the on-line
         size (module docstring); None keeps the model's size.
+    colour_foreground : off by default here (the silhouette rule's colour model over a
+        textured backdrop): this tracker fits the detector's keypoints afresh every
+        frame, so a re-detection after a silhouette flag brings back the same fit; on the
+        real video (a grey wall the grey threshold refuses) the colour rule flagged 41
+        frames whose track stayed on MediaPipe's hand (image gap median 0.06 palm lengths
+        with the rule and without), cost 18 re-detections and took the loop from 64 to
+        48 frames/s (docs/accuracy.md, "Over a textured backdrop"). ``--option
+        colour_foreground=true`` turns it on.
     """
 
     detector: str = "auto"
@@ -154,6 +162,7 @@ class KeypointTrackerOptions(SilhouetteLossOptions, LossHoldOptions):
     motion_sigma_deg: float | None = None
     start_size: bool = True
     size_frames: float | None = 100.0
+    colour_foreground: bool = False
 
     def __post_init__(self) -> None:
         for name in ("sigma_px", "sigma_joint_deg", "max_error_px", "max_jump"):
