@@ -25,13 +25,20 @@ def test_acquired_templates_fit_their_own_frame(setup):
     assert ev.visible_rms < 1e-4
 
 
-@pytest.mark.parametrize("tau", [0.0, 1.5])
-def test_gradient_matches_finite_differences(setup, tau, fd_gradient):
-    scenario, images, model, cam, templates = setup
+def _off_state(setup):
+    """A state near frame 12 (where the fingers overlap), off the truth: (state, its
+    kinematics, the template planes there)."""
+    scenario, _, model, cam, templates = setup
     q = integrate(model, scenario.states[12],
                   np.r_[0.8, -0.5, 0.6, 0.05, -0.04, 0.06, 0.03, -0.02, 0.04])
     kin = forward_kinematics(model, q)
-    planes = templates.planes(kin, cam)
+    return q, kin, templates.planes(kin, cam)
+
+
+@pytest.mark.parametrize("tau", [0.0, 1.5])
+def test_gradient_matches_finite_differences(setup, tau, fd_gradient):
+    _, images, model, cam, templates = setup
+    q, kin, planes = _off_state(setup)
     ev = evaluate_layered(templates, images[12], cam, kin, planes, None, tau, margin=2.0)
     assert ev.order.relations, "the test state must have occlusions"
 
@@ -53,11 +60,8 @@ def test_gradient_matches_finite_differences(setup, tau, fd_gradient):
 def test_error_without_derivatives_is_the_same_error(setup, tau):
     """The residual-only pass (a solve's final state) gives the full pass's error,
     residuals, visibility and pixels, and no derivatives."""
-    scenario, images, model, cam, templates = setup
-    q = integrate(model, scenario.states[12],
-                  np.r_[0.8, -0.5, 0.6, 0.05, -0.04, 0.06, 0.03, -0.02, 0.04])
-    kin = forward_kinematics(model, q)
-    planes = templates.planes(kin, cam)
+    _, images, _, cam, templates = setup
+    _, kin, planes = _off_state(setup)
     full = evaluate_layered(templates, images[12], cam, kin, planes, None, tau, margin=2.0)
     bare = evaluate_layered(templates, images[12], cam, kin, planes, None, tau, margin=2.0,
                             derivatives=False)

@@ -284,27 +284,6 @@ def test_the_rule_works_through_lens_distortion(desk):
     assert verdict.finger_lost["index"]
 
 
-@pytest.fixture(scope="module")
-def desk_clutter():
-    """:func:`desk`'s states and camera, the flesh hand in colour over clutter: (model,
-    rig, state, image, image of the curled index)."""
-    from digiteyes.camera import Rig
-    from digiteyes.synth import RenderOptions, render_views
-    from digiteyes.synth.scenarios import build_scenario
-
-    scenario = build_scenario("desk-1cam", seed=0, n_frames=2)
-    model, rig = scenario.model, Rig(scenario.rig.cameras[:1])
-    q = np.array(scenario.states[0])
-    curled = q.copy()
-    for joint, angle in (("mcp", 80.0), ("pip", 95.0), ("dip", 60.0)):
-        curled[model.state_index(f"index.{joint}")] = np.radians(angle)
-    options = RenderOptions(appearance="flesh", noise_sigma=2.0, color=True,
-                            background="clutter", background_seed=3)
-    images = [render_views(model, s, rig, options, rng=i)[0].image
-              for i, s in enumerate((q, curled))]
-    return model, rig, q, *images
-
-
 def test_rule_over_clutter_sees_a_wrong_finger_in_colour(desk_clutter):
     """Over clutter no grey threshold fits: without the colour model the rule stays
     silent however wrong the state; with it (the default), given the colour frames, it is
@@ -326,6 +305,7 @@ def test_rule_over_clutter_sees_a_wrong_finger_in_colour(desk_clutter):
     assert not any(v for f, v in wrong.finger_lost.items() if f != "index")
     # grey frames alone: the colour camera is not judged, nothing is made up
     assert rule.check([grey_curled], q, q).reasons == []
+    assert rule.mismatch([grey_curled], q) is None
     # the mismatch score ranks the right state first with the colours, as the rule does
     right, bad = rule.mismatches([grey_curled], [q, q], colours=[image_curled])
     assert right == bad  # the same state twice
@@ -352,31 +332,39 @@ def test_colour_frames_change_nothing_over_a_plain_backdrop(desk):
     assert type(given.foreground[0]).__name__ == "Foreground"
 
 
-def test_a_start_with_much_unexplained_hand_is_not_judged_by_it(desk):
+def test_a_start_with_much_unexplained_hand_is_not_judged_by_it(desk, desk_clutter):
     """An arm in view, which the model lacks, leaves much of the foreground unexplained
-    at the start; as it moves, that share moves by more than a finger's. Such a camera
-    is not judged by the unexplained-pixels test; the finger tests still see a finger
-    the state has wrong."""
+    at the start; as it moves, that share moves by more than a finger's. A colour camera
+    so started is not judged by the unexplained-pixels test, and its finger tests still
+    see a finger the state has wrong; a grey-threshold camera keeps the test."""
+    from digiteyes.features.colour_foreground import ColourForeground
+    from digiteyes.features.slices import prepare_image
     from digiteyes.trackers.silhouette_loss import MAX_START_UNEXPLAINED
 
-    model, rig, q, _, image, image_curled = desk
-    camera = rig.cameras[0]
-    hand = model_labels(model, forward_kinematics(model, q), camera) >= 0
-    rows, cols = np.nonzero(hand)
-    level = float(np.median(image[hand]))
-
-    def with_arm(im, width):
-        """A bright band from the hand's lowest row to the image's edge, ``width`` px."""
+    def with_arm(im, hand, width):
+        """A band of the hand's own median colour from the hand's lowest row to the
+        image's edge, ``width`` px wide."""
+        rows, cols = np.nonzero(hand)
         out = im.copy()
         bottom, centre = int(rows.max()), int(np.median(cols))
-        out[bottom - 20:, centre - width // 2:centre + width // 2] = level
+        out[bottom - 20:, centre - width // 2:centre + width // 2] = np.median(im[hand], axis=0)
         return out
 
+    model, rig, q, image, image_curled = desk_clutter
+    hand = model_labels(model, forward_kinematics(model, q), rig.cameras[0]) >= 0
+    frames = [with_arm(im, hand, w) for im, w in ((image, 90), (image, 150),
+                                                 (image_curled, 90))]
     rule = SilhouetteLoss(model, rig)
-    start = rule.check([with_arm(image, 90)], q, q)
+    start, moved, wrong = (rule.check([prepare_image(f)], q, q, colours=[f]) for f in frames)
+    assert isinstance(rule.foreground[0], ColourForeground)
     assert start.reasons == [] and rule._unexplained_baseline[0] > MAX_START_UNEXPLAINED
-    moved = rule.check([with_arm(image, 150)], q, q)  # the arm turns: more of it shows
     assert moved.checks[0].unexplained - rule._unexplained_baseline[0] > rule.max_unexplained
-    assert moved.reasons == []
-    wrong = rule.check([with_arm(image_curled, 90)], q, q)
+    assert moved.reasons == []  # the arm turned: more of it shows
     assert wrong.reasons and wrong.finger_lost["index"]
+
+    model, rig, q, _, image, _ = desk  # grey, black cloth: the test stands
+    hand = model_labels(model, forward_kinematics(model, q), rig.cameras[0]) >= 0
+    grey = SilhouetteLoss(model, rig)
+    assert grey.check([with_arm(image, hand, 90)], q, q).reasons == []
+    assert grey._unexplained_baseline[0] > MAX_START_UNEXPLAINED
+    assert "unexplained" in grey.check([with_arm(image, hand, 150)], q, q).reasons[0]
