@@ -108,6 +108,17 @@ def test_registry_creates_by_name_and_rejects_unknown_names_and_options(sequence
     features = create_tracker("features", seq.model, seq.rig, iterations_per_frame=2,
                               form="quaternion")
     assert features.options.iterations_per_frame == 2 and features.options.form == "quaternion"
+    # a value of the wrong type (``--option silhouette_check=maybe`` arrives as a string)
+    for key, value, wanted in (("silhouette_check", "maybe", "true or false"),
+                               ("colour_foreground", 1, "true or false"),
+                               ("iterations_per_frame", 2.5, "an integer"),
+                               ("iterations_per_frame", True, "an integer"),
+                               ("robust_scale_px", "five", "a number")):
+        with pytest.raises(TrackerError, match=f"{key} must be {wanted}, got"):
+            create_tracker("features", seq.model, seq.rig, **{key: value})
+    relaxed = create_tracker("features", seq.model, seq.rig, robust_scale_px=4,
+                             robust_loss=None)
+    assert relaxed.options.robust_scale_px == 4 and relaxed.options.robust_loss is None
 
 
 def test_dotted_options_set_nested_settings(sequence):

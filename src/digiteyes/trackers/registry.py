@@ -132,8 +132,35 @@ def _settings(options_type: type, base: Any, options: dict[str, Any], name: str,
                 raise TrackerError(f"tracker {name!r}: option {prefix + key!r} has no "
                                    f"parts to set")
             value = _settings(type(current), current, value, name, f"{prefix}{key}.")
+        else:
+            _check_plain_type(fields[key], value, name, prefix + key)
         values[key] = value
     return dataclasses.replace(base, **values) if base is not None else options_type(**values)
+
+
+_PLAIN_TYPES = {"bool": (bool,), "int": (int,), "float": (int, float), "str": (str,)}
+"""Option annotations whose values are checked here (anything else is the options
+class's own business): the Python types each accepts (a bool is no number)."""
+
+
+def _check_plain_type(field: dataclasses.Field, value: Any, name: str, key: str) -> None:
+    """Raise :class:`TrackerError` when an option annotated ``bool``, ``int``, ``float`` or
+    ``str`` (optionally ``| None``) gets a value of another type: ``--option
+    silhouette_check=maybe`` arrives as the string ``"maybe"``, which a bool field would
+    otherwise keep and read as true."""
+    annotation = field.type if isinstance(field.type, str) else getattr(
+        field.type, "__name__", "")
+    kinds = [part.strip() for part in annotation.split("|")]
+    optional = "None" in kinds
+    kinds = [k for k in kinds if k != "None"]
+    if len(kinds) != 1 or kinds[0] not in _PLAIN_TYPES or (value is None and optional):
+        return
+    allowed = _PLAIN_TYPES[kinds[0]]
+    if isinstance(value, bool) != (kinds[0] == "bool") or not isinstance(value, allowed):
+        wanted = {"bool": "true or false", "int": "an integer", "float": "a number",
+                  "str": "a string"}[kinds[0]]
+        raise TrackerError(f"tracker {name!r}: {key} must be {wanted}"
+                           f"{' or null' if optional else ''}, got {value!r}")
 
 
 def _default(field: dataclasses.Field) -> Any:
