@@ -1,6 +1,6 @@
 """Figure of docs/accuracy.md ("Over a textured backdrop"): what the silhouette rule's colour
-model sees. Left: the flesh desk render over clutter with the index finger curled while the
-state holds it straight; the colour model (learned on the straight frame) tints the hand's
+model sees. Left: the flesh desk render over clutter with the index finger fully curled while
+the state holds it straight; the colour model (learned on the straight frame) tints the hand's
 pixels green, the model's silhouette at the state is outlined (magenta) and its index
 finger (yellow), which the rule flags. Right, with ``../shared/data`` present: a frame of
 the real video with the model learned on its first frame, at the keypoint tracker's state.
@@ -18,10 +18,12 @@ import cv2
 import numpy as np
 
 from digiteyes.camera import Rig
+from digiteyes.camera.default import default_camera
 from digiteyes.features.colour_foreground import fit_colour_foreground
 from digiteyes.features.foreground import MARGIN_PX, model_labels
 from digiteyes.io import VideoReader, read_state_log
 from digiteyes.kinematics import forward_kinematics, load_model
+from digiteyes.kinematics.anatomy import with_digits
 from digiteyes.synth import RenderOptions, render_views
 from digiteyes.synth.scenarios import build_scenario
 from digiteyes.track_job import AUTO, TrackJob, run_track_job
@@ -49,9 +51,7 @@ def render_panel() -> np.ndarray:
     scenario = build_scenario("desk-1cam", seed=0, n_frames=2)
     model, rig = scenario.model, Rig(scenario.rig.cameras[:1])
     q = np.array(scenario.states[0])
-    curled = q.copy()
-    for joint, angle in (("mcp", 80.0), ("pip", 95.0), ("dip", 60.0)):
-        curled[model.state_index(f"index.{joint}")] = np.radians(angle)
+    curled = with_digits(model, q, ["index"], extended=False)
     options = RenderOptions(appearance="flesh", noise_sigma=2.0, color=True,
                             background="clutter", background_seed=3)
     straight, bent = (render_views(model, s, rig, options, rng=i)[0].image
@@ -80,7 +80,6 @@ def real_panel(data: Path) -> np.ndarray | None:
                 frames.append(frame)
             if i >= REAL_FRAME:
                 break
-    from digiteyes.camera.default import default_camera
     camera = default_camera(frames[0].shape[1], frames[0].shape[0])
     first = model_labels(model, forward_kinematics(model, log.states[0]), camera)
     colour = fit_colour_foreground(frames[0], first, MARGIN_PX)

@@ -17,6 +17,7 @@ def result(tmp_path_factory):
         patch.setattr(accuracy, "SETUPS", {"webcam 1cam": ("webcam", None)})
         patch.setattr(clutter_flag, "SETUPS", accuracy.SETUPS)
         patch.setattr(clutter_flag, "TRACKERS", ("features",))
+        patch.setattr(clutter_flag, "APPEARANCES", ("flesh",))
         patch.setattr(clutter_flag, "QUICK_FRAMES", 12)
         path = tmp_path_factory.mktemp("bench") / "clutter.json"
         assert main(["bench", "clutter-flag", "--quick", "--json", str(path)]) == 0
@@ -38,7 +39,7 @@ def test_rows_differ_only_in_the_flag(result):
 
 def test_totals_sum_the_rows(result):
     for row in result["rows"]:
-        key = f"features colour {'on' if row['colour_model'] else 'off'}"
+        key = f"features flesh colour {'on' if row['colour_model'] else 'off'}"
         total = result["totals"][key]
         assert total["true_positive"] == row["flag"]["true_positive"]
         assert total["false_negative"] == row["flag"]["false_negative"]

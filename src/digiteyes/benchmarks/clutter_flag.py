@@ -5,8 +5,9 @@ black cloth, where the silhouette loss rule works from a grey threshold. Over cl
 threshold separates the hand, and before the colour model
 (:mod:`digiteyes.features.colour_foreground`) the rule stayed off there: a track that had
 left the hand was flagged only by the trackers' residual rules, which rarely notice. This
-suite renders the independent flesh hand in colour over the ``clutter`` backdrop (random
-coloured shapes, some of them skin-coloured) for the camera setups of the accuracy table,
+suite renders the hand in colour over the ``clutter`` backdrop (random coloured shapes,
+some of them skin-coloured), in both appearances (:data:`APPEARANCES`: the independent
+flesh hand beside our own drawing), for the camera setups of the accuracy table,
 tracks each from its true first state with :data:`TRACKERS`, once with the colour model
 off and once on (``colour_foreground``), and scores the loss flag against the truth
 (:mod:`digiteyes.evaluate.truth_loss`: a frame is truly lost when its mean fingertip
@@ -27,13 +28,13 @@ from dataclasses import replace
 from typing import Any
 
 from digiteyes.benchmarks._machine import emit, machine_info, machine_lines
-from digiteyes.benchmarks.accuracy import SETUPS, row_figures, scenario_for
+from digiteyes.benchmarks.accuracy import APPEARANCES, SETUPS, row_figures, scenario_for
 from digiteyes.benchmarks.tracker import _one_thread, render_sequence, track_sequence
-from digiteyes.features.colour_foreground import fit_colour_foreground
-from digiteyes.features.foreground import MARGIN_PX, fit_foreground, model_labels
+from digiteyes.features.colour_foreground import ColourForeground
+from digiteyes.features.foreground import Foreground
 from digiteyes.features.slices import prepare_image
-from digiteyes.kinematics import forward_kinematics
 from digiteyes.trackers import tracker_entry
+from digiteyes.trackers.silhouette_loss import SilhouetteLoss
 
 TRACKERS = ("features", "templates", "divide-conquer")
 """The trackers of the seeds with a silhouette rule and no learned detector."""
@@ -43,31 +44,30 @@ QUICK_FRAMES = 4
 
 
 def colour_fits(sequence: Any) -> list[dict[str, Any]]:
-    """How each camera's first frame is split at the true first state: whether the grey
-    threshold fits (a plain backdrop), else the colour model's figures (None when the
-    model was refused)."""
-    model = sequence.scenario.model
-    kin = forward_kinematics(model, sequence.scenario.initial_state)
-    out = []
-    for camera, image in zip(sequence.rig, sequence.images[0], strict=True):
-        labels = model_labels(model, kin, camera)
-        grey = fit_foreground(prepare_image(image), labels) is not None
-        colour = None if grey else fit_colour_foreground(image, labels, MARGIN_PX)
-        out.append({"camera": camera.name, "grey_threshold": grey,
-                    "colour_model": None if colour is None else
-                    {"hand_recall": colour.hand_recall,
-                     "backdrop_share": colour.backdrop_share}})
-    return out
+    """How the silhouette rule splits each camera's first frame at the true first state:
+    whether the grey threshold fits (a plain backdrop), else the colour model's figures
+    (None when the model was refused)."""
+    start = sequence.scenario.initial_state
+    rule = SilhouetteLoss(sequence.scenario.model, sequence.rig)
+    first = sequence.images[0]
+    rule.check([prepare_image(image) for image in first], start, start, colours=first)
+    return [{"camera": camera.name, "grey_threshold": isinstance(fg, Foreground),
+             "colour_model": {"hand_recall": fg.hand_recall,
+                              "backdrop_share": fg.backdrop_share}
+             if isinstance(fg, ColourForeground) else None}
+            for camera, fg in zip(sequence.rig, rule.foreground, strict=True)]
 
 
 def measure(frames: int) -> list[dict[str, Any]]:
-    """Every setup of the accuracy table, rendered in colour over clutter, tracked by every
-    tracker of :data:`TRACKERS` with the colour model off and on (one thread)."""
+    """Every setup of the accuracy table, rendered in colour over clutter in each
+    appearance, tracked by every tracker of :data:`TRACKERS` with the colour model off and
+    on (one thread)."""
     rows = []
     with _one_thread():
-        for source in dict.fromkeys(s for s, _ in SETUPS.values()):
+        for appearance, source in ((a, s) for a in APPEARANCES
+                                   for s in dict.fromkeys(s for s, _ in SETUPS.values())):
             rendered = render_sequence(scenario_for(source, "exact", frames),
-                                       background="clutter", appearance="flesh",
+                                       background="clutter", appearance=appearance,
                                        color=True)
             for label, (setup_source, cameras) in SETUPS.items():
                 if setup_source != source:
@@ -81,7 +81,8 @@ def measure(frames: int) -> list[dict[str, Any]]:
                         outcome = track_sequence(sequence, options, f"{name} {label}",
                                                  tracker=name)
                         figures = row_figures(sequence, outcome)
-                        rows.append({"tracker": name, "setup": label, "colour_model": colour,
+                        rows.append({"tracker": name, "appearance": appearance,
+                                     "setup": label, "colour_model": colour,
                                      "cameras": fits} | {
                             k: figures[k] for k in ("fingertip_err_mm_mean",
                                                     "truly_lost_frames", "lost_frames",
@@ -90,11 +91,12 @@ def measure(frames: int) -> list[dict[str, Any]]:
 
 
 def totals(rows: list[dict[str, Any]]) -> dict[str, Any]:
-    """Per tracker and colour setting, the flag's confusion counts summed over the setups,
-    with precision and recall."""
+    """Per tracker, appearance and colour setting, the flag's confusion counts summed over
+    the setups, with precision and recall."""
     out: dict[str, Any] = {}
     for row in rows:
-        key = f"{row['tracker']} colour {'on' if row['colour_model'] else 'off'}"
+        key = (f"{row['tracker']} {row['appearance']} colour "
+               f"{'on' if row['colour_model'] else 'off'}")
         t = out.setdefault(key, {"true_positive": 0, "false_positive": 0,
                                  "false_negative": 0})
         for count in t:
@@ -114,7 +116,8 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
     rows = measure(frames)
     result = {"benchmark": "clutter-flag", "quick": quick, "machine": machine_info(),
               "settings": {"frames": frames, "trackers": list(TRACKERS),
-                           "appearance": "flesh", "background": "clutter", "color": True},
+                           "appearances": list(APPEARANCES), "background": "clutter",
+                           "color": True},
               "rows": rows, "totals": totals(rows)}
     result["wall_seconds"] = time.perf_counter() - started
     return emit(result, format_table(result), json_path)
@@ -129,9 +132,10 @@ def format_table(result: dict[str, Any]) -> str:
     model's first-frame split per camera, and the totals."""
     lines = [f"clutter-flag benchmark{' (quick)' if result['quick'] else ''}",
              *machine_lines(result["machine"]),
-             f"flesh hand in colour over clutter, {result['settings']['frames']} frames, "
+             f"the hand in colour over clutter, {result['settings']['frames']} frames, "
              "true first state; flag: flagged frames, precision / recall against the truth",
-             "", f"{'tracker':<16} {'setup':<16} {'tip mm':>7} {'truly lost':>10} "
+             "", f"{'tracker':<16} {'appearance':<10} {'setup':<16} {'tip mm':>7} "
+                 f"{'truly lost':>10} "
                  f"{'flag, colour off':>22} {'flag, colour on':>22}  colour model per camera "
                  "(hand kept / backdrop taken)"]
     rows = result["rows"]
@@ -142,11 +146,11 @@ def format_table(result: dict[str, Any]) -> str:
                          for c in on["cameras"])
         cells = [f"{r['lost_frames']:>3} {_pct(r['flag']['precision']):>5} / "
                  f"{_pct(r['flag']['recall']):>4}" for r in (off, on)]
-        lines.append(f"{on['tracker']:<16} {on['setup']:<16} "
+        lines.append(f"{on['tracker']:<16} {on['appearance']:<10} {on['setup']:<16} "
                      f"{on['fingertip_err_mm_mean']:>7.1f} {on['truly_lost_frames']:>10} "
                      f"{cells[0]:>22} {cells[1]:>22}  {cams}")
     lines += ["", "totals over the setups (precision / recall):"]
-    lines += [f"  {key:<32} {_pct(t['precision'])} / {_pct(t['recall'])}  "
+    lines += [f"  {key:<38} {_pct(t['precision'])} / {_pct(t['recall'])}  "
               f"(TP {t['true_positive']}, FP {t['false_positive']}, FN {t['false_negative']})"
               for key, t in result["totals"].items()]
     return "\n".join(lines)

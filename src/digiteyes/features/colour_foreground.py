@@ -47,13 +47,13 @@ def is_colour(image: np.ndarray) -> bool:
 
 
 @njit(cache=True)
-def _lookup_kernel(ycrcb, is_hand, out):  # pragma: no cover - compiled
-    """``out[r, c] = is_hand[bin of ycrcb[r, c]]`` (the index of :func:`colour_bins`, with
-    the widths of :data:`BINS`; tested equal)."""
+def _lookup_kernel(ycrcb, is_hand, shifts, bins, out):  # pragma: no cover - compiled
+    """``out[r, c] = is_hand[bin of ycrcb[r, c]]``, the bin as :func:`colour_bins` forms
+    it from ``shifts`` and ``bins`` (tested equal)."""
     for r in range(ycrcb.shape[0]):
         for c in range(ycrcb.shape[1]):
-            index = ((ycrcb[r, c, 0] >> 5) * 32 + (ycrcb[r, c, 1] >> 3)) * 32 \
-                + (ycrcb[r, c, 2] >> 3)
+            index = ((ycrcb[r, c, 0] >> shifts[0]) * bins[1]
+                     + (ycrcb[r, c, 1] >> shifts[1])) * bins[2] + (ycrcb[r, c, 2] >> shifts[2])
             out[r, c] = is_hand[index]
 
 
@@ -84,7 +84,7 @@ class ColourForeground:
         """Bool (H, W): the hand's pixels of an RGB ``image`` (H, W, 3) uint8."""
         ycrcb = cv2.cvtColor(np.ascontiguousarray(image, dtype=np.uint8), cv2.COLOR_RGB2YCrCb)
         out = np.empty(ycrcb.shape[:2], dtype=bool)
-        _lookup_kernel(ycrcb, self.is_hand, out)
+        _lookup_kernel(ycrcb, self.is_hand, np.array(_SHIFTS), np.array(BINS), out)
         return out
 
 

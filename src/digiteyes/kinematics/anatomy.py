@@ -117,13 +117,20 @@ def digit_joint_angles(digit: str, extended: bool) -> dict[str, float]:
 
 def open_digits(model: KinematicModel, state: np.ndarray, digits: Sequence[str]
                 ) -> np.ndarray:
-    """``state`` (n_q,) with each of ``digits`` fully extended: its flexion joints (and all
-    of the thumb's) at the angles of :func:`digit_joint_angles`, clipped to the model's
-    limits; a finger keeps its abduction. Joints the model lacks are skipped."""
+    """``state`` (n_q,) with each of ``digits`` fully extended (:func:`with_digits`)."""
+    return with_digits(model, state, digits, extended=True)
+
+
+def with_digits(model: KinematicModel, state: np.ndarray, digits: Sequence[str],
+                extended: bool) -> np.ndarray:
+    """``state`` (n_q,) with each of ``digits`` fully extended or fully curled: its flexion
+    joints (and all of the thumb's) at the angles of :func:`digit_joint_angles`, clipped
+    to the model's limits; a finger keeps its abduction. Joints the model lacks are
+    skipped."""
     out = np.array(state, dtype=float)
     names = set(model.state_names)
     for digit in digits:
-        for name, angle in digit_joint_angles(digit, extended=True).items():
+        for name, angle in digit_joint_angles(digit, extended=extended).items():
             if name in names and joint_type_of(name) != "abd":
                 i = model.state_index(name)
                 out[i] = np.clip(angle, model.lower[i], model.upper[i])
