@@ -8,11 +8,15 @@ docs/appearance.md), side by side.
 
 * ``two-finger-occlusion`` (thesis Sec. 4.4.2, one camera, 80 frames): largest deviation
   of the middle finger's joints from the truth (rad; target 0.03), index joint-angle RMS
-  (deg; target 3), mean fingertip error (mm; target 3), lost frames (target 0);
+  (deg; target 3), mean fingertip error (mm; target 3), lost frames (target 0); also with
+  the background template of Sec. 4.4.2 (``background="filtered"``, off by default: it
+  pins the palm's depth but costs the index's joints and four fifths of the speed;
+  docs/templates.md);
 * ``natural`` (Huang et al., 200 frames): mean fingertip error with two cameras (target
-  8 mm) and one (15 mm), lost frames; with two cameras also with the silhouette finger
-  search on (``finger_search``, off by default: it costs the loss flag its recall on the
-  desk rows of ``bench accuracy``; docs/templates.md);
+  8 mm) and one (15 mm), lost frames; with the silhouette finger search on
+  (``finger_search``, off by default: it costs the loss flag its recall on the desk rows
+  of ``bench accuracy``; docs/templates.md) with two cameras and, for
+  ``templates+features``, one;
 * every run is made on :data:`SEEDS` renders that differ in their sensor noise
   (:data:`~digiteyes.benchmarks.tracker.NOISE_SIGMA` grey levels): a track that passes near
   a decision (a finger that can flip) ends differently with another draw of the noise, so
@@ -101,6 +105,7 @@ def track_scenario(name: str, n_cameras: int, n_frames: int | None,
     per_frame = tip_error.mean(axis=1)
     out = {"scenario": name, "tracker": tracker, "appearance": appearance,
            "cameras": n_cameras, "seed": seed, "finger_search": options.finger_search,
+           "background": options.background,
            "frames": len(truth),
            "iterations_per_frame": options.iterations_per_frame,
            "mean_tip_error_mm": float(tip_error.mean()),
@@ -165,18 +170,27 @@ def seed_mean(runs: list[dict]) -> dict:
     return row
 
 
+def run_label(row: dict) -> str:
+    """A row's tracker and the options it runs with beyond the defaults."""
+    return (row["tracker"] + (" +search" if row["finger_search"] else "")
+            + (" +background" if row.get("background", "none") != "none" else ""))
+
+
 def run(json_path: str | None = None, quick: bool = False) -> dict:
     """Run the benchmark, print a table, optionally write JSON (see module docstring)."""
     options = LayeredTemplateOptions()
     searching = replace(options, finger_search=True)
+    background = replace(options, background="filtered")
     short = 40 if quick else None
     runs = [("two-finger-occlusion", 1, 30 if quick else None, "templates", options),
             ("two-finger-occlusion", 1, 30 if quick else None, "templates+features", options),
+            ("two-finger-occlusion", 1, 30 if quick else None, "templates", background),
             ("natural", 2, short, "templates", options),
             ("natural", 2, short, "templates+features", options),
             ("natural", 1, short, "templates", options),
             ("natural", 2, short, "templates", searching),
-            ("natural", 2, short, "templates+features", searching)]
+            ("natural", 2, short, "templates+features", searching),
+            ("natural", 1, short, "templates+features", searching)]
     seeds = SEEDS[:1] if quick else SEEDS
     with kernel_threads(1, 1):
         tracking = [seed_mean([track_scenario(n, c, f, o, t, a, seed) for seed in seeds])
@@ -200,7 +214,7 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
     for t in tracking:
         low, high = min(t["per_seed"]["mean_tip_error_mm"]), max(
             t["per_seed"]["mean_tip_error_mm"])
-        label = t["tracker"] + (" +search" if t["finger_search"] else "")
+        label = run_label(t)
         lines.append(f"{t['scenario']:<21} {label:<18} {t['appearance']:<10} "
                      f"{t['cameras']:>4} "
                      f"{t['frames']:>6} "
@@ -212,7 +226,7 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
                      f"{t.get('middle_max_deviation_rad', float('nan')):>11.3f}")
     lines += ["", "ms per iteration: " + ", ".join(STAGES)]
     for t in tracking:
-        label = t["tracker"] + (" +search" if t["finger_search"] else "")
+        label = run_label(t)
         lines.append(f"{t['scenario']:<21} {label:<18} {t['appearance']:<6} "
                      f"{t['cameras']} cam: " + "  ".join(
             f"{t['ms_per_iteration'][s]:.2f}" for s in STAGES))
