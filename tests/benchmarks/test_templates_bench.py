@@ -41,3 +41,19 @@ def test_rows_average_over_noise_seeds():
         np.mean([r["mean_tip_error_mm"] for r in runs]))
     assert row["tip_error_per_frame_mm"] == [r["tip_error_per_frame_mm"] for r in runs]
     assert set(row["ms_per_iteration"]) == set(runs[0]["ms_per_iteration"])
+
+
+def test_a_row_names_the_options_it_runs_with():
+    """The background template and the finger search are opt-in; a row run with either
+    says so in its label, and the background it ran with is in the row."""
+    from dataclasses import replace
+
+    from digiteyes.benchmarks.templates import run_label
+
+    options = LayeredTemplateOptions()
+    row = track_scenario("two-finger-occlusion", 1, 3, replace(options, background="filtered"),
+                         "templates", "model")
+    assert row["background"] == "filtered"
+    assert run_label(row) == "templates +background"
+    assert run_label(row | {"background": "none", "finger_search": True}) == "templates +search"
+    assert run_label(row | {"background": "none"}) == "templates"

@@ -170,6 +170,10 @@ def seed_mean(runs: list[dict]) -> dict:
     return row
 
 
+_LABEL = len("templates+features +search")
+"""Width of the table's tracker column (the longest :func:`run_label`)."""
+
+
 def run_label(row: dict) -> str:
     """A row's tracker and the options it runs with beyond the defaults."""
     return (row["tracker"] + (" +search" if row["finger_search"] else "")
@@ -208,14 +212,14 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
               "machine": machine_info(), "quick": quick}
     lines = [*machine_lines(result["machine"]), "",
              f"mean over {len(seeds)} noise seed(s); tip mm: mean (lowest-highest seed)", "",
-             "scenario              tracker            appearance cams frames"
+             f"scenario              {'tracker':<{_LABEL}} appearance cams frames"
              "  tip mm (range)       max mm  flagged  truly lost   fps  idx RMS deg"
              "  mid dev rad"]
     for t in tracking:
         low, high = min(t["per_seed"]["mean_tip_error_mm"]), max(
             t["per_seed"]["mean_tip_error_mm"])
         label = run_label(t)
-        lines.append(f"{t['scenario']:<21} {label:<18} {t['appearance']:<10} "
+        lines.append(f"{t['scenario']:<21} {label:<{_LABEL}} {t['appearance']:<10} "
                      f"{t['cameras']:>4} "
                      f"{t['frames']:>6} "
                      f"{t['mean_tip_error_mm']:>7.2f} ({low:>6.2f}-{high:<6.2f}) "
@@ -227,7 +231,7 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
     lines += ["", "ms per iteration: " + ", ".join(STAGES)]
     for t in tracking:
         label = run_label(t)
-        lines.append(f"{t['scenario']:<21} {label:<18} {t['appearance']:<6} "
+        lines.append(f"{t['scenario']:<21} {label:<{_LABEL}} {t['appearance']:<6} "
                      f"{t['cameras']} cam: " + "  ".join(
             f"{t['ms_per_iteration'][s]:.2f}" for s in STAGES))
     lines += ["", "visibility order vs depth buffer"]
