@@ -161,3 +161,39 @@ def test_first_frame_fits_the_palm_outline_or_drops_its_term(natural_cardboard):
     assert plain.outline_fit < 0.4 and plain.palm_search_options.outline_points == 0
     plain.reset(states[0])
     assert plain.palm_search_options == plain.options.palm_search
+
+
+def test_palm_motion_prior_costs_a_move_along_the_line_of_sight_and_a_turn(natural_cardboard):
+    """The M-step's motion prior: nothing at the prediction, ``(dz / sigma)^2 / 2`` for a
+    move of the palm along the camera's line of sight (a move across it is free), and
+    ``(angle / sigma)^2 / 2`` for a turn; each term is off at 0, negative is refused."""
+    from digiteyes.errors import DigitEyesError
+    from digiteyes.kinematics.rotations import (
+        matrix_from_quaternion,
+        quaternion_from_rotvec,
+    )
+    from digiteyes.smc.palm import palm_pose_from_state, with_palm_pose
+
+    model, cam, states = natural_cardboard
+    tracker = DivideConquerTracker(model, [cam], options=DivideConquerOptions(
+        palm_motion_mm=30.0, palm_motion_deg=10.0))
+    q = states[0]
+    assert tracker._palm_motion_cost(q, q) == 0.0
+    T = palm_pose_from_state(model, q)
+    along = T.copy()
+    along[:3, 3] += 60.0 * cam.T_world_cam[:3, 2]          # 60 mm along the optical axis
+    assert tracker._palm_motion_cost(with_palm_pose(model, q, along), q) == pytest.approx(2.0)
+    across = T.copy()
+    across[:3, 3] += 60.0 * cam.T_world_cam[:3, 0]         # 60 mm along the image's x
+    assert tracker._palm_motion_cost(with_palm_pose(model, q, across), q) == pytest.approx(
+        0.0, abs=1e-9)
+    turned = T.copy()
+    turned[:3, :3] = matrix_from_quaternion(quaternion_from_rotvec(
+        np.radians([0.0, 0.0, 20.0]))) @ T[:3, :3]
+    assert tracker._palm_motion_cost(with_palm_pose(model, q, turned), q) == pytest.approx(
+        2.0, rel=1e-6)
+    off = DivideConquerTracker(model, [cam], options=DivideConquerOptions(
+        palm_motion_mm=0.0, palm_motion_deg=0.0))
+    assert off._palm_motion_cost(with_palm_pose(model, q, along), q) == 0.0
+    with pytest.raises(DigitEyesError, match="palm_motion_mm"):
+        DivideConquerOptions(palm_motion_mm=-1.0)

@@ -107,6 +107,14 @@ class DivideConquerOptions(SilhouetteLossOptions, LossHoldOptions):
     sampler : ``"manifold"`` (Huang Sec. 5.1), ``"condensation"`` or ``"random-search"``.
     n_particles : hypotheses per frame.
     em_iterations, em_tolerance_mm, em_tolerance_deg : the EM stop rule (Sec. 3).
+    palm_motion_mm, palm_motion_deg : a motion prior on the palm in the EM's M-step (ours):
+        standard deviations, per frame, of the palm's move along the first camera's line
+        of sight (mm) and of its rotation (degrees) from the frame's prediction; a palm
+        step is kept when it does not lower the best hypothesis's log-likelihood minus
+        the prior's ``(dz / palm_motion_mm)^2 / 2 + (angle / palm_motion_deg)^2 / 2``
+        (0 turns a term off). At 30 frames/s the defaults are 0.9 m/s and 300 degrees/s:
+        they leave a hand's motion free and stop the jumps of a palm that three sides of
+        its outline fit as well farther away and tilted (docs/divide-and-conquer.md).
     track_palm : run the palm step (off: the palm stays at the reset pose).
     importance_correction : multiply by ``f / g`` (eq. 6); off, weights = likelihood.
     temperature : the log-likelihood is divided by it in the weights (1: Huang's weights;
@@ -156,6 +164,8 @@ class DivideConquerOptions(SilhouetteLossOptions, LossHoldOptions):
     em_iterations: int = 3
     em_tolerance_mm: float = 0.5
     em_tolerance_deg: float = 0.5
+    palm_motion_mm: float = 30.0
+    palm_motion_deg: float = 10.0
     track_palm: bool = True
     importance_correction: bool = True
     temperature: float = 1.0
@@ -174,6 +184,12 @@ class DivideConquerOptions(SilhouetteLossOptions, LossHoldOptions):
     digit_search: DigitSearchOptions = field(default_factory=DigitSearchOptions)
     seed: int = 0
     start_size: bool = True
+
+    def __post_init__(self) -> None:
+        for name in ("palm_motion_mm", "palm_motion_deg"):
+            if not getattr(self, name) >= 0:
+                raise DigitEyesError(f"{name} must be >= 0 (0: off), got "
+                                     f"{getattr(self, name)!r}")
 
 
 @dataclass
@@ -410,8 +426,10 @@ class DivideConquerTracker:
             q_new = with_palm_pose(self.model, q, fit.T_world_palm)
             lik_new, log_w_new = weigh(q_new)
             # An M-step must not lower the objective: keep the new palm only if the best
-            # hypothesis under it is weighted at least as well as before.
-            if log_w_new.max() < log_w.max():
+            # hypothesis under it is weighted at least as well as before, with the palm's
+            # motion prior (MAP rather than maximum-likelihood EM).
+            if (log_w_new.max() - self._palm_motion_cost(q_new, predicted)
+                    < log_w.max() - self._palm_motion_cost(q, predicted)):
                 stop = "palm step rejected"
                 break
             q, lik, log_w = q_new, lik_new, log_w_new
@@ -485,6 +503,21 @@ class DivideConquerTracker:
             hand_scale=self.sizing.hand_scale))
 
     # ------------------------------------------------------------------ refinement
+    def _palm_motion_cost(self, q: np.ndarray, predicted: np.ndarray) -> float:
+        """Negative log of the palm's motion prior (:class:`DivideConquerOptions`,
+        ``palm_motion_mm`` and ``palm_motion_deg``) at state ``q`` against ``predicted``."""
+        opt = self.options
+        T, T_predicted = (palm_pose_from_state(self.model, x) for x in (q, predicted))
+        cost = 0.0
+        if opt.palm_motion_mm > 0:
+            camera = self.cameras[0]
+            along = camera.T_cam_world[2, :3] @ (T[:3, 3] - T_predicted[:3, 3])
+            cost += 0.5 * (along / opt.palm_motion_mm) ** 2
+        if opt.palm_motion_deg > 0:
+            turn = _rotation_deg(T[:3, :3], T_predicted[:3, :3])
+            cost += 0.5 * (turn / opt.palm_motion_deg) ** 2
+        return float(cost)
+
     def _fit_first_frame(self, edge_maps: list[np.ndarray], lookups: list[EdgeLookup]
                          ) -> None:
         """On the first frame, at the state the track starts from (``fit_first_frame``):
