@@ -110,8 +110,8 @@ class DivideConquerOptions(SilhouetteLossOptions, LossHoldOptions):
     palm_motion_mm, palm_motion_deg : a motion prior on the palm in the EM's M-step (ours):
         standard deviations, per frame, of the palm's move along the first camera's line
         of sight (mm) and of its rotation (degrees) from the frame's prediction; a palm
-        step is kept when it does not lower the best hypothesis's log-likelihood minus
-        the prior's ``(dz / palm_motion_mm)^2 / 2 + (angle / palm_motion_deg)^2 / 2``
+        step is kept when it does not lower the best hypothesis's log weight (eq. 6)
+        minus the prior's ``(dz / palm_motion_mm)^2 / 2 + (angle / palm_motion_deg)^2 / 2``
         (0 turns a term off). At 30 frames/s the defaults are 0.9 m/s and 300 degrees/s:
         they leave a hand's motion free and stop the jumps of a palm that three sides of
         its outline fit as well farther away and tilted (docs/divide-and-conquer.md).
