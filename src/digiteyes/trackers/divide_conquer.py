@@ -113,8 +113,9 @@ class DivideConquerOptions(SilhouetteLossOptions, LossHoldOptions):
         step is kept when it does not lower the best hypothesis's log weight (eq. 6)
         minus the prior's ``(dz / palm_motion_mm)^2 / 2 + (angle / palm_motion_deg)^2 / 2``
         (0 turns a term off). At 30 frames/s the defaults are 0.9 m/s and 300 degrees/s:
-        they leave a hand's motion free and stop the jumps of a palm that three sides of
-        its outline fit as well farther away and tilted (docs/divide-and-conquer.md).
+        they leave a hand's motion free and refuse the jumps of a palm that three sides
+        of its outline fit as well farther away and tilted where the fingers gain little
+        by them (docs/divide-and-conquer.md).
     track_palm : run the palm step (off: the palm stays at the reset pose).
     importance_correction : multiply by ``f / g`` (eq. 6); off, weights = likelihood.
     temperature : the log-likelihood is divided by it in the weights (1: Huang's weights;
