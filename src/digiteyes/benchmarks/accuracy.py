@@ -135,7 +135,11 @@ def finger_scores(flags: Sequence[dict[str, bool]], tip_names: Sequence[str],
     return flag_scores(flagged, truth) | {"judged": len(pairs)}
 
 
-def _totals(rows: list[dict[str, Any]], key: str = "flag") -> dict[str, Any] | None:
+def flag_totals(rows: list[dict[str, Any]], key: str = "flag") -> dict[str, Any] | None:
+    """The loss flag's confusion counts summed over ``rows`` (each with ``key``, a
+    :func:`~digiteyes.evaluate.truth_loss.flag_scores` result, and ``frames``), with
+    precision and recall; ``key="finger_flag"`` counts the (frame, finger) pairs judged.
+    None when no row was scored."""
     scored = [r[key] for r in rows if r.get(key)]
     if not scored:
         return None
@@ -273,11 +277,11 @@ def run(json_path: str | None = None, quick: bool = False,
     rows.sort(key=lambda row: _row_order(row, names))
     result["rows"] = rows
     result["flag_totals"], result["finger_flag_totals"] = (
-        {name: {a: _totals([r for r in rows if r["tracker"] == name
+        {name: {a: flag_totals([r for r in rows if r["tracker"] == name
                             and r["appearance"] == a], key) for a in APPEARANCES}
          for name in names} for key in ("flag", "finger_flag"))
     result["flag_totals_all"], result["finger_flag_totals_all"] = (
-        {a: _totals([r for r in rows if r["appearance"] == a], key) for a in APPEARANCES}
+        {a: flag_totals([r for r in rows if r["appearance"] == a], key) for a in APPEARANCES}
         for key in ("flag", "finger_flag"))
     result["wall_seconds"] = time.perf_counter() - started
     lines = ["", format_rows(rows), "", format_side_by_side(rows), "", format_totals(result),

@@ -28,7 +28,13 @@ from dataclasses import replace
 from typing import Any
 
 from digiteyes.benchmarks._machine import emit, machine_info, machine_lines
-from digiteyes.benchmarks.accuracy import APPEARANCES, SETUPS, row_figures, scenario_for
+from digiteyes.benchmarks.accuracy import (
+    APPEARANCES,
+    SETUPS,
+    flag_totals,
+    row_figures,
+    scenario_for,
+)
 from digiteyes.benchmarks.tracker import _one_thread, render_sequence, track_sequence
 from digiteyes.features.colour_foreground import ColourForeground
 from digiteyes.features.foreground import Foreground
@@ -92,21 +98,14 @@ def measure(frames: int) -> list[dict[str, Any]]:
 
 def totals(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """Per tracker, appearance and colour setting, the flag's confusion counts summed over
-    the setups, with precision and recall."""
-    out: dict[str, Any] = {}
+    the setups, with precision and recall (:func:`~digiteyes.benchmarks.accuracy.
+    flag_totals`)."""
+    groups: dict[str, list[dict[str, Any]]] = {}
     for row in rows:
         key = (f"{row['tracker']} {row['appearance']} colour "
                f"{'on' if row['colour_model'] else 'off'}")
-        t = out.setdefault(key, {"true_positive": 0, "false_positive": 0,
-                                 "false_negative": 0})
-        for count in t:
-            t[count] += int(row["flag"][count])
-    for t in out.values():
-        flagged = t["true_positive"] + t["false_positive"]
-        lost = t["true_positive"] + t["false_negative"]
-        t["precision"] = t["true_positive"] / flagged if flagged else None
-        t["recall"] = t["true_positive"] / lost if lost else None
-    return out
+        groups.setdefault(key, []).append(row)
+    return {key: flag_totals(group) for key, group in groups.items()}
 
 
 def run(json_path: str | None = None, quick: bool = False) -> dict:

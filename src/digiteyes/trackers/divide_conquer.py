@@ -503,7 +503,6 @@ class DivideConquerTracker:
             finger_lost=finger_lost, details=details,
             hand_scale=self.sizing.hand_scale))
 
-    # ------------------------------------------------------------------ refinement
     def _palm_motion_cost(self, q: np.ndarray, predicted: np.ndarray) -> float:
         """Negative log of the palm's motion prior (:class:`DivideConquerOptions`,
         ``palm_motion_mm`` and ``palm_motion_deg``) at state ``q`` against ``predicted``."""
@@ -519,6 +518,7 @@ class DivideConquerTracker:
             cost += 0.5 * (turn / opt.palm_motion_deg) ** 2
         return float(cost)
 
+    # ------------------------------------------------------------------ refinement
     def _fit_first_frame(self, edge_maps: list[np.ndarray], lookups: list[EdgeLookup]
                          ) -> None:
         """On the first frame, at the state the track starts from (``fit_first_frame``):
