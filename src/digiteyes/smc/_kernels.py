@@ -33,21 +33,24 @@ def _palm_depth(px, py, pu, pv, pz):  # pragma: no cover - compiled
 
 
 @njit(cache=True, fastmath=True)
-def edge_likelihood_kernel(starts, ends, radii, ts, skip, palm, params, edges, half_window,
-                           sigma, inv_c, margin, score, distance, use_lookup, log_l, stats
-                           ):  # pragma: no cover - compiled
+def edge_likelihood_kernel(shapes, link_rows, lengths, radii, ts, skip, palm_row, palm_outline,
+                           params, edges, half_window, sigma, inv_c, margin, score, distance,
+                           use_lookup, log_l, stats):  # pragma: no cover - compiled
     """Huang Sec. 5.2 for N particles.
 
-    ``starts``/``ends`` (N, L, 3) link axes (world mm), ``radii`` (L,) patch half-widths
+    ``shapes`` (N, S, 4, 4) ``T_world_shape`` of every shape row (forward kinematics),
+    ``link_rows`` (L,) the rows of the finger patches, whose axes run along their shape
+    frame's x from the origin for ``lengths`` (L,) mm, ``radii`` (L,) patch half-widths
     (mm), ``ts`` (K,) positions along each axis, ``skip`` (L, L) pairs never tested for
-    occlusion (a link and its neighbours in the chain), ``palm`` (N, 4, 3) palm outline,
-    ``params`` the camera (:attr:`Camera.projection_params`), ``edges`` (H, W) uint8 edge
-    map. With ``use_lookup``, each visible point reads its factor from ``score`` (H, W)
-    and the nearest-edge distance from ``distance`` (H, W) (:func:`edge_lookup`) instead of
+    occlusion (a link and its neighbours in the chain), ``palm_row`` the palm's shape row
+    and ``palm_outline`` (4, 3) its outline in that frame (mm), ``params`` the camera
+    (:attr:`Camera.projection_params`), ``edges`` (H, W) uint8 edge map. With
+    ``use_lookup``, each visible point reads its factor from ``score`` (H, W) and the
+    nearest-edge distance from ``distance`` (H, W) (:func:`edge_lookup`) instead of
     searching along the normal. Writes ``log_l`` (N,) and ``stats`` (N, 3): visible
     points, points with an edge, sum of squared offset of the nearest edge (px^2).
     """
-    n_particles, n_links = starts.shape[0], starts.shape[1]
+    n_particles, n_links = shapes.shape[0], link_rows.shape[0]
     n_t = ts.shape[0]
     height, width = edges.shape
     fx = params[12]
@@ -71,13 +74,21 @@ def edge_likelihood_kernel(starts, ends, radii, ts, skip, palm, params, edges, h
     gauss = np.exp(-np.arange(half_window + 1) ** 2 / (2.0 * sigma * sigma))
     for n in range(n_particles):
         for li in range(n_links):
-            u, v, _x, _y, z = project_point(params, starts[n, li, 0], starts[n, li, 1],
-                                          starts[n, li, 2])
+            T = shapes[n, link_rows[li]]
+            sx, sy, sz = T[0, 3], T[1, 3], T[2, 3]
+            u, v, _x, _y, z = project_point(params, sx, sy, sz)
             au[li], av[li], az[li] = u, v, z
-            u, v, _x, _y, z = project_point(params, ends[n, li, 0], ends[n, li, 1], ends[n, li, 2])
+            length = lengths[li]
+            u, v, _x, _y, z = project_point(params, sx + T[0, 0] * length,
+                                          sy + T[1, 0] * length, sz + T[2, 0] * length)
             bu[li], bv[li], bz[li] = u, v, z
+        P = shapes[n, palm_row]
         for c in range(4):
-            u, v, _x, _y, z = project_point(params, palm[n, c, 0], palm[n, c, 1], palm[n, c, 2])
+            ox, oy, oz = palm_outline[c, 0], palm_outline[c, 1], palm_outline[c, 2]
+            u, v, _x, _y, z = project_point(
+                params, P[0, 0] * ox + P[0, 1] * oy + P[0, 2] * oz + P[0, 3],
+                P[1, 0] * ox + P[1, 1] * oy + P[1, 2] * oz + P[1, 3],
+                P[2, 0] * ox + P[2, 1] * oy + P[2, 2] * oz + P[2, 3])
             pu[c], pv[c], pz[c] = u, v, z
         pzmin = min(min(pz[0], pz[1]), min(pz[2], pz[3]))
         for li in range(n_links):  # image boxes of the patches, for a quick occlusion reject
@@ -175,14 +186,18 @@ def nearest_segment_kernel(X, bi, d, pair, t_out, dist_out):  # pragma: no cover
     """For each row of ``X`` (N, D): the nearest segment ``bi + t d`` (P segments), its
     index into ``pair``, ``t`` in [0, 1] into ``t_out`` and the distance into ``dist_out``."""
     n_points, n_dims = X.shape
+    n_segments = bi.shape[0]
+    lengths_sq = np.zeros(n_segments)
+    for p in range(n_segments):
+        for k in range(n_dims):
+            lengths_sq[p] += d[p, k] * d[p, k]
     for n in range(n_points):
         best, best_p, best_t = np.inf, 0, 0.0
-        for p in range(bi.shape[0]):
+        for p in range(n_segments):
             num = 0.0
-            dd = 0.0
             for k in range(n_dims):
                 num += (X[n, k] - bi[p, k]) * d[p, k]
-                dd += d[p, k] * d[p, k]
+            dd = lengths_sq[p]
             t = min(1.0, max(0.0, num / dd)) if dd > 0.0 else 0.0
             sq = 0.0
             for k in range(n_dims):
@@ -193,3 +208,28 @@ def nearest_segment_kernel(X, bi, d, pair, t_out, dist_out):  # pragma: no cover
         pair[n] = best_p
         t_out[n] = best_t
         dist_out[n] = np.sqrt(best)
+
+
+@njit(cache=True)
+def nearest_edge_kernel(edges, rows, cols, radius, dist_out, pixel_out
+                        ):  # pragma: no cover - compiled
+    """For each pixel (``rows[p]``, ``cols[p]``): the nearest non-zero pixel of ``edges``
+    (H, W) within the square of half-side ``radius`` around it and within ``radius``
+    (first in row order among equals) into ``pixel_out`` (P, 2) and its distance into
+    ``dist_out`` (P,); ``inf`` and (-1, -1) where there is none."""
+    height, width = edges.shape
+    limit = radius * radius
+    for p in range(rows.shape[0]):
+        r0, c0 = rows[p], cols[p]
+        best, best_r, best_c = limit + 1, -1, -1
+        for r in range(max(r0 - radius, 0), min(r0 + radius + 1, height)):
+            dr2 = (r - r0) * (r - r0)
+            if dr2 >= best:
+                continue
+            for c in range(max(c0 - radius, 0), min(c0 + radius + 1, width)):
+                if edges[r, c] != 0:
+                    d2 = dr2 + (c - c0) * (c - c0)
+                    if d2 < best:
+                        best, best_r, best_c = d2, r, c
+        pixel_out[p, 0], pixel_out[p, 1] = best_r, best_c
+        dist_out[p] = np.sqrt(best) if best_r >= 0 else np.inf

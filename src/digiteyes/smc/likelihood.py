@@ -200,21 +200,16 @@ def finger_log_likelihood(model: KinematicModel, geometry: FingerGeometry, q: np
     if not use_lookup:
         lookups = [EdgeLookup(np.zeros((1, 1), np.float32), np.zeros((1, 1), np.float32))
                    ] * len(edge_maps)
-    kin = forward_kinematics(model, np.atleast_2d(q))
-    T = kin.T_world_shape[:, geometry.link_rows]
-    starts = np.ascontiguousarray(T[..., :3, 3])
-    ends = np.ascontiguousarray(starts + T[..., :3, 0] * geometry.lengths[:, None])
-    P = kin.T_world_shape[:, geometry.palm_row]
-    palm = np.ascontiguousarray(np.einsum("nij,cj->nci", P[:, :3, :3], geometry.palm_outline)
-                                + P[:, None, :3, 3])
+    shapes = forward_kinematics(model, np.atleast_2d(q)).T_world_shape
     ts = (np.arange(options.points_per_link) + 0.5) / options.points_per_link
-    n = len(starts)
+    n = len(shapes)
     log_l = np.zeros(n)
     stats = np.zeros((n, 3))
     for camera, edges, lookup in zip(cameras, edge_maps, lookups, strict=True):
         out_l = np.empty(n)
         out_s = np.empty((n, 3))
-        edge_likelihood_kernel(starts, ends, geometry.radii, ts, geometry.skip, palm,
+        edge_likelihood_kernel(shapes, geometry.link_rows, geometry.lengths, geometry.radii, ts,
+                               geometry.skip, geometry.palm_row, geometry.palm_outline,
                                camera.projection_params, edges, int(options.search_px),
                                float(options.sigma_px), float(options.inverse_clutter),
                                float(options.occlusion_margin_mm), lookup.score,

@@ -72,7 +72,7 @@ def outline_log_score(model: KinematicModel, geometry: FingerGeometry, q: np.nda
     (:class:`EdgeLookup`, Huang Sec. 5.2) for states ``q`` (N, n_q); points outside the
     image count 0."""
     T = forward_kinematics(model, np.atleast_2d(q)).T_world_shape[:, geometry.palm_row]
-    world = np.einsum("nij,pj->npi", T[:, :3, :3], points) + T[:, None, :3, 3]
+    world = points @ T[:, :3, :3].transpose(0, 2, 1) + T[:, None, :3, 3]
     total = np.zeros(len(world))
     for camera, lookup in zip(cameras, lookups, strict=True):
         uv = camera.project(world.reshape(-1, 3)).reshape(len(world), -1, 2)
