@@ -209,27 +209,3 @@ def nearest_segment_kernel(X, bi, d, pair, t_out, dist_out):  # pragma: no cover
         t_out[n] = best_t
         dist_out[n] = np.sqrt(best)
 
-
-@njit(cache=True)
-def nearest_edge_kernel(edges, rows, cols, radius, dist_out, pixel_out
-                        ):  # pragma: no cover - compiled
-    """For each pixel (``rows[p]``, ``cols[p]``): the nearest non-zero pixel of ``edges``
-    (H, W) within the square of half-side ``radius`` around it and within ``radius``
-    (first in row order among equals) into ``pixel_out`` (P, 2) and its distance into
-    ``dist_out`` (P,); ``inf`` and (-1, -1) where there is none."""
-    height, width = edges.shape
-    limit = radius * radius
-    for p in range(rows.shape[0]):
-        r0, c0 = rows[p], cols[p]
-        best, best_r, best_c = limit + 1, -1, -1
-        for r in range(max(r0 - radius, 0), min(r0 + radius + 1, height)):
-            dr2 = (r - r0) * (r - r0)
-            if dr2 >= best:
-                continue
-            for c in range(max(c0 - radius, 0), min(c0 + radius + 1, width)):
-                if edges[r, c] != 0:
-                    d2 = dr2 + (c - c0) * (c - c0)
-                    if d2 < best:
-                        best, best_r, best_c = d2, r, c
-        pixel_out[p, 0], pixel_out[p, 1] = best_r, best_c
-        dist_out[p] = np.sqrt(best) if best_r >= 0 else np.inf

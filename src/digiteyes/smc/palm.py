@@ -20,12 +20,12 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from scipy.spatial import cKDTree
 
 from digiteyes.camera import Camera
 from digiteyes.errors import DigitEyesError
 from digiteyes.kinematics import KinematicModel, forward_kinematics
 from digiteyes.kinematics.rotations import matrix_from_quaternion, quaternion_from_matrix
-from digiteyes.smc._kernels import nearest_edge_kernel
 from digiteyes.smc.likelihood import EdgeLookup, FingerGeometry
 
 
@@ -50,12 +50,10 @@ def planar_pose_candidates(x_model: np.ndarray, m_norm: np.ndarray
     x_bar, m_bar = x_model.mean(axis=0), m_norm.mean(axis=0)
     S = (x_model - x_bar).T                       # 2 x N shape
     W = (m_norm - m_bar).T                        # 2 x N measurements
-    (p, r), (_, q) = S @ S.T                      # S S^T, symmetric 2 x 2
-    half_gap = np.hypot((p - q) / 2, r)           # its eigenvalues: (p + q) / 2 +- half_gap
-    if (p + q) / 2 - half_gap <= 1e-8 * ((p + q) / 2 + half_gap):
+    SS = S @ S.T
+    if np.linalg.cond(SS) > 1e8:
         raise PalmPoseError("palm model points are collinear")
-    SS_inv = np.array([[q, -r], [-r, p]]) / (p * q - r * r)
-    B = W @ S.T @ SS_inv                          # M = W S^+ (factorisation, S known)
+    B = W @ S.T @ np.linalg.inv(SS)               # M = W S^+ (factorisation, S known)
     a, c, b = B[:, 0] @ B[:, 0], B[:, 1] @ B[:, 1], B[:, 0] @ B[:, 1]
     # Metric constraint on the columns of A = t3 B, k = t3^2:
     # (1 - k a)(1 - k c) = k^2 b^2, the smaller root is the valid one.
@@ -77,9 +75,7 @@ def planar_pose_candidates(x_model: np.ndarray, m_norm: np.ndarray
     for sign in ((1.0, -1.0) if max(r31sq, r32sq) > 1e-12 else (1.0,)):
         r1 = np.array([A[0, 0], A[1, 0], sign * r31])
         r2 = np.array([A[0, 1], A[1, 1], sign * r32])
-        r3 = np.array([r1[1] * r2[2] - r1[2] * r2[1], r1[2] * r2[0] - r1[0] * r2[2],
-                       r1[0] * r2[1] - r1[1] * r2[0]])   # r1 x r2
-        U, _, Vt = np.linalg.svd(np.stack([r1, r2, r3], axis=1))
+        U, _, Vt = np.linalg.svd(np.stack([r1, r2, np.cross(r1, r2)], axis=1))
         R = U @ Vt
         if np.linalg.det(R) < 0:
             R = U @ np.diag([1.0, 1.0, -1.0]) @ Vt
@@ -127,8 +123,8 @@ def palm_pose_from_correspondences(camera: Camera, x_model: np.ndarray, pixels: 
 
 
 def _project_plane(camera: Camera, T_cam_plane: np.ndarray, obj: np.ndarray) -> np.ndarray:
-    T = camera.T_world_cam @ T_cam_plane
-    return camera.project(obj @ T[:3, :3].T + T[:3, 3])
+    p_world = (camera.T_world_cam @ T_cam_plane @ np.c_[obj, np.ones(len(obj))].T)[:3].T
+    return camera.project(p_world)
 
 
 @dataclass(frozen=True)
@@ -156,48 +152,34 @@ def palm_outline_points(geometry: FingerGeometry, options: IcpOptions = IcpOptio
     return np.concatenate(pts)
 
 
-NEAREST_RADIUS_PX = 16
-"""How far (px) :class:`NearestEdges` looks for an edge: beyond the ICP's and the palm
-calibration's ``max_distance_px`` (12) plus the half-pixel of rounding, so that every
-edge they can use is found."""
-
-
 @dataclass(frozen=True)
 class NearestEdges:
-    """Nearest-edge queries on one edge map, within ``radius_px`` of the query pixel.
+    """Nearest-edge queries on one edge map: a k-d tree of its edge pixels.
 
-    The ICP asks for the nearest edge of a few dozen outline points per iteration and
-    drops matches beyond ``IcpOptions.max_distance_px``; a compiled scan of the square
-    window around each point answers that exactly (a k-d tree of the frame's edge pixels
-    took 1.4 ms a frame to build, the Euclidean distance transform of the whole frame 11
-    ms; the scan takes about 2 microseconds a point). ``edges`` (H, W) uint8 edge map
-    (non-zero on edges). Of edge pixels at the same distance the first in row order is
-    returned.
+    The ICP asks for the nearest edge of a few dozen outline points per iteration; a tree
+    of the edge pixels answers that exactly (the Euclidean distance transform of the whole
+    frame did the same in 11 ms at 640x480, the tree takes about 1 ms to build).
+    ``shape`` (H, W) of the map; ``edges`` (E, 2) int row, col of its edge pixels.
     """
 
+    shape: tuple[int, int]
     edges: np.ndarray
-    radius_px: int = NEAREST_RADIUS_PX
-
-    @property
-    def shape(self) -> tuple[int, int]:
-        """(H, W) of the map."""
-        return self.edges.shape[:2]
+    tree: cKDTree | None
 
     def at(self, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Distance (P,) px from pixels (``rows``, ``cols``) (P,) (inside the map) to their
-        nearest edge pixel and its (row, col) (P, 2) int; ``inf`` and (-1, -1) where no
-        edge lies within ``radius_px``."""
-        rows = np.ascontiguousarray(rows, dtype=np.int64)
-        cols = np.ascontiguousarray(cols, dtype=np.int64)
-        dist = np.empty(len(rows))
-        pixel = np.empty((len(rows), 2), dtype=np.int64)
-        nearest_edge_kernel(self.edges, rows, cols, int(self.radius_px), dist, pixel)
-        return dist, pixel
+        """Distance (P,) px from pixels (``rows``, ``cols``) (P,) to their nearest edge
+        pixel and its (row, col) (P, 2); ``inf`` and (-1, -1) on a map without edges."""
+        points = np.stack([rows, cols], axis=1).astype(float)
+        if self.tree is None:
+            return np.full(len(points), np.inf), np.full((len(points), 2), -1)
+        dist, k = self.tree.query(points)
+        return dist, self.edges[k]
 
 
 def nearest_edge_field(edge_map: np.ndarray) -> NearestEdges:
     """The :class:`NearestEdges` of an edge map (H, W) (non-zero on edges)."""
-    return NearestEdges(np.ascontiguousarray(edge_map))
+    edges = np.argwhere(np.asarray(edge_map) != 0)
+    return NearestEdges(edge_map.shape[:2], edges, cKDTree(edges) if len(edges) else None)
 
 
 @dataclass(frozen=True)
@@ -257,9 +239,8 @@ def icp_palm(model: KinematicModel, geometry: FingerGeometry, q: np.ndarray, cam
         inside &= (uv[:, 0] >= 0) & (uv[:, 0] <= w - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= h - 1)
         col = np.clip(np.rint(uv[:, 0]), 0, w - 1).astype(int)
         row = np.clip(np.rint(uv[:, 1]), 0, h - 1).astype(int)
-        found, pixels = nearest.at(row, col)
-        pixels = pixels[:, ::-1].astype(float)
-        gap = np.where(np.isfinite(found), np.linalg.norm(pixels - uv, axis=1), np.inf)
+        pixels = nearest.at(row, col)[1][:, ::-1].astype(float)
+        gap = np.linalg.norm(pixels - uv, axis=1)
         limit = max(options.max_distance_px / it, 3.0 * np.median(gap[inside]), 2.0) \
             if inside.any() else 0.0
         close = inside & (gap <= min(limit, options.max_distance_px))
