@@ -314,13 +314,19 @@ def format_rows(rows: Sequence[dict[str, Any]], header: bool = True) -> str:
               _f(r["joint_angle_err_deg_rms"]), _f(r["palm_pos_err_mm_mean"]),
               _f(r["palm_rot_err_deg_mean"]), f"{r['track_life_frames']}/{r['frames']}",
               str(r["flag"]["flagged_frames"]), str(r["truly_lost_frames"]),
-              _pct(r["flag"]["precision"]), _pct(r["flag"]["recall"])] for r in rows]
+              percent(r["flag"]["precision"]), percent(r["flag"]["recall"])] for r in rows]
     lines = _table(list(COLUMNS), cells)
     return "\n".join(lines if header else lines[2:])
 
 
-def _pct(value: float | None) -> str:
-    return "n/a" if value is None else f"{100 * value:.0f}%"
+def percent(value: float | None, missing: str = "n/a") -> str:
+    """A fraction as a whole percentage (``0.754`` -> ``"75%"``), ``missing`` for None."""
+    return missing if value is None else f"{100 * value:.0f}%"
+
+
+def precision_recall(flag: dict[str, Any], missing: str = "-") -> str:
+    """``"precision / recall"`` of a flag's scores (:func:`flag_totals`) as percentages."""
+    return f"{percent(flag['precision'], missing)} / {percent(flag['recall'], missing)}"
 
 
 def format_totals(result: dict[str, Any]) -> str:
@@ -329,7 +335,7 @@ def format_totals(result: dict[str, Any]) -> str:
     totals = {key: {**result[key], "all trackers": result[f"{key}_all"]}
               for key in ("flag_totals", "finger_flag_totals")}
     cells = [[name + (" (per finger)" if key.startswith("finger") else ""), appearance,
-              _pct(t["precision"]), _pct(t["recall"]),
+              percent(t["precision"]), percent(t["recall"]),
               str(t["true_positive"]), str(t["false_positive"]), str(t["false_negative"]),
               str(t["true_negative"])]
              for key in ("flag_totals", "finger_flag_totals")

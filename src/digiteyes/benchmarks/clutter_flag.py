@@ -32,6 +32,7 @@ from digiteyes.benchmarks.accuracy import (
     APPEARANCES,
     SETUPS,
     flag_totals,
+    precision_recall,
     row_figures,
     scenario_for,
 )
@@ -122,10 +123,6 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
     return emit(result, format_table(result), json_path)
 
 
-def _pct(value: float | None) -> str:
-    return "-" if value is None else f"{100 * value:.0f}%"
-
-
 def format_table(result: dict[str, Any]) -> str:
     """One line per tracker and setup (flag without | with the colour model), the colour
     model's first-frame split per camera, and the totals."""
@@ -143,13 +140,12 @@ def format_table(result: dict[str, Any]) -> str:
                          None else f"{100 * c['colour_model']['hand_recall']:.0f}% / "
                          f"{100 * c['colour_model']['backdrop_share']:.1f}%"
                          for c in on["cameras"])
-        cells = [f"{r['lost_frames']:>3} {_pct(r['flag']['precision']):>5} / "
-                 f"{_pct(r['flag']['recall']):>4}" for r in (off, on)]
+        cells = [f"{r['lost_frames']:>3} {precision_recall(r['flag']):>12}" for r in (off, on)]
         lines.append(f"{on['tracker']:<16} {on['appearance']:<10} {on['setup']:<16} "
                      f"{on['fingertip_err_mm_mean']:>7.1f} {on['truly_lost_frames']:>10} "
                      f"{cells[0]:>22} {cells[1]:>22}  {cams}")
     lines += ["", "totals over the setups (precision / recall):"]
-    lines += [f"  {key:<38} {_pct(t['precision'])} / {_pct(t['recall'])}  "
+    lines += [f"  {key:<38} {precision_recall(t)}  "
               f"(TP {t['true_positive']}, FP {t['false_positive']}, FN {t['false_negative']})"
               for key, t in result["totals"].items()]
     return "\n".join(lines)

@@ -68,7 +68,7 @@ from __future__ import annotations
 import contextlib
 import tempfile
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
@@ -227,20 +227,25 @@ class RenderedSequence:
 def render_sequence(scenario: Scenario, background: str = "black", perturbed: bool = False,
                     seed: int = SEED, progress: bool = False, flat: bool = False,
                     cameras: Sequence[int] | None = None,
-                    appearance: str = "model", color: bool = False) -> RenderedSequence:
+                    appearance: str = "model", color: bool = False,
+                    render: Mapping[str, Any] | None = None) -> RenderedSequence:
     """Render every frame of ``scenario`` through its rig (grey, noise
     :data:`NOISE_SIGMA`), from a hand perturbed by :data:`PERTURB_LINK_LENGTH` if asked
     and scaled by the scenario's ``hand_scale`` if it has one; seeds as ``digiteyes render
     --seed``. ``flat`` lights the skin evenly (ambient light only: no shading towards the
     silhouette); ``cameras`` renders only those cameras of the rig (None: all);
     ``appearance`` ``"model"`` or ``"flesh"`` (docs/appearance.md); ``color`` RGB images
-    (what a learned detector needs) instead of grey."""
+    (what a learned detector needs) instead of grey; ``render``: further
+    :class:`~digiteyes.synth.RenderOptions` fields that replace these settings (a noisier
+    sensor, a darker skin, another light)."""
     truth_model, _ = perturbed_truth(truth_model_of(scenario),
                                      PERTURB_LINK_LENGTH if perturbed else 0.0, seed)
     options = RenderOptions(background=background, noise_sigma=NOISE_SIGMA,
                             background_seed=seed, appearance=appearance, color=color)
     if flat:
         options = replace(options, ambient=1.0)
+    if render:
+        options = replace(options, **render)
     rig = scenario.rig if cameras is None else Rig(tuple(scenario.rig.cameras[i]
                                                           for i in cameras))
     label = (f"render {scenario.name} {background} {'perturbed' if perturbed else 'exact'}"

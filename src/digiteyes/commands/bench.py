@@ -19,6 +19,7 @@ SUITES = {
     "auto-start": "digiteyes.benchmarks.auto_start",
     "hand-size": "digiteyes.benchmarks.hand_size",
     "clutter-flag": "digiteyes.benchmarks.clutter_flag",
+    "render-variants": "digiteyes.benchmarks.render_variants",
 }
 TRACKER_SUITES = ("accuracy",)
 """Suites that take ``--trackers`` and ``--workers``."""

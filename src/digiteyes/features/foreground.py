@@ -9,7 +9,12 @@ inside. A pixel is foreground when its grey level exceeds
 ``threshold = max(b + 5 s, b + (h - b) / 2)`` (``b`` the median, ``s`` 1.4826 times the
 median absolute deviation: robust to the parts of the real hand that the model's
 silhouette does not cover) (a dark hand on a bright backdrop is the
-mirror image). A textured backdrop (``s`` above ``max_backdrop_std``) gives None: the
+mirror image). A backdrop whose spread ``s`` exceeds ``max_backdrop_std`` is looked at
+again through a Gaussian blur of ``noise_blur_px``: sensor noise is independent from
+pixel to pixel and the blur divides it by about 7, while a texture's blobs and stripes
+survive it. If the blurred backdrop is plain enough the threshold is fitted, and every
+frame is thresholded, on blurred images (a webcam in dim light, sensor noise of 8 grey
+levels: the rule used to switch itself off); a textured backdrop still gives None: the
 check then stays off.
 
 **Silhouette check** (:func:`silhouette_check`): draw the model's labels at the estimate
@@ -68,17 +73,26 @@ class Foreground:
     threshold : grey level (0-255) between backdrop and hand.
     bright_hand : True when the hand is brighter than the backdrop.
     backdrop_level, backdrop_std : the backdrop's mean grey level and spread.
+    blur_px : standard deviation (px) of the Gaussian blur applied before thresholding
+        (0: none; a noisy sensor, :func:`fit_foreground`).
     """
 
     threshold: float
     bright_hand: bool
     backdrop_level: float
     backdrop_std: float
+    blur_px: float = 0.0
 
     def mask(self, image: np.ndarray) -> np.ndarray:
         """Bool (H, W): the hand's pixels of a grey ``image``."""
-        grey = np.asarray(image)
+        grey = _blurred(image, self.blur_px)
         return grey > self.threshold if self.bright_hand else grey < self.threshold
+
+
+def _blurred(image: np.ndarray, sigma_px: float) -> np.ndarray:
+    """A grey ``image`` as float32, through a Gaussian blur of ``sigma_px`` if positive."""
+    grey = np.asarray(image, dtype=np.float32)
+    return cv2.GaussianBlur(grey, (0, 0), sigma_px) if sigma_px > 0 else grey
 
 
 def model_labels(model: KinematicModel, kin: Kinematics, camera: Camera,
@@ -93,22 +107,28 @@ def model_labels(model: KinematicModel, kin: Kinematics, camera: Camera,
 
 
 def fit_foreground(image: np.ndarray, labels: np.ndarray,
-                   max_backdrop_std: float = 8.0) -> Foreground | None:
+                   max_backdrop_std: float = 8.0, noise_blur_px: float = 2.0
+                   ) -> Foreground | None:
     """Fit the threshold on a grey ``image`` (H, W) whose model ``labels`` (H, W) are
-    known (the first frame at its true state); None for a textured backdrop or an image
-    without enough hand or backdrop pixels."""
+    known (the first frame at its true state); a backdrop spread beyond
+    ``max_backdrop_std`` grey levels is measured again on the image blurred by
+    ``noise_blur_px`` (module docstring; 0: never). None for a textured backdrop or an
+    image without enough hand or backdrop pixels."""
     hit = (np.asarray(labels) >= 0).astype(np.uint8)
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * MARGIN_PX + 1,) * 2)
     inside = cv2.erode(hit, kernel).astype(bool)
     outside = ~cv2.dilate(hit, kernel).astype(bool)
-    grey = np.asarray(image, dtype=np.float32)
     if inside.sum() < 50 or outside.sum() < 50:
         return None
-    back = grey[outside]
-    level = float(np.median(back))
-    spread = 1.4826 * float(np.median(np.abs(back - level)))  # robust: the real hand
-    # reaches beyond the model's silhouette (a wrist, a fleshier palm)
-    if spread > max_backdrop_std:
+    for blur_px in (0.0, noise_blur_px):
+        grey = _blurred(image, blur_px)
+        back = grey[outside]
+        level = float(np.median(back))
+        spread = 1.4826 * float(np.median(np.abs(back - level)))  # robust: the real hand
+        # reaches beyond the model's silhouette (a wrist, a fleshier palm)
+        if spread <= max_backdrop_std:
+            break
+    else:
         return None
     hand = grey[inside]
     bright = float(np.median(hand)) > level
@@ -117,7 +137,7 @@ def fit_foreground(image: np.ndarray, labels: np.ndarray,
         threshold = max(level + 5.0 * spread, level + 0.5 * (dark_end - level))
     else:
         threshold = min(level - 5.0 * spread, level + 0.5 * (dark_end - level))
-    return Foreground(threshold, bright, level, spread)
+    return Foreground(threshold, bright, level, spread, blur_px)
 
 
 @dataclass(frozen=True)

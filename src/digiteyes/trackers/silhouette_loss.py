@@ -28,6 +28,10 @@ estimate is drawn in each checked camera and compared with the foreground
 Over a textured backdrop, where no grey threshold fits, a colour image is split by a
 colour model of hand and backdrop learned on the first frame
 (:mod:`~digiteyes.features.colour_foreground`), when that model splits its own frame.
+Where neither does, the grey threshold is tried once more on the frame blurred against
+sensor noise (:func:`~digiteyes.features.foreground.fit_foreground`): a noisy camera
+over a plain backdrop (8 grey levels of noise) used to leave the rule off, and with it
+every tracker's loss flag but the feature tracker's own rules.
 
 With ``flag_hidden_fingers`` (off by default) a digit whose end (distal link and tip) the
 estimate hides in every checked camera, though it showed at the start state, is flagged
@@ -292,12 +296,16 @@ class SilhouetteLoss:
 
     def _fit(self, image: WorkingImage, labels: np.ndarray
              ) -> Foreground | ColourForeground | None:
-        """The grey foreground of the first frame, else (a textured backdrop) its colour
-        model when the image is in colour and the option is on, else None."""
-        grey = fit_foreground(image.grey, labels)
-        if grey is not None or image.colour is None:
+        """The grey foreground of the first frame; else (a busy backdrop) its colour model
+        when the image is in colour, the option is on and the model splits the frame;
+        else the grey foreground through the noise blur (a noisy sensor,
+        :func:`~digiteyes.features.foreground.fit_foreground`); else None."""
+        grey = fit_foreground(image.grey, labels, noise_blur_px=0.0)
+        if grey is not None:
             return grey
-        return fit_colour_foreground(image.colour, labels, MARGIN_PX)
+        colour = (None if image.colour is None else
+                  fit_colour_foreground(image.colour, labels, MARGIN_PX))
+        return colour if colour is not None else fit_foreground(image.grey, labels)
 
     def _masks(self, images: Sequence[WorkingImage]) -> list[np.ndarray | None]:
         """The foreground mask of each camera's image (None where not checked)."""
