@@ -61,6 +61,16 @@ def desk():
 
 
 @pytest.fixture(scope="session")
+def desk_noisy_colour():
+    """:func:`desk` in colour over a plain dark backdrop with sensor noise of 14 grey
+    levels per channel (about 10 in grey): (model, rig, state, image)."""
+    model, rig, q, _ = _desk_states()
+    options = RenderOptions(appearance="flesh", noise_sigma=14.0, color=True,
+                            background="uniform", background_level=0.3)
+    return model, rig, q, render_views(model, q, rig, options, rng=0)[0].image
+
+
+@pytest.fixture(scope="session")
 def desk_clutter():
     """:func:`desk` in colour over clutter: (model, rig, state, image, image of the curled
     index)."""

@@ -394,3 +394,23 @@ def test_a_start_with_much_unexplained_hand_is_not_judged_by_it(desk, desk_clutt
     assert grey.check([with_arm(image, hand, 90)], q, q).reasons == []
     assert grey._unexplained_baseline[0] > MAX_START_UNEXPLAINED
     assert "unexplained" in grey.check([with_arm(image, hand, 150)], q, q).reasons[0]
+
+
+def test_the_noise_blur_comes_after_the_colour_model(desk_noisy_colour):
+    """A noisy colour frame over a plain backdrop: the colour model, which splits it, is
+    kept (footage that had it keeps it); the same frame in grey, where there is no colour
+    model, gets the grey threshold through the noise blur."""
+    from digiteyes.features.colour_foreground import ColourForeground
+    from digiteyes.features.slices import prepare_image
+
+    model, rig, q, image = desk_noisy_colour
+    grey = prepare_image(image)
+    labels = model_labels(model, forward_kinematics(model, q), rig.cameras[0])
+    assert fit_foreground(grey, labels, noise_blur_px=0.0) is None
+    in_colour = SilhouetteLoss(model, rig)
+    assert in_colour.check([grey], q, q, colours=[image]).reasons == []
+    assert isinstance(in_colour.foreground[0], ColourForeground)
+    in_grey = SilhouetteLoss(model, rig)
+    assert in_grey.check([grey], q, q).reasons == []
+    assert type(in_grey.foreground[0]).__name__ == "Foreground"
+    assert in_grey.foreground[0].blur_px > 0

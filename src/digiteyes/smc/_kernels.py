@@ -208,4 +208,3 @@ def nearest_segment_kernel(X, bi, d, pair, t_out, dist_out):  # pragma: no cover
         pair[n] = best_p
         t_out[n] = best_t
         dist_out[n] = np.sqrt(best)
-
