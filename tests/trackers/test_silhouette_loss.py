@@ -414,3 +414,29 @@ def test_the_noise_blur_comes_after_the_colour_model(desk_noisy_colour):
     assert in_grey.check([grey], q, q).reasons == []
     assert type(in_grey.foreground[0]).__name__ == "Foreground"
     assert in_grey.foreground[0].blur_px > 0
+
+
+def test_a_hand_as_dark_as_the_backdrop_is_not_thresholded():
+    """The webcam view of the accuracy table with the dark skin tone: the palm in its own
+    shadow is as dark as the black cloth, and the threshold the fit would choose keeps
+    almost none of the first frame's hand; the fit refuses (None) rather than hand the
+    rule a foreground that is not the hand. The light skin of the same view is fitted
+    and keeps its hand."""
+    from digiteyes.benchmarks.accuracy import scenario_for
+    from digiteyes.benchmarks.tracker import render_sequence
+    from digiteyes.features.foreground import MARGIN_PX, MIN_HAND_KEPT
+
+    scenario = scenario_for("webcam", "exact", 1)
+    model, kin = scenario.model, forward_kinematics(scenario.model, scenario.initial_state)
+    kept = {}
+    for tone in (None, "dark"):
+        sequence = render_sequence(scenario, appearance="flesh",
+                                   render={"skin_tone": tone} if tone else None)
+        image, camera = sequence.images[0][0], sequence.rig.cameras[0]
+        labels = model_labels(model, kin, camera)
+        inside = cv2.erode((labels >= 0).astype(np.uint8), cv2.getStructuringElement(
+            cv2.MORPH_ELLIPSE, (2 * MARGIN_PX + 1,) * 2)).astype(bool)
+        kept[tone] = float(np.mean(image[inside] > np.median(image[~inside]) + 22))
+        fg = fit_foreground(image, labels)
+        assert (fg is None) == (tone == "dark")
+    assert kept[None] > 0.9 and kept["dark"] < MIN_HAND_KEPT

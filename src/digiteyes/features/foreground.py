@@ -15,7 +15,9 @@ pixel to pixel and the blur divides it by about 7, while a texture's blobs and s
 survive it. If the blurred backdrop is plain enough the threshold is fitted, and every
 frame is thresholded, on blurred images (a webcam in dim light, sensor noise of 8 grey
 levels: the rule used to switch itself off); a textured backdrop still gives None: the
-check then stays off.
+check then stays off. So does a threshold that keeps less than :data:`MIN_HAND_KEPT` of
+the first frame's own hand pixels (a dark hand in shadow is as dark as the cloth): a
+foreground that is not the hand would make every later comparison meaningless.
 
 **Silhouette check** (:func:`silhouette_check`): draw the model's labels at the estimate
 (:func:`digiteyes.render.raster.rasterise`) and compare with the foreground mask
@@ -59,6 +61,11 @@ from digiteyes.render.scene import build_scene
 
 MARGIN_PX = 6
 """Distance (px) from the first frame's silhouette of the pixels that fit the levels."""
+MIN_HAND_KEPT = 0.5
+"""Least share of the first frame's hand pixels (those more than :data:`MARGIN_PX` inside
+the model's silhouette) that the fitted threshold must call hand; below it the grey levels
+do not separate hand and backdrop (a dark hand in its own shadow over black cloth: 0-8 %
+kept, where a lit one keeps 98-100 %) and :func:`fit_foreground` gives None."""
 MIN_OPEN_PIXELS = 50
 """Fewest pixels of an open digit beyond the estimate for :func:`unexplained_where_open`."""
 _LIGHT = np.array([0.0, 0.0, -1.0])
@@ -137,7 +144,10 @@ def fit_foreground(image: np.ndarray, labels: np.ndarray,
         threshold = max(level + 5.0 * spread, level + 0.5 * (dark_end - level))
     else:
         threshold = min(level - 5.0 * spread, level + 0.5 * (dark_end - level))
-    return Foreground(threshold, bright, level, spread, blur_px)
+    foreground = Foreground(threshold, bright, level, spread, blur_px)
+    if foreground.mask(image)[inside].mean() < MIN_HAND_KEPT:
+        return None  # the hand's own grey levels are the backdrop's: not separable
+    return foreground
 
 
 @dataclass(frozen=True)
