@@ -42,8 +42,8 @@ VARIANTS: dict[str, dict[str, Any]] = {
     "grey wall": {"background": "uniform", "background_level": 0.45},
 }
 """Label -> :class:`~digiteyes.synth.RenderOptions` fields changed against the accuracy
-table's renders (grey, black cloth, sensor noise 2 grey levels, light from the camera's
-upper side, skin albedo 0.85)."""
+table's renders (grey, black cloth, sensor noise 2 grey levels, the renderer's default
+light, skin albedo 0.85)."""
 TRACKERS = ("features", "templates", "divide-conquer")
 """The seeds' trackers (no learned detector: their images are the renders alone)."""
 FRAMES = 60
