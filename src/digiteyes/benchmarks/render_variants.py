@@ -17,9 +17,11 @@ docs/accuracy.md discusses the result.
 from __future__ import annotations
 
 import time
+from itertools import product
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
 from digiteyes.benchmarks._machine import emit, machine_info, machine_lines
 from digiteyes.benchmarks.accuracy import (
@@ -54,26 +56,24 @@ def measure(frames: int) -> list[dict[str, Any]]:
     """Every variant, appearance and setup tracked by every tracker (one thread)."""
     rows = []
     sources = dict.fromkeys(source for source, _ in SETUPS.values())
+    jobs = list(product(VARIANTS.items(), APPEARANCES, sources))
     with _one_thread():
-        for variant, render in VARIANTS.items():
-            for appearance in APPEARANCES:
-                for source in sources:
-                    rendered = render_sequence(scenario_for(source, "exact", frames),
-                                               appearance=appearance, render=render)
-                    for label, (setup_source, cameras) in SETUPS.items():
-                        if setup_source != source:
-                            continue
-                        sequence = rendered.cameras(cameras)
-                        for name in TRACKERS:
-                            outcome = track_sequence(sequence,
-                                                     tracker_entry(name).options_type(),
-                                                     f"{name} {label}", tracker=name)
-                            figures = row_figures(sequence, outcome)
-                            rows.append({"variant": variant, "tracker": name,
-                                         "appearance": appearance, "setup": label} | {
-                                k: figures[k] for k in ("fingertip_err_mm_mean",
-                                                        "truly_lost_frames", "lost_frames",
-                                                        "flag", "frames")})
+        for (variant, render), appearance, source in tqdm(
+                jobs, desc="render-variants", unit="sequence", leave=False):
+            rendered = render_sequence(scenario_for(source, "exact", frames),
+                                       appearance=appearance, render=render)
+            for label, (setup_source, cameras) in SETUPS.items():
+                if setup_source != source:
+                    continue
+                sequence = rendered.cameras(cameras)
+                for name in TRACKERS:
+                    outcome = track_sequence(sequence, tracker_entry(name).options_type(),
+                                             f"{name} {label}", tracker=name)
+                    figures = row_figures(sequence, outcome)
+                    rows.append({"variant": variant, "tracker": name,
+                                 "appearance": appearance, "setup": label} | {
+                        k: figures[k] for k in ("fingertip_err_mm_mean", "truly_lost_frames",
+                                                "lost_frames", "flag", "frames")})
     return rows
 
 
