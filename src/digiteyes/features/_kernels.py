@@ -44,11 +44,13 @@ def _profile(gray, ox, oy, dx, dy, j_first, step, prof, inside, response):  # pr
 
 @njit(cache=True)
 def links_kernel(gray, params, view, perspective, shapes, rows, lengths, radii, fractions,
-                 min_axis_px, min_edge_points, half, step, min_contrast, polarity, loss,
+                 min_axis_px, min_edge_points, half, step, min_contrast, side_sign, loss,
                  max_fit_rms, cos_max_angle, max_width_error, side_samples,
                  w_ends, w_slices, normal, contour, line, code, n_edges, side_lines,
                  edge_points, edge_inlier, slice_ends):  # pragma: no cover - compiled
     """Measure every link (docs/features.md Sec. 1); fills the (L, ...) output arrays.
+    ``side_sign`` (L, 2): the sign of the edge response each link side looks for (+1 a
+    rise along the slice, -1 a fall; a hand brighter than its backdrop is +1, -1).
 
     One thread, links one after the other with shared scratch arrays: a link is a few
     microseconds of work, too little for numba's ``parallel=True`` to pay for its thread
@@ -126,7 +128,7 @@ def links_kernel(gray, params, view, perspective, shapes, rows, lengths, radii, 
             _profile(gray, w_slices[i, s, 0], w_slices[i, s, 1], nx, ny, j_first, step, prof,
                      inside, response)
             for side in range(2):
-                sign = polarity if side == 0 else -polarity
+                sign = side_sign[i, side]
                 (position[side, s], _, before[side, s], after[side, s],
                  window[side, s]) = peak_in_range(prof, inside, response, contour[i, s, side],
                                                   sign, half, j_first * step, step,
@@ -188,7 +190,8 @@ def links_kernel(gray, params, view, perspective, shapes, rows, lengths, radii, 
             finger /= max(n_found, 1)
             background /= max(n_found, 1)
             seen /= max(n_seen, 1)
-            merged = polarity * (seen - 0.5 * (finger + background)) > 0.0
+            brighter = side_sign[i, 0] if side == 0 else -side_sign[i, 1]  # hand > backdrop
+            merged = brighter * (seen - 0.5 * (finger + background)) > 0.0
 
         # The measured axis must stay within the window at the first and last slices.
         outside = False

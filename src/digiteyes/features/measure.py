@@ -36,7 +36,7 @@ from functools import lru_cache
 import numpy as np
 
 from digiteyes.camera import Camera
-from digiteyes.errors import CameraError, StateError
+from digiteyes.errors import CameraError, DigitEyesError, StateError
 from digiteyes.features._kernels import TIP_LATERAL, links_kernel, tips_kernel
 from digiteyes.features.lines import ROBUST_LOSSES
 from digiteyes.features.slices import perpendicular, prepare_image, view_of
@@ -258,6 +258,7 @@ def measure_features(
     options: FeatureOptions = FeatureOptions(),
     links: Sequence[str] | None = None,
     tips: Sequence[str] | None = None,
+    side_signs: np.ndarray | None = None,
 ) -> FeatureMeasurement:
     """Measure link lines and tip points in one image around the model's prediction.
 
@@ -271,6 +272,10 @@ def measure_features(
     kin : forward kinematics of ONE state (the prediction that places the trackers).
     options : tracker settings.
     links, tips : names of the cylinder links and tips to track (default: all of them).
+    side_signs : (L, 2) the edge sign each side of each measured link looks for, in the
+        order of the returned ``link_ids`` (:func:`~digiteyes.features.edge_signs.
+        learn_side_signs`); None: ``(+1, -1)`` for every link, flipped without
+        ``bright_object``.
 
     Returns
     -------
@@ -288,6 +293,13 @@ def measure_features(
     view, perspective = view_of(camera)
     params = camera.projection_params
     polarity = 1.0 if options.bright_object else -1.0
+    n_tracked = len(tracked.link_ids)
+    if side_signs is None:
+        side_signs = np.tile([polarity, -polarity], (n_tracked, 1))
+    side_signs = np.asarray(side_signs, dtype=float)
+    if side_signs.shape != (n_tracked, 2):
+        raise DigitEyesError(f"side_signs must be ({n_tracked}, 2), one sign per side of "
+                             f"each measured link, got shape {side_signs.shape}")
     side_samples = round(3.0 / options.step_px)  # intensities 3 px either side of an edge
     n_links, n_slices = len(tracked.link_ids), options.slices_per_link
     link = {
@@ -307,7 +319,7 @@ def measure_features(
                  tracked.link_lengths, tracked.link_radii,
                  _fractions(options.end_margin, n_slices), options.min_axis_px,
                  options.min_edge_points, 0.5 * options.window_px, options.step_px,
-                 options.min_contrast, polarity, ROBUST_LOSSES.index(options.robust),
+                 options.min_contrast, side_signs, ROBUST_LOSSES.index(options.robust),
                  options.max_fit_rms_px, math.cos(math.radians(options.max_side_angle_deg)),
                  options.max_width_error, side_samples, *link.values())
     link_code = link.pop("code")

@@ -46,6 +46,7 @@ from digiteyes.camera import Rig
 from digiteyes.errors import StateError
 from digiteyes.features import FeatureOptions, feature_residuals, measure_features
 from digiteyes.features.appearance import EdgeBias, ShadingModel, edge_bias, fit_shading
+from digiteyes.features.edge_signs import learn_side_signs
 from digiteyes.features.selection import feature_names
 from digiteyes.features.slices import prepare_image
 from digiteyes.features.width_scale import link_radius_scales
@@ -106,6 +107,14 @@ class FeatureTrackerOptions(SilhouetteLossOptions, LossHoldOptions, FingerSearch
         :meth:`FeatureTracker.restart`. Several cameras see depth by themselves, and
         there the fitted widths made the track worse (docs/features.md, "Width
         calibration").
+    learn_edge_signs : on the first frame of a track, in a camera where the hand's darkest
+        pixels reach the backdrop's grey levels (a grey wall, a dark hand), let each link
+        side search for edges of the sign its silhouette shows at the start state
+        (:mod:`digiteyes.features.edge_signs`); kept through a
+        :meth:`FeatureTracker.restart`. Elsewhere (black cloth) nothing changes. Off by
+        default: on renders over a grey wall and of a dark hand it halves the feature
+        tracker's error, on the real video it re-detects less but sits further from
+        MediaPipe's hand (docs/accuracy.md, "Renders the trackers were not developed on").
     start_size : on the first frame of a track, measure the hand's size at the start
         state from its features and track a model of that size
         (:mod:`digiteyes.trackers.feature_size`; models with a pose base). The start must
@@ -176,6 +185,7 @@ class FeatureTrackerOptions(SilhouetteLossOptions, LossHoldOptions, FingerSearch
     width_weight: float = 1.0
     max_width_error: float = 0.15
     fit_widths: bool = True
+    learn_edge_signs: bool = False
     start_size: bool = True
     conditioning: tuple[float, float, float] = (1.0, 10.0, 1000.0)
     use_conditioning: bool = True
@@ -346,7 +356,8 @@ class FeatureProblem:
                  options: FeatureTrackerOptions, parameterisation: StateParameterisation,
                  edge_bias: Sequence[EdgeBias], timings: dict[str, float],
                  radius_scale: np.ndarray | None = None,
-                 more_rows: MoreRows | None = None) -> None:
+                 more_rows: MoreRows | None = None,
+                 side_signs: Sequence[np.ndarray] | None = None) -> None:
         self.model = model
         self.rig = rig
         self.images = images
@@ -358,6 +369,7 @@ class FeatureProblem:
         self.timings = timings
         self.radius_scale = radius_scale
         self.more_rows = more_rows
+        self.side_signs = side_signs
         self.n_v = self.param.n_v
         self.evaluations: list[_Evaluation] = []
 
@@ -370,7 +382,8 @@ class FeatureProblem:
         for index, (camera, image) in enumerate(zip(self.rig, self.images, strict=True)):
             start = time.perf_counter()
             meas = measure_features(image, camera, self.model, kin, opts.features,
-                                    self.link_names, self.tip_names)
+                                    self.link_names, self.tip_names,
+                                    None if self.side_signs is None else self.side_signs[index])
             timings["feature_detection"] += time.perf_counter() - start
             start = time.perf_counter()
             r, J, layout = feature_residuals(
@@ -517,6 +530,7 @@ class FeatureTracker:
         self._invalid_baseline = None
         self.radius_scale = None
         self._widths_tried = False
+        self.side_signs: list[np.ndarray] | None = None
 
     def restart(self, state: np.ndarray) -> None:
         """Continue the same scene from ``state`` (n_q,) after a re-detection: the motion
@@ -524,7 +538,9 @@ class FeatureTracker:
         the shading model, its backdrop, the foreground colours, the link widths and the
         hand's size of the first frame stay, so a recovery costs no refit."""
         foreground, radius_scale = self.silhouette_loss.foreground, self.radius_scale
+        side_signs = self.side_signs
         self._start(np.asarray(state, dtype=float), self.shading)
+        self.side_signs = side_signs
         self.silhouette_loss.foreground = foreground
         self.radius_scale, self._widths_tried = radius_scale, True
         self.sizing.pending = False
@@ -548,6 +564,14 @@ class FeatureTracker:
             start = time.perf_counter()
             self._measure_size(images, predicted)
             timings["feature_detection"] += time.perf_counter() - start
+        if self.side_signs is None and self.options.learn_edge_signs:
+            start = time.perf_counter()
+            kin = forward_kinematics(self.model, predicted)
+            self.side_signs = [learn_side_signs(image, camera, self.model, kin,
+                                                self.options.features, self.link_names,
+                                                self.tip_names)
+                               for camera, image in zip(self.rig, images, strict=True)]
+            timings["feature_detection"] += time.perf_counter() - start
         if self.options.shading_correction:
             start = time.perf_counter()
             self._predict_edge_bias(images, predicted)
@@ -561,7 +585,7 @@ class FeatureTracker:
         problem = FeatureProblem(self.model, self.rig, images, self.link_names,
                                  self.tip_names, self.options, self.parameterisation,
                                  self.edge_bias, timings, self.radius_scale,
-                                 self._more_rows(frames, timings))
+                                 self._more_rows(frames, timings), self.side_signs)
         q, summary = gauss_newton(problem, predicted, self.solver_options)
         timings["linear_solve"] = summary.timings["linear_solve"]
         final = problem.evaluation_at(q)
@@ -644,9 +668,10 @@ class FeatureTracker:
         (:func:`~digiteyes.features.width_scale.link_radius_scales`)."""
         opts = self.options
         kin = forward_kinematics(self.model, q)
+        signs = self.side_signs or [None] * len(self.rig)
         measurements = [measure_features(image, camera, self.model, kin, opts.features,
-                                         self.link_names, self.tip_names)
-                        for camera, image in zip(self.rig, images, strict=True)]
+                                         self.link_names, self.tip_names, sign)
+                        for camera, image, sign in zip(self.rig, images, signs, strict=True)]
         return link_radius_scales(measurements, list(self.rig), kin, self.edge_bias,
                                   opts.axis_points, opts.width_weight)
 

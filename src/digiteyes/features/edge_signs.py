@@ -1,0 +1,72 @@
+"""Which way each link side's silhouette edge goes, learned on the first frame.
+
+The report's and the thesis's edge search (Sec. 4.3.1) looks for an edge of one sign: a
+hand brighter than its backdrop, as on the black cloth of their experiments. Over a grey
+wall, or for a dark hand, the shaded side of a finger can be darker than the backdrop
+while its lit side is brighter, and a search for the wrong sign finds no edge there, or
+the neighbouring finger's. :func:`learn_side_signs` measures the first frame at its known
+state twice, with the usual signs and with every sign flipped, and lets a link side keep
+the flipped sign where the usual one finds too few edges and the flipped one enough.
+
+Only in a camera where the hand's darkest pixels reach into the backdrop's grey levels
+(the darkest 5 % of the pixels well inside the model's silhouette below the backdrop's
+median plus :data:`BAND_SPREADS` robust spreads): where the whole hand is brighter than
+the backdrop, a side the usual sign misses is hidden or touching a neighbour, and an edge
+of the other sign there is the neighbour's (on black cloth one such flip cost the flesh
+hand's desk pair 8 mm; docs/accuracy.md, "Renders the trackers were not developed on").
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import cv2
+import numpy as np
+
+from digiteyes.camera import Camera
+from digiteyes.features.foreground import MARGIN_PX, model_labels
+from digiteyes.features.measure import FeatureOptions, measure_features
+from digiteyes.features.slices import prepare_image
+from digiteyes.kinematics import KinematicModel, Kinematics
+
+BAND_SPREADS = 5.0
+"""Robust spreads (1.4826 MAD) above the backdrop's median that count as its band."""
+
+
+def mixed_contrast(image: np.ndarray, camera: Camera, model: KinematicModel,
+                   kin: Kinematics) -> bool:
+    """Whether the hand drawn at the state of ``kin`` has pixels as dark as the backdrop
+    of the grey ``image`` (module docstring); False when either region is too small to
+    tell."""
+    grey = prepare_image(image).astype(np.float32, copy=False)
+    hit = (model_labels(model, kin, camera) >= 0).astype(np.uint8)
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * MARGIN_PX + 1,) * 2)
+    inside = cv2.erode(hit, kernel).astype(bool)
+    outside = ~cv2.dilate(hit, kernel).astype(bool)
+    if inside.sum() < 50 or outside.sum() < 50:
+        return False
+    back = grey[outside]
+    level = float(np.median(back))
+    spread = 1.4826 * float(np.median(np.abs(back - level)))
+    return float(np.percentile(grey[inside], 5)) < level + BAND_SPREADS * spread
+
+
+def learn_side_signs(image: np.ndarray, camera: Camera, model: KinematicModel,
+                     kin: Kinematics, options: FeatureOptions | None = None,
+                     links: Sequence[str] | None = None, tips: Sequence[str] | None = None
+                     ) -> np.ndarray:
+    """(L, 2) edge signs for :func:`~digiteyes.features.measure_features` (its
+    ``side_signs``) from a frame whose state (that of ``kin``) is known: the usual
+    ``(+1, -1)`` (flipped without ``bright_object``), each side flipped where the module
+    docstring says."""
+    options = FeatureOptions() if options is None else options
+    usual = measure_features(image, camera, model, kin, options, links, tips)
+    polarity = 1.0 if options.bright_object else -1.0
+    signs = np.tile([polarity, -polarity], (len(usual.link_ids), 1))
+    if not mixed_contrast(image, camera, model, kin):
+        return signs
+    flipped = measure_features(image, camera, model, kin, options, links, tips, -signs)
+    enough = options.min_edge_points
+    flip = ((usual.n_edges < enough) & (flipped.n_edges >= enough)
+            & (flipped.n_edges > usual.n_edges))
+    return np.where(flip, -signs, signs)
