@@ -349,6 +349,8 @@ class FeatureProblem:
     more_rows : further residual rows from the same kinematics, stacked below the
         features' (e.g. a detector's keypoints, :mod:`digiteyes.trackers.anchored_features`);
         None: the features alone. The evaluations keep the features' rows only.
+    side_signs : per camera, the (L, 2) edge sign of each measured link's sides
+        (:mod:`digiteyes.features.edge_signs`); None: the usual signs everywhere.
     """
 
     def __init__(self, model: KinematicModel, rig: Rig, images: list[np.ndarray],
