@@ -20,11 +20,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-import cv2
 import numpy as np
 
 from digiteyes.camera import Camera
-from digiteyes.features.foreground import MARGIN_PX, model_labels
+from digiteyes.features.foreground import hand_and_backdrop, model_labels, robust_level
 from digiteyes.features.measure import FeatureOptions, measure_features
 from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import KinematicModel, Kinematics
@@ -38,16 +37,12 @@ def mixed_contrast(image: np.ndarray, camera: Camera, model: KinematicModel,
     """Whether the hand drawn at the state of ``kin`` has pixels as dark as the backdrop
     of the grey ``image`` (module docstring); False when either region is too small to
     tell."""
-    grey = prepare_image(image).astype(np.float32, copy=False)
-    hit = (model_labels(model, kin, camera) >= 0).astype(np.uint8)
-    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * MARGIN_PX + 1,) * 2)
-    inside = cv2.erode(hit, kernel).astype(bool)
-    outside = ~cv2.dilate(hit, kernel).astype(bool)
-    if inside.sum() < 50 or outside.sum() < 50:
+    regions = hand_and_backdrop(model_labels(model, kin, camera))
+    if regions is None:
         return False
-    back = grey[outside]
-    level = float(np.median(back))
-    spread = 1.4826 * float(np.median(np.abs(back - level)))
+    inside, outside = regions
+    grey = prepare_image(image).astype(np.float32, copy=False)
+    level, spread = robust_level(grey[outside])
     return float(np.percentile(grey[inside], 5)) < level + BAND_SPREADS * spread
 
 

@@ -113,6 +113,24 @@ def model_labels(model: KinematicModel, kin: Kinematics, camera: Camera,
     return labels if warp is None else warp.warp(labels, nearest=True, fill=-1)
 
 
+def hand_and_backdrop(labels: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """Bool (H, W) masks of the pixels more than :data:`MARGIN_PX` inside and outside the
+    model's silhouette in ``labels`` (H, W) (-1 off the model); None when either holds
+    fewer than 50 pixels."""
+    hit = (np.asarray(labels) >= 0).astype(np.uint8)
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * MARGIN_PX + 1,) * 2)
+    inside = cv2.erode(hit, kernel).astype(bool)
+    outside = ~cv2.dilate(hit, kernel).astype(bool)
+    return None if inside.sum() < 50 or outside.sum() < 50 else (inside, outside)
+
+
+def robust_level(values: np.ndarray) -> tuple[float, float]:
+    """Median and robust spread (1.4826 times the median absolute deviation) of grey
+    levels ``values``."""
+    level = float(np.median(values))
+    return level, 1.4826 * float(np.median(np.abs(values - level)))
+
+
 def fit_foreground(image: np.ndarray, labels: np.ndarray,
                    max_backdrop_std: float = 8.0, noise_blur_px: float = 2.0
                    ) -> Foreground | None:
@@ -121,18 +139,14 @@ def fit_foreground(image: np.ndarray, labels: np.ndarray,
     ``max_backdrop_std`` grey levels is measured again on the image blurred by
     ``noise_blur_px`` (module docstring; 0: never). None for a textured backdrop or an
     image without enough hand or backdrop pixels."""
-    hit = (np.asarray(labels) >= 0).astype(np.uint8)
-    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * MARGIN_PX + 1,) * 2)
-    inside = cv2.erode(hit, kernel).astype(bool)
-    outside = ~cv2.dilate(hit, kernel).astype(bool)
-    if inside.sum() < 50 or outside.sum() < 50:
+    regions = hand_and_backdrop(labels)
+    if regions is None:
         return None
+    inside, outside = regions
     for blur_px in (0.0, noise_blur_px):
         grey = _blurred(image, blur_px)
-        back = grey[outside]
-        level = float(np.median(back))
-        spread = 1.4826 * float(np.median(np.abs(back - level)))  # robust: the real hand
-        # reaches beyond the model's silhouette (a wrist, a fleshier palm)
+        level, spread = robust_level(grey[outside])  # robust: the real hand reaches
+        # beyond the model's silhouette (a wrist, a fleshier palm)
         if spread <= max_backdrop_std:
             break
     else:

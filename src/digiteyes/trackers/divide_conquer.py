@@ -405,6 +405,7 @@ class DivideConquerTracker:
         best = int(np.argmax(log_w))
         palm_points, palm_pixels, palm_rms = np.zeros((0, 3)), np.zeros((0, 2)), np.nan
         stop, rounds = "max_iterations", 0
+        cost = self._palm_motion_cost(q, predicted)  # the motion prior at the palm kept
         while rounds < opt.em_iterations:
             rounds += 1
             if not opt.track_palm:
@@ -429,11 +430,11 @@ class DivideConquerTracker:
             # An M-step must not lower the objective: keep the new palm only if the best
             # hypothesis under it is weighted at least as well as before, with the palm's
             # motion prior (MAP rather than maximum-likelihood EM).
-            if (log_w_new.max() - self._palm_motion_cost(q_new, predicted)
-                    < log_w.max() - self._palm_motion_cost(q, predicted)):
+            cost_new = self._palm_motion_cost(q_new, predicted)
+            if log_w_new.max() - cost_new < log_w.max() - cost:
                 stop = "palm step rejected"
                 break
-            q, lik, log_w = q_new, lik_new, log_w_new
+            q, lik, log_w, cost = q_new, lik_new, log_w_new, cost_new
             best = int(np.argmax(log_w))
             palm_points, palm_pixels, palm_rms = fit.model_points, fit.pixels, fit.rms_px
             if (np.linalg.norm(fit.T_world_palm[:3, 3] - T_before[:3, 3]) < opt.em_tolerance_mm
