@@ -9,7 +9,7 @@ import pytest
 
 from digiteyes.errors import DigitEyesError
 from digiteyes.features import FeatureOptions, measure_features
-from digiteyes.features.edge_signs import learn_side_signs, mixed_contrast
+from digiteyes.features.edge_signs import NEAR_PX, learn_side_signs, mixed_contrast, side_offsets
 from digiteyes.kinematics import forward_kinematics
 
 RADIUS = 8.0
@@ -50,6 +50,29 @@ def test_a_side_darker_than_the_backdrop_gets_the_other_sign(stick, flat_camera,
     assert abs(m @ a - rho) < 0.5 and abs(m @ b - rho) < 0.5
 
 
+def test_a_start_off_the_image_learns_no_sign(stick, flat_camera, stick_state,
+                                              capsule_image):
+    """The same shaded capsule over the grey backdrop, the start 4 mm (4 px) to one
+    side of it: the flipped measurement finds edges, but not where the start puts the
+    sides, so no sign is learned; at the true start the kept side lies on its predicted
+    silhouette (within a pixel) and the flipped one too."""
+    q = stick_state(-30.0, 3.0, 0.2)
+    image, _, _ = _shaded_capsule(stick, flat_camera, q, capsule_image, 120.0)
+    kin = forward_kinematics(stick, q)
+    usual = measure_features(image, flat_camera, stick, kin)
+    kept = usual.n_edges[0] >= FeatureOptions().min_edge_points
+    assert side_offsets(usual)[0][kept].max() < 1.0
+    default = np.tile([1.0, -1.0], (len(usual.link_ids), 1))
+    flipped = measure_features(image, flat_camera, stick, kin, side_signs=-default)
+    assert side_offsets(flipped)[0][~kept].max() < 1.0
+    off = stick_state(-30.0, 7.0, 0.2)
+    kin_off = forward_kinematics(stick, off)
+    assert np.array_equal(learn_side_signs(image, flat_camera, stick, kin_off), default)
+    far = measure_features(image, flat_camera, stick, kin_off, side_signs=-default)
+    found = far.n_edges[0] >= FeatureOptions().min_edge_points
+    assert found.any() and side_offsets(far)[0][found].min() > NEAR_PX
+
+
 def test_black_cloth_keeps_the_usual_signs(stick, flat_camera, stick_state, capsule_image):
     """The same capsule over black cloth (20): both sides brighter than the backdrop, the
     camera is not mixed, and the signs are the usual ones (the measurement unchanged)."""
@@ -64,13 +87,13 @@ def test_black_cloth_keeps_the_usual_signs(stick, flat_camera, stick_state, caps
 
 
 def test_the_tracker_learns_the_signs_once_and_keeps_them(desk):
-    """Asked to, the feature tracker learns one (L, 2) array per camera on its first frame
-    (on the flesh desk render over black cloth: the usual signs) and keeps it through a
-    restart; by default it learns none."""
+    """By default the feature tracker learns one (L, 2) array per camera on its first
+    frame (on the flesh desk render over black cloth: the usual signs) and keeps it
+    through a restart; asked not to, it learns none."""
     from digiteyes.trackers import FeatureTracker, FeatureTrackerOptions
 
     model, rig, q, _, image, _ = desk
-    tracker = FeatureTracker(model, rig, options=FeatureTrackerOptions(learn_edge_signs=True))
+    tracker = FeatureTracker(model, rig)
     tracker.reset(q)
     tracker.step([image])
     signs = tracker.side_signs
@@ -78,7 +101,7 @@ def test_the_tracker_learns_the_signs_once_and_keeps_them(desk):
     assert np.array_equal(signs[0], np.tile([1.0, -1.0], (len(signs[0]), 1)))
     tracker.restart(q)
     assert tracker.side_signs is signs
-    off = FeatureTracker(model, rig)
+    off = FeatureTracker(model, rig, options=FeatureTrackerOptions(learn_edge_signs=False))
     off.reset(q)
     off.step([image])
     assert off.side_signs is None

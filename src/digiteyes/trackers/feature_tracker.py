@@ -111,10 +111,11 @@ class FeatureTrackerOptions(SilhouetteLossOptions, LossHoldOptions, FingerSearch
         pixels reach the backdrop's grey levels (a grey wall, a dark hand), let each link
         side search for edges of the sign its silhouette shows at the start state
         (:mod:`digiteyes.features.edge_signs`); kept through a
-        :meth:`FeatureTracker.restart`. Elsewhere (black cloth) nothing changes. Off by
-        default: on renders over a grey wall and of a dark hand it halves the feature
-        tracker's error, on the real video it re-detects less but sits further from
-        MediaPipe's hand (docs/accuracy.md, "Renders the trackers were not developed on").
+        :meth:`FeatureTracker.restart`. Elsewhere (black cloth) nothing changes. On by
+        default since the seventeenth session: on renders over a grey wall and of a dark
+        hand it halves the feature tracker's error; on the real video it tracks as well
+        between re-detections and needs a fifth fewer of them (docs/accuracy.md,
+        "Renders the trackers were not developed on").
     start_size : on the first frame of a track, measure the hand's size at the start
         state from its features and track a model of that size
         (:mod:`digiteyes.trackers.feature_size`; models with a pose base). The start must
@@ -185,7 +186,7 @@ class FeatureTrackerOptions(SilhouetteLossOptions, LossHoldOptions, FingerSearch
     width_weight: float = 1.0
     max_width_error: float = 0.15
     fit_widths: bool = True
-    learn_edge_signs: bool = False
+    learn_edge_signs: bool = True
     start_size: bool = True
     conditioning: tuple[float, float, float] = (1.0, 10.0, 1000.0)
     use_conditioning: bool = True
