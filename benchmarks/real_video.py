@@ -47,6 +47,7 @@ import json
 import pickle
 import sys
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
 
 import cv2
@@ -103,7 +104,7 @@ def shape_gap_mm(ours: np.ndarray, reference: np.ndarray) -> float:
 
 
 def image_gaps(model, states: np.ndarray, first: int, detections: dict[int, np.ndarray],
-               camera, restarts: list[int] = ()) -> tuple[np.ndarray, np.ndarray]:
+               camera, restarts: Sequence[int] = ()) -> tuple[np.ndarray, np.ndarray]:
     """Per detected frame, the worst digit's mean keypoint distance between the track and
     the detection, in palm lengths (wrist to middle MCP of the detection); and the frames
     since the start ``first`` or the last of the re-detected frames ``restarts``."""
