@@ -4,6 +4,7 @@ with finite figures and the loss flag's scores."""
 import json
 import math
 
+import numpy as np
 import pytest
 
 from digiteyes.benchmarks import accuracy
@@ -38,6 +39,20 @@ def test_quick_accuracy_bench_writes_every_row(tmp_path):
     # one tracker: the totals over all trackers are its totals
     assert data["flag_totals_all"] == totals
     assert result["rows"] == rows
+
+
+def test_another_seed_tracks_another_motion(tmp_path):
+    """``seed`` draws another motion (the scenario's states differ, the rows' figures with
+    them) and is recorded in the JSON; the default is the committed table's seed."""
+    assert not np.allclose(accuracy.scenario_for("desk", "exact", 3).states,
+                           accuracy.scenario_for("desk", "exact", 3, seed=1).states)
+    rows = {seed: accuracy.source_rows("model", "exact", "whole-hand", {"features": 3},
+                                       seed=seed) for seed in (accuracy.SEED, 1)}
+    assert [r["fingertip_err_mm_mean"] for r in rows[accuracy.SEED]] != \
+        [r["fingertip_err_mm_mean"] for r in rows[1]]
+    path = tmp_path / "accuracy.json"
+    accuracy.run(json_path=str(path), quick=True, trackers=["features"], seed=1)
+    assert json.loads(path.read_text())["settings"]["seed"] == 1
 
 
 def test_frames_per_tracker():

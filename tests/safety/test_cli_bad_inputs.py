@@ -64,6 +64,8 @@ CASES = {
     "bench json to a folder": ["bench", "kinematics", "--json", "{w}"],
     "bench workers elsewhere": ["bench", "kinematics", "--workers", "2"],
     "bench no workers": ["bench", "accuracy", "--workers", "0"],
+    "bench seed elsewhere": ["bench", "smc", "--seed", "1"],
+    "bench negative seed": ["bench", "accuracy", "--seed", "-1"],
 }
 
 

@@ -22,7 +22,7 @@ SUITES = {
     "render-variants": "digiteyes.benchmarks.render_variants",
 }
 TRACKER_SUITES = ("accuracy",)
-"""Suites that take ``--trackers`` and ``--workers``."""
+"""Suites that take ``--trackers``, ``--workers`` and ``--seed``."""
 
 
 @click.command()
@@ -36,12 +36,15 @@ TRACKER_SUITES = ("accuracy",)
 @click.option("--workers", type=click.IntRange(min=1),
               help="Worker processes that render and track (suite 'accuracy'; default 2, "
                    "1 with --quick).")
+@click.option("--seed", type=click.IntRange(min=0),
+              help="Seed of the scenarios' motions and sensor noise (suite 'accuracy'; "
+                   "default 0, the committed table's).")
 def bench(suite: str, json_path: str | None, quick: bool, trackers: str | None,
-          workers: int | None) -> None:
+          workers: int | None, seed: int | None) -> None:
     """Run benchmark SUITE (one of the names above) or all."""
     names = list(SUITES) if suite == "all" else [suite]
     extra: dict = {}
-    for flag, value in (("--trackers", trackers), ("--workers", workers)):
+    for flag, value in (("--trackers", trackers), ("--workers", workers), ("--seed", seed)):
         if value is not None and suite not in TRACKER_SUITES:
             raise click.UsageError(f"{flag} applies to {', '.join(TRACKER_SUITES)}, "
                                    f"not {suite!r}")
@@ -49,6 +52,8 @@ def bench(suite: str, json_path: str | None, quick: bool, trackers: str | None,
         extra["trackers"] = [t.strip() for t in trackers.split(",") if t.strip()]
     if workers is not None:
         extra["workers"] = workers
+    if seed is not None:
+        extra["seed"] = seed
     for name in names:
         path = json_path
         if json_path and suite == "all":
