@@ -22,6 +22,7 @@ def result(tmp_path_factory):
         patch.setattr(accuracy, "SETUPS", {"webcam 1cam": ("webcam", None)})
         patch.setattr(render_variants, "SETUPS", accuracy.SETUPS)
         patch.setattr(render_variants, "TRACKERS", ("features",))
+        patch.setattr(render_variants, "DETECTOR_TRACKERS", ())
         patch.setattr(render_variants, "VARIANTS", VARIANTS)
         patch.setattr(render_variants, "QUICK_FRAMES", 8)
         path = tmp_path_factory.mktemp("bench") / "variants.json"
@@ -52,3 +53,12 @@ def test_rows_are_scored_and_totals_sum_them(result):
         assert total["fingertip_err_mm_mean"] == pytest.approx(row["fingertip_err_mm_mean"])
         assert total["flag"]["true_positive"] == flag["true_positive"]
     assert result["settings"]["variants"] == VARIANTS and result["machine"]["cpu"]
+
+
+def test_the_detector_tracker_joins_where_mediapipe_is_installed(monkeypatch):
+    """``features+keypoints`` (what ``track --tracker auto`` runs on a dataset) is measured
+    beside the seeds' trackers only where the MediaPipe extra is installed."""
+    monkeypatch.setattr(render_variants, "mediapipe_available", lambda: False)
+    assert render_variants.trackers() == render_variants.TRACKERS
+    monkeypatch.setattr(render_variants, "mediapipe_available", lambda: True)
+    assert render_variants.trackers() == (*render_variants.TRACKERS, "features+keypoints")

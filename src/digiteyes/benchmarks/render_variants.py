@@ -5,8 +5,9 @@ hand over black cloth with a quiet sensor, the thesis's setting. A user's camera
 noisier, their skin may be darker, the light may come from the side, the wall behind them
 grey. This suite renders the camera setups of the accuracy table (the exact hand, both
 appearances: the independent flesh hand beside our own drawing) under each of
-:data:`VARIANTS`, tracks each from its true first state with :data:`TRACKERS` at their
-defaults, and reports per variant and tracker the mean fingertip error, the frames truly
+:data:`VARIANTS`, tracks each from its true first state with :data:`TRACKERS` (and,
+with the MediaPipe extra, :data:`DETECTOR_TRACKERS`) at their defaults, and reports per
+variant and tracker the mean fingertip error, the frames truly
 lost (:mod:`digiteyes.evaluate.truth_loss`) and the loss flag's precision and recall.
 Each variant changes one thing against ``baseline`` (the accuracy table's own renders).
 
@@ -33,6 +34,7 @@ from digiteyes.benchmarks.accuracy import (
     scenario_for,
 )
 from digiteyes.benchmarks.tracker import _one_thread, render_sequence, track_sequence
+from digiteyes.detect.mediapipe_detector import mediapipe_available
 from digiteyes.trackers import tracker_entry
 
 VARIANTS: dict[str, dict[str, Any]] = {
@@ -48,6 +50,14 @@ table's renders (grey, black cloth, sensor noise 2 grey levels, the renderer's d
 light, skin albedo 0.85)."""
 TRACKERS = ("features", "templates", "divide-conquer")
 """The seeds' trackers (no learned detector: their images are the renders alone)."""
+DETECTOR_TRACKERS = ("features+keypoints",)
+"""Measured too where the MediaPipe extra is installed: what ``track --tracker auto`` runs
+on a dataset whose hand MediaPipe sees."""
+
+
+def trackers() -> tuple[str, ...]:
+    """:data:`TRACKERS`, and :data:`DETECTOR_TRACKERS` when MediaPipe is installed."""
+    return TRACKERS + (DETECTOR_TRACKERS if mediapipe_available() else ())
 FRAMES = 60
 QUICK_FRAMES = 4
 
@@ -66,7 +76,7 @@ def measure(frames: int) -> list[dict[str, Any]]:
                 if setup_source != source:
                     continue
                 sequence = rendered.cameras(cameras)
-                for name in TRACKERS:
+                for name in trackers():
                     outcome = track_sequence(sequence, tracker_entry(name).options_type(),
                                              f"{name} {label}", tracker=name)
                     figures = row_figures(sequence, outcome)
@@ -99,7 +109,7 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
     frames = QUICK_FRAMES if quick else FRAMES
     rows = measure(frames)
     result = {"benchmark": "render-variants", "quick": quick, "machine": machine_info(),
-              "settings": {"frames": frames, "trackers": list(TRACKERS),
+              "settings": {"frames": frames, "trackers": list(trackers()),
                            "appearances": list(APPEARANCES), "hand": "exact",
                            "variants": {k: {f: list(v) if isinstance(v, tuple) else v
                                             for f, v in fields.items()}
