@@ -21,6 +21,7 @@ from digiteyes.benchmarks.tracker import render_sequence
 from digiteyes.features import FeatureOptions, measure_features
 from digiteyes.features.edge_signs import learn_side_signs
 from digiteyes.features.foreground import model_labels
+from digiteyes.features.measure import usual_side_signs
 from digiteyes.kinematics import forward_kinematics
 from digiteyes.viz.overlay import draw_features
 
@@ -38,7 +39,7 @@ def main() -> None:
     image, camera = sequence.images[0][0], sequence.rig.cameras[0]
     kin = forward_kinematics(scenario.model, scenario.initial_state)
     learned = learn_side_signs(image, camera, scenario.model, kin)
-    usual_signs = np.tile([1.0, -1.0], (len(learned), 1))
+    usual_signs = usual_side_signs(len(learned))
     panels = []
     for name, signs in (("usual signs", usual_signs), ("learned signs", learned)):
         meas = measure_features(image, camera, scenario.model, kin, FeatureOptions(),

@@ -53,13 +53,13 @@ TRACKERS = ("features", "templates", "divide-conquer")
 DETECTOR_TRACKERS = ("features+keypoints",)
 """Measured too where the MediaPipe extra is installed: what ``track --tracker auto`` runs
 on a dataset whose hand MediaPipe sees."""
+FRAMES = 60
+QUICK_FRAMES = 4
 
 
 def trackers() -> tuple[str, ...]:
     """:data:`TRACKERS`, and :data:`DETECTOR_TRACKERS` when MediaPipe is installed."""
     return TRACKERS + (DETECTOR_TRACKERS if mediapipe_available() else ())
-FRAMES = 60
-QUICK_FRAMES = 4
 
 
 def measure(frames: int) -> list[dict[str, Any]]:

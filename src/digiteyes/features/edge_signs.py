@@ -28,7 +28,14 @@ import numpy as np
 
 from digiteyes.camera import Camera
 from digiteyes.features.foreground import hand_and_backdrop, model_labels, robust_level
-from digiteyes.features.measure import FeatureMeasurement, FeatureOptions, measure_features
+from digiteyes.features.measure import (
+    LINE_KINDS,
+    FeatureMeasurement,
+    FeatureOptions,
+    measure_features,
+    select_links,
+    usual_side_signs,
+)
 from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import KinematicModel, Kinematics
 
@@ -63,11 +70,10 @@ def learn_side_signs(image: np.ndarray, camera: Camera, model: KinematicModel,
     ``(+1, -1)`` (flipped without ``bright_object``), each side flipped where the module
     docstring says."""
     options = FeatureOptions() if options is None else options
-    usual = measure_features(image, camera, model, kin, options, links, tips)
-    polarity = 1.0 if options.bright_object else -1.0
-    signs = np.tile([polarity, -polarity], (len(usual.link_ids), 1))
+    signs = usual_side_signs(len(select_links(model, links, LINE_KINDS)), options)
     if not mixed_contrast(image, camera, model, kin):
         return signs
+    usual = measure_features(image, camera, model, kin, options, links, tips)
     flipped = measure_features(image, camera, model, kin, options, links, tips, -signs)
     enough = options.min_edge_points
     flip = ((usual.n_edges < enough) & (flipped.n_edges >= enough)

@@ -250,6 +250,13 @@ def _single_state_shapes(kin: Kinematics) -> np.ndarray:
     return kin.T_world_shape[0]
 
 
+def usual_side_signs(n_links: int, options: FeatureOptions = FeatureOptions()) -> np.ndarray:
+    """(n_links, 2) edge signs of the thesis's search (Sec. 4.3.1): ``(+1, -1)`` for a hand
+    brighter than its backdrop, ``(-1, +1)`` without ``bright_object``."""
+    polarity = 1.0 if options.bright_object else -1.0
+    return np.tile([polarity, -polarity], (n_links, 1))
+
+
 def measure_features(
     image: np.ndarray,
     camera: Camera,
@@ -292,10 +299,10 @@ def measure_features(
                        None if tips is None else tuple(tips), options.tip_end)
     view, perspective = view_of(camera)
     params = camera.projection_params
-    polarity = 1.0 if options.bright_object else -1.0
+    polarity = 1.0 if options.bright_object else -1.0  # the tips' search keeps one sign
     n_tracked = len(tracked.link_ids)
     if side_signs is None:
-        side_signs = np.tile([polarity, -polarity], (n_tracked, 1))
+        side_signs = usual_side_signs(n_tracked, options)
     side_signs = np.asarray(side_signs, dtype=float)
     if side_signs.shape != (n_tracked, 2):
         raise DigitEyesError(f"side_signs must be ({n_tracked}, 2), one sign per side of "
