@@ -4,9 +4,11 @@ import numpy as np
 import pytest
 
 from digiteyes.errors import DigitEyesError
+from digiteyes.kinematics import forward_kinematics
 from digiteyes.smc.likelihood import (
     FingerGeometry,
     LikelihoodOptions,
+    edge_lookup,
     finger_log_likelihood,
     observe_edges,
 )
@@ -67,7 +69,6 @@ def test_distance_lookup_ranks_like_the_normal_search(natural_cardboard):
 def _reference_log_likelihood(model, geometry, q, cam, edges, options):
     """Huang Sec. 5.2 written plainly (normal search, occlusion by every other patch and
     the palm quad), for one state: the compiled kernel must agree with it."""
-    from digiteyes.kinematics import forward_kinematics
 
     shapes = forward_kinematics(model, q[None]).T_world_shape[0]
     T = shapes[geometry.link_rows]
@@ -129,19 +130,28 @@ def _reference_log_likelihood(model, geometry, q, cam, edges, options):
     return total, visible
 
 
-def test_the_compiled_likelihood_matches_a_plain_reference(natural_cardboard):
+@pytest.mark.parametrize("with_lookup", [False, True])
+def test_the_compiled_likelihood_matches_a_plain_reference(natural_cardboard, with_lookup):
     """The kernel's shortcuts (occluders chosen per particle from image boxes, a branch-free
-    search) change nothing: log-likelihood and visible points as the plain loops give."""
+    search, unchecked reads where the whole search lies inside the image and, given the
+    frame's lookup, no search from a point far from every edge) change nothing:
+    log-likelihood and visible points as the plain loops give, for a hand half out of
+    the frame too."""
     model, cam, states = natural_cardboard
     assert cam.projection == "perspective"
     geometry = FingerGeometry.of(model)
     options = LikelihoodOptions()
     edges = observe_edges(render_views(model, states[30], [cam], rng=1)[0].image)
+    edges[:, :3] = 255  # a read past the right border would find the next row's edges
     idx = default_configuration_space(model).joint_indices(model)
-    Q = np.repeat(states[30][None], 6, axis=0)
-    Q[1:, idx] += np.random.default_rng(2).normal(0.0, np.radians(25.0), (5, len(idx)))
+    Q = np.repeat(states[30][None], 7, axis=0)
+    Q[1:, idx] += np.random.default_rng(2).normal(0.0, np.radians(25.0), (6, len(idx)))
     Q[5, idx] = np.radians(80.0)  # a fist: fingers hide each other and the palm
-    result = finger_log_likelihood(model, geometry, Q, [cam], [edges], options)
+    Q[6, model.state_index("palm.x")] -= 150.0  # the fingers run off the right border
+    lookups = [edge_lookup(edges, options)] if with_lookup else None
+    result = finger_log_likelihood(model, geometry, Q, [cam], [edges], options, lookups)
+    right = cam.project(forward_kinematics(model, Q[6:]).T_world_shape[0][:, :3, 3])[:, 0]
+    assert right.max() > cam.width > right.min()
     for k, q in enumerate(Q):
         total, visible = _reference_log_likelihood(model, geometry, q, cam, edges, options)
         assert result.visible[k] == visible

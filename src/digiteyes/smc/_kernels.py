@@ -35,7 +35,7 @@ def _palm_depth(px, py, pu, pv, pz):  # pragma: no cover - compiled
 @njit(cache=True, fastmath=True)
 def edge_likelihood_kernel(shapes, link_rows, lengths, radii, ts, skip, palm_row, palm_outline,
                            params, edges, half_window, sigma, inv_c, margin, score, distance,
-                           use_lookup, log_l, stats):  # pragma: no cover - compiled
+                           use_lookup, skip_far, log_l, stats):  # pragma: no cover - compiled
     """Huang Sec. 5.2 for N particles.
 
     ``shapes`` (N, S, 4, 4) ``T_world_shape`` of every shape row (forward kinematics),
@@ -47,8 +47,11 @@ def edge_likelihood_kernel(shapes, link_rows, lengths, radii, ts, skip, palm_row
     (:attr:`Camera.projection_params`), ``edges`` (H, W) uint8 edge map. With
     ``use_lookup``, each visible point reads its factor from ``score`` (H, W) and the
     nearest-edge distance from ``distance`` (H, W) (:func:`edge_lookup`) instead of
-    searching along the normal. Writes ``log_l`` (N,) and ``stats`` (N, 3): visible
-    points, points with an edge, sum of squared offset of the nearest edge (px^2).
+    searching along the normal. With ``skip_far`` (and not ``use_lookup``), a point whose
+    pixel lies farther than ``half_window + 1.5`` px from every edge (``distance``) skips
+    the search: every pixel the search reads lies within ``half_window + sqrt(2)`` of it,
+    so the search would find nothing (the same result, sooner). Writes ``log_l`` (N,) and
+    ``stats`` (N, 3): visible points, points with an edge, sum of squared offset of the nearest edge (px^2).
     """
     n_particles, n_links = shapes.shape[0], link_rows.shape[0]
     n_t = ts.shape[0]
@@ -71,6 +74,7 @@ def edge_likelihood_kernel(shapes, link_rows, lengths, radii, ts, skip, palm_row
     pu = np.empty(4)
     pv = np.empty(4)
     pz = np.empty(4)
+    far = half_window + 1.5
     gauss = np.exp(-np.arange(half_window + 1) ** 2 / (2.0 * sigma * sigma))
     for n in range(n_particles):
         for li in range(n_links):
@@ -161,16 +165,27 @@ def edge_likelihood_kernel(shapes, link_rows, lengths, radii, ts, skip, palm_row
                             sq += d * d
                         total += score[iy, ix]
                         continue
+                    if skip_far and distance[int(py + 0.5), int(px + 0.5)] > far:
+                        continue
                     acc = 0.0
                     best = 1e30
-                    for o in range(-half_window, half_window + 1):
-                        ix = int(px + o * nx + 0.5)
-                        iy = int(py + o * ny + 0.5)
-                        if ix < 0 or iy < 0 or ix >= width or iy >= height:
-                            continue
-                        hit = edges[iy, ix] != 0  # branch-free: edges are rare
-                        acc += gauss[abs(o)] * hit
-                        best = min(best, o * o if hit else 1e30)
+                    reach_x, reach_y = half_window * abs(nx), half_window * abs(ny)
+                    if px - reach_x >= 0.0 and px + reach_x + 0.5 < width and \
+                            py - reach_y >= 0.0 and py + reach_y + 0.5 < height:
+                        for o in range(-half_window, half_window + 1):  # all inside
+                            hit = edges[np.uint64(py + o * ny + 0.5),
+                                        np.uint64(px + o * nx + 0.5)] != 0
+                            acc += gauss[abs(o)] * hit  # branch-free: edges are rare
+                            best = min(best, o * o if hit else 1e30)
+                    else:
+                        for o in range(-half_window, half_window + 1):
+                            ix = int(px + o * nx + 0.5)
+                            iy = int(py + o * ny + 0.5)
+                            if ix < 0 or iy < 0 or ix >= width or iy >= height:
+                                continue
+                            hit = edges[iy, ix] != 0
+                            acc += gauss[abs(o)] * hit
+                            best = min(best, o * o if hit else 1e30)
                     if best < 1e30:  # an edge in the window (acc > 0; log(1 + 0) = 0 else)
                         n_hit += 1.0
                         sq += best

@@ -192,12 +192,14 @@ def finger_log_likelihood(model: KinematicModel, geometry: FingerGeometry, q: np
     Batched forward kinematics for all N states, then one compiled pass per camera.
     ``lookups`` (one :class:`EdgeLookup` per camera) are the ``"distance"`` search's
     tables; computed from ``edge_maps`` when not given (pass them to reuse them within a
-    frame).
+    frame). The ``"normal"`` search uses them when given, to skip the search from a point
+    farther from every edge than the search reaches (the same result, sooner).
     """
     use_lookup = options.search == "distance"
     if use_lookup and lookups is None:
         lookups = [edge_lookup(e, options) for e in edge_maps]
-    if not use_lookup:
+    skip_far = lookups is not None and not use_lookup
+    if lookups is None:
         lookups = [EdgeLookup(np.zeros((1, 1), np.float32), np.zeros((1, 1), np.float32))
                    ] * len(edge_maps)
     shapes = forward_kinematics(model, np.atleast_2d(q)).T_world_shape
@@ -213,7 +215,7 @@ def finger_log_likelihood(model: KinematicModel, geometry: FingerGeometry, q: np
                                camera.projection_params, edges, int(options.search_px),
                                float(options.sigma_px), float(options.inverse_clutter),
                                float(options.occlusion_margin_mm), lookup.score,
-                               lookup.distance, use_lookup, out_l, out_s)
+                               lookup.distance, use_lookup, skip_far, out_l, out_s)
         log_l += out_l
         stats += out_s
     with np.errstate(invalid="ignore", divide="ignore"):
