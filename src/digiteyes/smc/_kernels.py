@@ -51,7 +51,8 @@ def edge_likelihood_kernel(shapes, link_rows, lengths, radii, ts, skip, palm_row
     pixel lies farther than ``half_window + 1.5`` px from every edge (``distance``) skips
     the search: every pixel the search reads lies within ``half_window + sqrt(2)`` of it,
     so the search would find nothing (the same result, sooner). Writes ``log_l`` (N,) and
-    ``stats`` (N, 3): visible points, points with an edge, sum of squared offset of the nearest edge (px^2).
+    ``stats`` (N, 3): visible points, points with an edge, sum of squared offset of the
+    nearest edge (px^2).
     """
     n_particles, n_links = shapes.shape[0], link_rows.shape[0]
     n_t = ts.shape[0]
