@@ -70,6 +70,10 @@ def edge_likelihood_kernel(shapes, link_rows, lengths, radii, ts, skip, palm_row
     lo_v = np.empty(n_links)
     hi_v = np.empty(n_links)
     near_z = np.empty(n_links)
+    vis_u = np.empty(n_links * ts.shape[0] * 2)
+    vis_v = np.empty(n_links * ts.shape[0] * 2)
+    vis_nx = np.empty(n_links * ts.shape[0] * 2)
+    vis_ny = np.empty(n_links * ts.shape[0] * 2)
     cands = np.empty((n_links, n_links), dtype=np.int64)
     n_cands = np.empty(n_links, dtype=np.int64)
     pu = np.empty(4)
@@ -115,7 +119,7 @@ def edge_likelihood_kernel(shapes, link_rows, lengths, radii, ts, skip, palm_row
                     count += 1
             n_cands[li] = count
         total = 0.0
-        n_vis = 0.0
+        n_vis_i = 0
         n_hit = 0.0
         sq = 0.0
         for li in range(n_links):
@@ -156,41 +160,48 @@ def edge_likelihood_kernel(shapes, link_rows, lengths, radii, ts, skip, palm_row
                         j += 1
                     if hidden:
                         continue
-                    n_vis += 1.0
-                    if use_lookup:
-                        ix = int(px + 0.5)
-                        iy = int(py + 0.5)
-                        d = distance[iy, ix]
-                        if d <= half_window:
-                            n_hit += 1.0
-                            sq += d * d
-                        total += score[iy, ix]
+                    vis_u[n_vis_i] = px
+                    vis_v[n_vis_i] = py
+                    vis_nx[n_vis_i] = nx
+                    vis_ny[n_vis_i] = ny
+                    n_vis_i += 1
+        n_vis = float(n_vis_i)
+        for i in range(n_vis_i):
+            px, py, nx, ny = vis_u[i], vis_v[i], vis_nx[i], vis_ny[i]
+            if use_lookup:
+                ix = int(px + 0.5)
+                iy = int(py + 0.5)
+                d = distance[iy, ix]
+                if d <= half_window:
+                    n_hit += 1.0
+                    sq += d * d
+                total += score[iy, ix]
+                continue
+            if skip_far and distance[int(py + 0.5), int(px + 0.5)] > far:
+                continue
+            acc = 0.0
+            best = 1e30
+            reach_x, reach_y = half_window * abs(nx), half_window * abs(ny)
+            if px - reach_x >= 0.0 and px + reach_x + 0.5 < width and \
+                    py - reach_y >= 0.0 and py + reach_y + 0.5 < height:
+                for o in range(-half_window, half_window + 1):  # all inside
+                    hit = edges[np.uint64(py + o * ny + 0.5),
+                                np.uint64(px + o * nx + 0.5)] != 0
+                    acc += gauss[abs(o)] * hit  # branch-free: edges are rare
+                    best = min(best, o * o if hit else 1e30)
+            else:
+                for o in range(-half_window, half_window + 1):
+                    ix = int(px + o * nx + 0.5)
+                    iy = int(py + o * ny + 0.5)
+                    if ix < 0 or iy < 0 or ix >= width or iy >= height:
                         continue
-                    if skip_far and distance[int(py + 0.5), int(px + 0.5)] > far:
-                        continue
-                    acc = 0.0
-                    best = 1e30
-                    reach_x, reach_y = half_window * abs(nx), half_window * abs(ny)
-                    if px - reach_x >= 0.0 and px + reach_x + 0.5 < width and \
-                            py - reach_y >= 0.0 and py + reach_y + 0.5 < height:
-                        for o in range(-half_window, half_window + 1):  # all inside
-                            hit = edges[np.uint64(py + o * ny + 0.5),
-                                        np.uint64(px + o * nx + 0.5)] != 0
-                            acc += gauss[abs(o)] * hit  # branch-free: edges are rare
-                            best = min(best, o * o if hit else 1e30)
-                    else:
-                        for o in range(-half_window, half_window + 1):
-                            ix = int(px + o * nx + 0.5)
-                            iy = int(py + o * ny + 0.5)
-                            if ix < 0 or iy < 0 or ix >= width or iy >= height:
-                                continue
-                            hit = edges[iy, ix] != 0
-                            acc += gauss[abs(o)] * hit
-                            best = min(best, o * o if hit else 1e30)
-                    if best < 1e30:  # an edge in the window (acc > 0; log(1 + 0) = 0 else)
-                        n_hit += 1.0
-                        sq += best
-                        total += np.log(1.0 + acc * inv_c)
+                    hit = edges[iy, ix] != 0
+                    acc += gauss[abs(o)] * hit
+                    best = min(best, o * o if hit else 1e30)
+            if best < 1e30:  # an edge in the window (acc > 0; log(1 + 0) = 0 else)
+                n_hit += 1.0
+                sq += best
+                total += np.log(1.0 + acc * inv_c)
         log_l[n] = total
         stats[n, 0] = n_vis
         stats[n, 1] = n_hit
