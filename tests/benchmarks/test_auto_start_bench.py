@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from digiteyes.benchmarks import auto_start as bench
@@ -24,6 +25,9 @@ def test_the_verdict_is_on_the_means_over_seeds():
     assert summary["mean_error_from_frame_10_true_start_mm"] == pytest.approx(5.0)
     assert summary["mean_error_from_frame_10_auto_start_mm"] == pytest.approx(17.0 / 3)
     assert summary["meets_target"] and summary["reinitialisations"] == 3
+    assert summary["gap_mm"] == pytest.approx(2.0 / 3)
+    assert summary["gap_standard_error_mm"] == pytest.approx(np.std([-1, 2, 1], ddof=1)
+                                                             / np.sqrt(3))
     assert not bench.summarise([entry(0, 5.0, 6.5), entry(1, 5.0, 5.6)])["meets_target"]
 
 
@@ -41,3 +45,16 @@ def test_the_table_has_a_row_per_seed_and_per_variant():
     assert any("no start" in line and " 1 " in line for line in lines)
     assert any(line.startswith("desk-2cam") and "1/2" in line and line.endswith("no")
                for line in lines)
+    assert any("+0.50" in line for line in lines)  # the gap of the one seed that started
+
+
+def test_more_seeds_draw_more_scenarios(monkeypatch):
+    """``seeds=N`` runs seeds 0..N-1 for every setup and variant (recorded in the JSON)."""
+    calls = []
+    monkeypatch.setattr(bench, "setup_entry", lambda name, n, det, app, seed, tracker, size:
+                        calls.append(seed) or entry(seed, 5.0, 5.0) | {"setup": name})
+    monkeypatch.setattr(bench, "variants", lambda: [("classic", "model", "features", 1.0)])
+    result = bench.run(seeds=5)
+    assert sorted(set(calls)) == [0, 1, 2, 3, 4] and len(calls) == 5 * len(bench.SETUPS)
+    assert result["settings"]["seeds"] == [0, 1, 2, 3, 4]
+    assert all(s["seeds"] == [0, 1, 2, 3, 4] for s in result["summary"])

@@ -66,6 +66,8 @@ CASES = {
     "bench no workers": ["bench", "accuracy", "--workers", "0"],
     "bench seed elsewhere": ["bench", "smc", "--seed", "1"],
     "bench negative seed": ["bench", "accuracy", "--seed", "-1"],
+    "bench seeds elsewhere": ["bench", "accuracy", "--seeds", "4"],
+    "bench one seed": ["bench", "auto-start", "--seeds", "1"],
 }
 
 

@@ -192,21 +192,29 @@ def summarise(entries: list[dict[str, Any]]) -> dict[str, Any]:
                                "started": len(started)}
     if not started:
         return summary | {"meets_target": False}
-    true = float(np.mean([e["mean_error_from_frame_10_true_start_mm"] for e in started]))
-    auto = float(np.mean([e["mean_error_from_frame_10_auto_start_mm"] for e in started]))
+    true = np.array([e["mean_error_from_frame_10_true_start_mm"] for e in started])
+    auto = np.array([e["mean_error_from_frame_10_auto_start_mm"] for e in started])
+    gaps = auto - true
     return summary | {
-        "mean_error_from_frame_10_true_start_mm": true,
-        "mean_error_from_frame_10_auto_start_mm": auto,
+        "mean_error_from_frame_10_true_start_mm": float(true.mean()),
+        "mean_error_from_frame_10_auto_start_mm": float(auto.mean()),
+        "gap_mm": float(gaps.mean()),
+        "gap_standard_error_mm": (float(gaps.std(ddof=1) / np.sqrt(len(gaps)))
+                                  if len(gaps) > 1 else None),
         "reinitialisations": int(sum(len(e["reinitialised_frames"]) for e in started)),
-        "meets_target": bool(len(started) == len(entries) and auto <= true + TOLERANCE_MM)}
+        "meets_target": bool(len(started) == len(entries)
+                             and gaps.mean() <= TOLERANCE_MM)}
 
 
-def run(json_path: str | None = None, quick: bool = False) -> dict:
+def run(json_path: str | None = None, quick: bool = False, seeds: int | None = None) -> dict:
     """Both setups with every variant and seed; print the table; write JSON to
-    ``json_path``."""
+    ``json_path``. ``seeds``: how many scenario seeds (0, 1, ...; default :data:`SEEDS`,
+    one with ``quick``): a run's mean moves by a few mm from seed to seed, so a gap of
+    about the tolerance needs more seeds than three to be told from noise (the table
+    gives each gap's standard error over the seeds)."""
     started = time.perf_counter()
     n_frames = 16 if quick else 40
-    seeds = SEEDS[:1] if quick else SEEDS
+    seeds = tuple(range(seeds)) if seeds else SEEDS[:1] if quick else SEEDS
     entries = [[setup_entry(name, n_frames, detector, appearance, seed, tracker, size)
                 for seed in seeds]
                for name in SETUPS for detector, appearance, tracker, size in variants()]
@@ -241,13 +249,17 @@ def format_table(result: dict[str, Any]) -> str:
                      f" {len(e['reinitialised_frames']):>8}")
     lines += ["", f"{'setup':<12} {'detector / images [/ tracker]':<32} {'started':>8}"
               f" {'true>=10':>9}"
-              f" {'auto>=10':>9} {'re-init':>8}  target"]
+              f" {'auto>=10':>9} {'gap +- se':>13} {'re-init':>8}  target"]
     for s in result["summary"]:
         head = _head(s, f"{s['started']:>4}/{len(s['seeds']):<3}")
         verdict = "yes" if s["meets_target"] else "no"
-        lines.append(f"{head} {'':>9} {'':>9} {'':>8}  {verdict}" if not s["started"] else
-                     f"{head}{_means(s)} {s['reinitialisations']:>8}  {verdict}")
-    lines.append("(errors: mean model keypoint distance to the truth, mm)")
+        se = s.get("gap_standard_error_mm")
+        gap = (f"{s['gap_mm']:+.2f} +- {se:.2f}" if se is not None else f"{s['gap_mm']:+.2f}"
+               ) if s["started"] else ""
+        lines.append(f"{head} {'':>9} {'':>9} {'':>13} {'':>8}  {verdict}" if not s["started"]
+                     else f"{head}{_means(s)} {gap:>13} {s['reinitialisations']:>8}  {verdict}")
+    lines.append("(errors: mean model keypoint distance to the truth, mm; gap: automatic minus "
+                 "true start, mean over the seeds that started +- its standard error)")
     return "\n".join(lines)
 
 

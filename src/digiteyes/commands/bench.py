@@ -39,8 +39,10 @@ TRACKER_SUITES = ("accuracy",)
 @click.option("--seed", type=click.IntRange(min=0),
               help="Seed of the scenarios' motions and sensor noise (suite 'accuracy'; "
                    "default 0, the committed table's).")
+@click.option("--seeds", type=click.IntRange(min=2),
+              help="Number of scenario seeds (suite 'auto-start'; default 3).")
 def bench(suite: str, json_path: str | None, quick: bool, trackers: str | None,
-          workers: int | None, seed: int | None) -> None:
+          workers: int | None, seed: int | None, seeds: int | None) -> None:
     """Run benchmark SUITE (one of the names above) or all."""
     names = list(SUITES) if suite == "all" else [suite]
     extra: dict = {}
@@ -48,6 +50,10 @@ def bench(suite: str, json_path: str | None, quick: bool, trackers: str | None,
         if value is not None and suite not in TRACKER_SUITES:
             raise click.UsageError(f"{flag} applies to {', '.join(TRACKER_SUITES)}, "
                                    f"not {suite!r}")
+    if seeds is not None:
+        if suite != "auto-start":
+            raise click.UsageError(f"--seeds applies to auto-start, not {suite!r}")
+        extra["seeds"] = seeds
     if trackers is not None:
         extra["trackers"] = [t.strip() for t in trackers.split(",") if t.strip()]
     if workers is not None:
