@@ -53,6 +53,7 @@ import contextlib
 import os
 import sys
 import warnings
+import weakref
 from collections.abc import Iterator
 
 import cv2
@@ -174,10 +175,15 @@ class MediaPipeDetector:
                 model_complexity=model_complexity, min_detection_confidence=min_confidence,
                 min_tracking_confidence=min_confidence)
             self._hands.process(np.zeros((BLANK_SIDE, BLANK_SIDE, 3), np.uint8))  # graph started
+        # MediaPipe does not stop a graph its object no longer reaches (about 75 MB each,
+        # kept to the end of the process): the detector stops it when it is itself
+        # collected, or at close(), whichever comes first
+        self._release = weakref.finalize(self, self._hands.close)
 
     def close(self) -> None:
-        """Release MediaPipe's graph."""
-        self._hands.close()
+        """Release MediaPipe's graph now (it is released anyway when the detector is
+        garbage-collected); idempotent."""
+        self._release()
 
     def detect(self, image: np.ndarray, camera: Camera | None = None) -> list[HandCandidate]:
         """Hands in an RGB (H, W, 3) or grey (H, W) uint8 image, most confident first (in a
