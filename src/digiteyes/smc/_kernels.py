@@ -1,5 +1,7 @@
-"""Compiled inner loop of the edge likelihood (Huang Sec. 5.2): one pass per particle over
-the sample points of every finger patch, with the occlusion test and the normal search."""
+"""Compiled inner loop of the edge likelihood (Huang Sec. 5.2): per particle, a pass over
+the sample points of every finger patch that keeps the points no other patch or the palm
+hides (the occlusion test), then a pass that searches along the normal at each of them
+(two loops: the occlusion test's unpredictable branches stay out of the search loop)."""
 
 from __future__ import annotations
 
@@ -47,7 +49,8 @@ def edge_likelihood_kernel(shapes, link_rows, lengths, radii, ts, skip, palm_row
     (:attr:`Camera.projection_params`), ``edges`` (H, W) uint8 edge map. With
     ``use_lookup``, each visible point reads its factor from ``score`` (H, W) and the
     nearest-edge distance from ``distance`` (H, W) (:func:`edge_lookup`) instead of
-    searching along the normal. With ``skip_far`` (and not ``use_lookup``), a point whose
+    searching along the normal; a search whose pixels all lie inside the image reads
+    ``edges`` without per-pixel bounds checks. With ``skip_far`` (and not ``use_lookup``), a point whose
     pixel lies farther than ``half_window + 1.5`` px from every edge (``distance``) skips
     the search: every pixel the search reads lies within ``half_window + sqrt(2)`` of it,
     so the search would find nothing (the same result, sooner). Writes ``log_l`` (N,) and
@@ -70,10 +73,10 @@ def edge_likelihood_kernel(shapes, link_rows, lengths, radii, ts, skip, palm_row
     lo_v = np.empty(n_links)
     hi_v = np.empty(n_links)
     near_z = np.empty(n_links)
-    vis_u = np.empty(n_links * ts.shape[0] * 2)
-    vis_v = np.empty(n_links * ts.shape[0] * 2)
-    vis_nx = np.empty(n_links * ts.shape[0] * 2)
-    vis_ny = np.empty(n_links * ts.shape[0] * 2)
+    vis_u = np.empty(n_links * n_t * 2)  # the visible lateral points and their normals
+    vis_v = np.empty(n_links * n_t * 2)
+    vis_nx = np.empty(n_links * n_t * 2)
+    vis_ny = np.empty(n_links * n_t * 2)
     cands = np.empty((n_links, n_links), dtype=np.int64)
     n_cands = np.empty(n_links, dtype=np.int64)
     pu = np.empty(4)
