@@ -50,12 +50,12 @@ def edge_likelihood_kernel(shapes, link_rows, lengths, radii, ts, skip, palm_row
     ``use_lookup``, each visible point reads its factor from ``score`` (H, W) and the
     nearest-edge distance from ``distance`` (H, W) (:func:`edge_lookup`) instead of
     searching along the normal; a search whose pixels all lie inside the image reads
-    ``edges`` without per-pixel bounds checks. With ``skip_far`` (and not ``use_lookup``), a point whose
-    pixel lies farther than ``half_window + 1.5`` px from every edge (``distance``) skips
-    the search: every pixel the search reads lies within ``half_window + sqrt(2)`` of it,
-    so the search would find nothing (the same result, sooner). Writes ``log_l`` (N,) and
-    ``stats`` (N, 3): visible points, points with an edge, sum of squared offset of the
-    nearest edge (px^2).
+    ``edges`` without per-pixel bounds checks. With ``skip_far`` (and not
+    ``use_lookup``), a point whose pixel lies farther than ``half_window + 1.5`` px from
+    every edge (``distance``) skips the search: every pixel the search reads lies within
+    ``half_window + sqrt(2)`` of it, so the search would find nothing (the same result,
+    sooner). Writes ``log_l`` (N,) and ``stats`` (N, 3): visible points, points with an
+    edge, sum of squared offset of the nearest edge (px^2).
     """
     n_particles, n_links = shapes.shape[0], link_rows.shape[0]
     n_t = ts.shape[0]
