@@ -21,8 +21,10 @@ SUITES = {
     "clutter-flag": "digiteyes.benchmarks.clutter_flag",
     "render-variants": "digiteyes.benchmarks.render_variants",
 }
-TRACKER_SUITES = ("accuracy",)
-"""Suites that take ``--trackers``, ``--workers`` and ``--seed``."""
+SUITE_OPTIONS = {"trackers": ("accuracy",), "workers": ("accuracy",), "seed": ("accuracy",),
+                 "seeds": ("auto-start",)}
+"""The options only some suites take: option -> those suites (each passes the option's
+value to the suite's ``run`` under the same name)."""
 
 
 @click.command()
@@ -45,21 +47,14 @@ def bench(suite: str, json_path: str | None, quick: bool, trackers: str | None,
           workers: int | None, seed: int | None, seeds: int | None) -> None:
     """Run benchmark SUITE (one of the names above) or all."""
     names = list(SUITES) if suite == "all" else [suite]
-    extra: dict = {}
-    for flag, value in (("--trackers", trackers), ("--workers", workers), ("--seed", seed)):
-        if value is not None and suite not in TRACKER_SUITES:
-            raise click.UsageError(f"{flag} applies to {', '.join(TRACKER_SUITES)}, "
+    given = {"trackers": None if trackers is None
+             else [t.strip() for t in trackers.split(",") if t.strip()],
+             "workers": workers, "seed": seed, "seeds": seeds}
+    extra = {option: value for option, value in given.items() if value is not None}
+    for option in extra:
+        if suite not in SUITE_OPTIONS[option]:
+            raise click.UsageError(f"--{option} applies to {', '.join(SUITE_OPTIONS[option])}, "
                                    f"not {suite!r}")
-    if seeds is not None:
-        if suite != "auto-start":
-            raise click.UsageError(f"--seeds applies to auto-start, not {suite!r}")
-        extra["seeds"] = seeds
-    if trackers is not None:
-        extra["trackers"] = [t.strip() for t in trackers.split(",") if t.strip()]
-    if workers is not None:
-        extra["workers"] = workers
-    if seed is not None:
-        extra["seed"] = seed
     for name in names:
         path = json_path
         if json_path and suite == "all":
