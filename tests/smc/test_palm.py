@@ -102,6 +102,17 @@ def test_nearest_edges_agree_with_the_exact_distance_transform():
     assert np.isinf(empty).all()
 
 
+def test_nearest_edges_list_the_edge_pixels_in_row_major_order():
+    """The edge pixels are those of ``np.argwhere`` in its order (row-major), so that the
+    k-d tree, and with it every tie between equally near edge pixels, is the same; any
+    non-zero value is an edge."""
+    rng = np.random.default_rng(1)
+    edges = (rng.random((48, 64)) < 0.05) * rng.integers(1, 256, (48, 64))
+    for edge_map in (edges.astype(np.uint8), edges.astype(np.float32)):
+        np.testing.assert_array_equal(nearest_edge_field(edge_map).edges,
+                                      np.argwhere(edge_map != 0))
+
+
 def _outline_edge_map(model, geometry, q, camera, corners):
     """An edge map (255 on edges) with the outline ``corners`` (4, 3) drawn at state ``q``."""
     import cv2

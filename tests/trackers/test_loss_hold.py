@@ -9,7 +9,7 @@ from digiteyes.camera import Rig
 from digiteyes.errors import DigitEyesError
 from digiteyes.synth.scenarios import build_scenario
 from digiteyes.trackers import TrackResult, create_tracker
-from digiteyes.trackers.loss_hold import LOCAL_HOLD_FRAMES, LossHold
+from digiteyes.trackers.loss_hold import LossHold
 
 
 def _result(lost: bool) -> TrackResult:
@@ -49,13 +49,11 @@ def test_bad_counts_are_refused(bad):
         LossHold(bad)
 
 
-@pytest.mark.parametrize("name, default", [("features", LOCAL_HOLD_FRAMES),
-                                           ("templates", LOCAL_HOLD_FRAMES),
-                                           ("divide-conquer", 0)])
-def test_trackers_take_the_setting(name, default):
+@pytest.mark.parametrize("name", ["features", "templates", "divide-conquer"])
+def test_trackers_take_the_setting(name):
     scenario = build_scenario("desk-1cam", seed=0, n_frames=1)
     model, rig = scenario.model, Rig(scenario.rig.cameras[:1])
-    assert create_tracker(name, model, rig).loss_hold.frames == default
+    assert create_tracker(name, model, rig).loss_hold.frames == 0  # no hold by default
     assert create_tracker(name, model, rig, hold_lost_frames=4).loss_hold.frames == 4
 
 

@@ -178,7 +178,10 @@ class NearestEdges:
 
 def nearest_edge_field(edge_map: np.ndarray) -> NearestEdges:
     """The :class:`NearestEdges` of an edge map (H, W) (non-zero on edges)."""
-    edges = np.argwhere(np.asarray(edge_map) != 0)
+    found = cv2.findNonZero((np.asarray(edge_map) != 0).view(np.uint8))
+    # OpenCV lists (x, y) in row-major order, as np.argwhere lists (row, col): same rows
+    edges = np.zeros((0, 2), dtype=np.int64) if found is None else \
+        found.reshape(-1, 2)[:, ::-1].astype(np.int64)
     return NearestEdges(edge_map.shape[:2], edges, cKDTree(edges) if len(edges) else None)
 
 

@@ -64,9 +64,8 @@ class AnchoredFeatureOptions(FeatureTrackerOptions):
     detector : the keypoint detector, one of :data:`ANCHOR_DETECTORS` (video mode).
     keypoint_sigma_px : a detected keypoint's expected error (px); its residual is
         divided by it, so a keypoint that far off weighs as a feature off by one pixel.
-    hold_lost_frames : 0 (judge each frame alone; the feature tracker holds a loss for
-        :data:`~digiteyes.trackers.loss_hold.LOCAL_HOLD_FRAMES`): the detector finds a
-        lost finger again in the next frame, as a particle filter can.
+    hold_lost_frames : 0 (judge each frame alone, as every tracker by default): the
+        detector finds a lost finger again in the next frame, as a particle filter can.
     anchor_max_gap : a camera's detection is used only when its palm keypoints lie
         within this many palm lengths of the estimate's on average
         (:func:`~digiteyes.detect.check.palm_gap`; the detection check's ``max_gap``): a

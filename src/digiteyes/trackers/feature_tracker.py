@@ -69,7 +69,7 @@ from digiteyes.solvers.robust import ROBUST_LOSSES, RobustLoss
 from digiteyes.trackers.base import TrackResult, start_step
 from digiteyes.trackers.feature_size import StartSize, hand_size_at
 from digiteyes.trackers.finger_search import FingerRecovery, FingerSearchOptions
-from digiteyes.trackers.loss_hold import LOCAL_HOLD_FRAMES, LossHold, LossHoldOptions
+from digiteyes.trackers.loss_hold import LossHold, LossHoldOptions
 from digiteyes.trackers.parameterisation import StateParameterisation
 from digiteyes.trackers.prediction import PREDICTIONS, PredictionKind, StatePredictor
 from digiteyes.trackers.silhouette_loss import (
@@ -171,7 +171,8 @@ class FeatureTrackerOptions(SilhouetteLossOptions, LossHoldOptions, FingerSearch
         this.
     hold_lost_frames : after a frame the loss rules call lost, later frames stay lost
         until this many in a row have passed them
-        (:class:`~digiteyes.trackers.loss_hold.LossHold`; 0 judges each frame alone).
+        (:class:`~digiteyes.trackers.loss_hold.LossHold`; 0, the default, judges each
+        frame alone).
     finger_search, finger_search_levels, finger_search_margin : on a frame the silhouette
         rule calls lost, search each digit's curl by the silhouette and solve again from
         the result (:mod:`digiteyes.trackers.finger_search`; off by default).
@@ -207,7 +208,7 @@ class FeatureTrackerOptions(SilhouetteLossOptions, LossHoldOptions, FingerSearch
     growth_frames: int = 5
     growth_factor: float = 2.0
     growth_min_px: float = 3.0
-    hold_lost_frames: int = LOCAL_HOLD_FRAMES
+    hold_lost_frames: int = 0
 
     def __post_init__(self) -> None:
         FingerSearchOptions.__post_init__(self)

@@ -73,7 +73,7 @@ from digiteyes.templates.layered import (
 from digiteyes.trackers.base import TrackResult, start_step
 from digiteyes.trackers.feature_size import StartSize
 from digiteyes.trackers.finger_search import FingerRecovery, FingerSearchOptions
-from digiteyes.trackers.loss_hold import LOCAL_HOLD_FRAMES, LossHold, LossHoldOptions
+from digiteyes.trackers.loss_hold import LossHold, LossHoldOptions
 from digiteyes.trackers.parameterisation import StateParameterisation
 from digiteyes.trackers.prediction import PREDICTIONS, PredictionKind, StatePredictor
 from digiteyes.trackers.silhouette_loss import (
@@ -143,7 +143,8 @@ class LayeredTemplateOptions(SilhouetteLossOptions, LossHoldOptions, FingerSearc
     background_pad_px : how far around the hand's windows its pixels reach, px.
     hold_lost_frames : after a frame the loss rules call lost, later frames stay lost
         until this many in a row have passed them
-        (:class:`~digiteyes.trackers.loss_hold.LossHold`; 0 judges each frame alone).
+        (:class:`~digiteyes.trackers.loss_hold.LossHold`; 0, the default, judges each
+        frame alone).
     finger_search, finger_search_levels, finger_search_margin : on a frame the silhouette
         rule calls lost, search each digit's curl by the silhouette and solve again from
         the result (:mod:`digiteyes.trackers.finger_search`; off by default).
@@ -176,7 +177,7 @@ class LayeredTemplateOptions(SilhouetteLossOptions, LossHoldOptions, FingerSearc
     background: str = "none"
     background_weight: float = 1.0
     background_pad_px: float = 20.0
-    hold_lost_frames: int = LOCAL_HOLD_FRAMES
+    hold_lost_frames: int = 0
     start_size: bool = True
 
     def __post_init__(self) -> None:
