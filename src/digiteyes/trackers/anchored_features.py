@@ -76,7 +76,6 @@ class AnchoredFeatureOptions(FeatureTrackerOptions):
     detector: str = "mediapipe"
     keypoint_sigma_px: float = 4.0
     anchor_max_gap: float = 0.5
-    hold_lost_frames: int = 0
 
     def __post_init__(self) -> None:
         super().__post_init__()

@@ -208,7 +208,6 @@ class FeatureTrackerOptions(SilhouetteLossOptions, LossHoldOptions, FingerSearch
     growth_frames: int = 5
     growth_factor: float = 2.0
     growth_min_px: float = 3.0
-    hold_lost_frames: int = 0
 
     def __post_init__(self) -> None:
         FingerSearchOptions.__post_init__(self)

@@ -177,7 +177,6 @@ class LayeredTemplateOptions(SilhouetteLossOptions, LossHoldOptions, FingerSearc
     background: str = "none"
     background_weight: float = 1.0
     background_pad_px: float = 20.0
-    hold_lost_frames: int = 0
     start_size: bool = True
 
     def __post_init__(self) -> None:
