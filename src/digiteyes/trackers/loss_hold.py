@@ -28,11 +28,8 @@ class LossHoldOptions:
 
     hold_lost_frames : after a frame the loss rules call lost, the next frames stay lost
         until this many in a row have passed the rules (0, every tracker's default: no
-        hold, each frame judged on its own; docs/accuracy.md, "The hold, measured again":
-        since the rules compare with the start state, a hold of 20 frames on the feature
-        and template trackers bought 1.6 points of recall on the flesh hand for 2.8 of
-        precision, and on our own drawing cut the feature tracker's precision from 87 %
-        to 62 %).
+        hold, each frame judged on its own; why: docs/accuracy.md, "The hold, measured
+        again").
     """
 
     hold_lost_frames: int = 0
