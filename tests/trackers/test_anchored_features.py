@@ -143,6 +143,43 @@ def test_a_detection_far_from_the_estimate_is_not_used(monkeypatch):
             assert result.lost or used
 
 
+class ShiftedInOneCamera(TruthDetector):
+    """:class:`TruthDetector` whose detections are moved by ``shift_px`` in the cameras
+    named in ``shifted`` only."""
+
+    def __init__(self, model, states, shift_px: float, shifted: set[str]) -> None:
+        super().__init__(model, states)
+        self.moved, self.shifted = shift_px, shifted
+
+    def detect(self, image, camera=None, near=None):
+        found = super().detect(image, camera, near)
+        if camera.name in self.shifted:
+            found = [candidate(found[0].keypoints + self.moved)]
+        return found
+
+
+def test_one_camera_off_the_estimate_is_the_detectors_error_when_another_agrees(monkeypatch):
+    """Two cameras: a detection beyond the gate in one camera while the other camera's
+    detection agrees with the estimate is dropped without flagging the frame (the
+    detector's error); beyond the gate in both, the frame is flagged."""
+    scenario = build_scenario("whole-hand", n_frames=3)
+    rig = scenario.rig
+    assert len(rig) == 2
+    frames = [[v.image for v in render_views(scenario.model, scenario.states[k], rig,
+                                             RenderOptions(appearance="flesh",
+                                                           noise_sigma=2.0), rng=k)]
+              for k in range(2)]
+    for shifted, flagged in (({rig[1].name}, False), ({rig[0].name, rig[1].name}, True)):
+        detector = ShiftedInOneCamera(scenario.model, scenario.states, 120.0, shifted)
+        tracker = anchored_with(scenario.model, rig, detector, monkeypatch)
+        tracker.reset(scenario.states[0])
+        for images in frames:
+            result = tracker.step(images)
+            assert tracker.last_candidates[1] is None
+            assert (tracker.last_candidates[0] is None) is flagged
+            assert ("off the detected hand (" in result.loss_reason) is flagged
+
+
 def test_keypoints_near_the_truth_hold_the_fingers_the_feature_tracker_loses(monkeypatch):
     """The desk pair drawn as the flesh hand, where the feature tracker alone loses curling
     fingers within a few frames: anchored by keypoints 2 px from the truth, the same
