@@ -206,6 +206,12 @@ def summarise(entries: list[dict[str, Any]]) -> dict[str, Any]:
                              and gaps.mean() <= TOLERANCE_MM)}
 
 
+def _gap(summary: dict[str, Any]) -> str:
+    """A started variant's gap (mm), with its standard error when there are several seeds."""
+    se = summary.get("gap_standard_error_mm")
+    return f"{summary['gap_mm']:+.2f}" + ("" if se is None else f" +- {se:.2f}")
+
+
 def run(json_path: str | None = None, quick: bool = False, seeds: int | None = None) -> dict:
     """Both setups with every variant and seed; print the table; write JSON to
     ``json_path``. ``seeds``: how many scenario seeds (0, 1, ...; default :data:`SEEDS`,
@@ -253,11 +259,9 @@ def format_table(result: dict[str, Any]) -> str:
     for s in result["summary"]:
         head = _head(s, f"{s['started']:>4}/{len(s['seeds']):<3}")
         verdict = "yes" if s["meets_target"] else "no"
-        se = s.get("gap_standard_error_mm")
-        gap = (f"{s['gap_mm']:+.2f} +- {se:.2f}" if se is not None else f"{s['gap_mm']:+.2f}"
-               ) if s["started"] else ""
         lines.append(f"{head} {'':>9} {'':>9} {'':>13} {'':>8}  {verdict}" if not s["started"]
-                     else f"{head}{_means(s)} {gap:>13} {s['reinitialisations']:>8}  {verdict}")
+                     else f"{head}{_means(s)} {_gap(s):>13} {s['reinitialisations']:>8}"
+                          f"  {verdict}")
     lines.append("(errors: mean model keypoint distance to the truth, mm; gap: automatic minus "
                  "true start, mean over the seeds that started +- its standard error)")
     return "\n".join(lines)

@@ -205,14 +205,15 @@ class AnchoredFeatureTracker(FeatureTracker):
                 self._off_detection.append(camera.name)
                 found = None
             candidates.append(found)
-        if any(c is not None for c in candidates):
+        agreed = any(c is not None for c in candidates)
+        if agreed:
             # another camera's detection agrees with the estimate: the one beyond the
             # gate is taken for the detector's error, not the track's (a camera alone
             # cannot tell them apart, and its disagreement is flagged)
             self._off_detection = []
         self.last_candidates = candidates
         timings["detection"] += time.perf_counter() - start
-        if all(c is None for c in candidates):
+        if not agreed:
             return None
         return KeypointRows(anchors, self.rig, candidates, self.options.keypoint_sigma_px,
                             self.parameterisation.form)
