@@ -96,7 +96,14 @@ SEGMENT_FRAMES = 10
 measured_segments` reports the segments."""
 SCRATCH_MAX_TURN_DEG = 30.0
 """A fit from scratch replaces a warm fit that explains the keypoints only when it turns
-the palm by less than this (degrees; docs/keypoint-tracker.md)."""
+the palm by less than this (degrees; docs/keypoint-tracker.md), unless the warm fit is
+stuck (:data:`STUCK_KEYPOINTS`)."""
+STUCK_KEYPOINTS = 3
+"""A warm fit that leaves at least this many keypoints beyond ``max_error_px`` (a finger's
+worth), where the fit from scratch puts every keypoint within it, is stuck, and the fit
+from scratch replaces it however far it turns the palm (docs/keypoint-tracker.md: on
+the real video, a fist whose warm fit kept three fingers straight, 100 px off, for 30
+frames)."""
 SIZE_ITERATIONS = 3
 """Gauss-Newton iterations of a frame's size measurement (from the frame's fit)."""
 SIZE_MAX_RMS = 2.0
@@ -419,8 +426,8 @@ class KeypointTracker:
         can leave a finger in a local minimum, tens of pixels off, while the rest
         explains the frame; a fit from scratch that turns the palm over is the other
         side of the ambiguity of a planar palm in one view, which the warm start
-        settles); None when neither explains the keypoints. Also the solver iterations
-        spent."""
+        settles, unless the warm fit is stuck, :meth:`_stuck`); None when neither
+        explains the keypoints. Also the solver iterations spent."""
         iterations, best = 0, None
         for q0 in (model_unit_states(self.model, self.state, self.scale), None):
             if best is not None and self._fits_every_keypoint(best):
@@ -431,10 +438,19 @@ class KeypointTracker:
                 continue
             iterations += fit.iterations
             if self._explains(fit) and self._near(fit) and (
-                    best is None or (fit.cost < best.cost and self._palm_turn_deg(fit, best)
-                                     < SCRATCH_MAX_TURN_DEG)):
+                    best is None or (fit.cost < best.cost and (
+                        self._palm_turn_deg(fit, best) < SCRATCH_MAX_TURN_DEG
+                        or self._stuck(best, fit)))):
                 best = fit
         return best, iterations
+
+    def _stuck(self, warm: PoseFit, fresh: PoseFit) -> bool:
+        """Whether ``warm`` leaves at least :data:`STUCK_KEYPOINTS` keypoints beyond
+        ``max_error_px`` where ``fresh`` fits every keypoint: then the warm start has not
+        settled the side of a flat palm but kept a wrong hand."""
+        misses = np.sum(warm.reprojection_px[np.isfinite(warm.reprojection_px)]
+                        > self.options.max_error_px)
+        return bool(misses >= STUCK_KEYPOINTS and self._fits_every_keypoint(fresh))
 
     def _palm_turn_deg(self, a: PoseFit, b: PoseFit) -> float:
         """The angle between the palm orientations of two fits (degrees; 0 for a model
