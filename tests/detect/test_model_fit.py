@@ -255,3 +255,31 @@ def test_holding_the_palm_position_fits_the_size_one_camera_cannot_see(hand, cam
         fd = (problem.residuals(problem.retract(x, step), False)[0][rows]
               - problem.residuals(problem.retract(x, -step), False)[0][rows]) / (2 * eps)
         np.testing.assert_allclose(J[rows, i], fd, atol=1e-6 * np.abs(J[rows]).max())
+
+
+def test_with_the_active_set_a_fit_against_joint_limits_converges():
+    """Keypoints of a hand whose four finger MCPs are hyperextended 0.3 rad beyond their
+    limit, a start with three PIPs 0.4 rad off: the fit cannot reach the keypoints, and
+    without the active set its steps lean on the limits, are clipped back and rejected,
+    so in five iterations it lowers the cost far less than with the MCPs held at their
+    limits while the other joints move (docs/solvers.md)."""
+    from digiteyes.kinematics import clip_to_limits
+    from digiteyes.synth.scenarios import build_scenario
+
+    scenario = build_scenario("desk-1cam", seed=1, n_frames=1)
+    model, cam = scenario.model, scenario.rig[0]
+    beyond = scenario.states[0].copy()
+    for digit in ("index", "middle", "ring", "little"):
+        i = model.state_index(f"{digit}.mcp")
+        beyond[i] = model.lower[i] - 0.3
+    uv = cam.project(true_points(model, beyond))
+    start = clip_to_limits(model, beyond)
+    for digit in ("index", "middle", "ring"):
+        start[model.state_index(f"{digit}.pip")] += 0.4
+    fits = {active: fit_keypoints(model, [KeypointObservation(cam, uv)], q0=start,
+                                  options=FitOptions(fit_scale=False, iterations=5,
+                                                     active_set=active))
+            for active in (False, True)}
+    assert fits[True].cost < 0.5 * fits[False].cost
+    assert np.all(fits[True].q >= model.lower - 1e-12)
+    assert np.all(fits[True].q <= model.upper + 1e-12)

@@ -17,6 +17,7 @@ from digiteyes.kinematics import (
     State,
     clip_to_limits,
     difference,
+    held_at_limits,
     integrate,
     load_model,
     read_states_csv,
@@ -125,6 +126,24 @@ def test_clip_to_limits():
     assert out[9] == pytest.approx(math.radians(110))
     assert out[8] == pytest.approx(math.radians(-30))
     np.testing.assert_array_equal(out[:7], q[:7])
+
+
+def test_held_at_limits_names_the_joints_the_cost_pushes_beyond_a_limit():
+    """A joint at its lower limit is held when the descent direction (minus the
+    gradient) points further down, not when it points back inside; likewise at the upper
+    limit; joints inside their limits and the palm's pose (no limits) are never held."""
+    q = clip_to_limits(HAND, HAND.neutral())
+    pip, mcp, dip = (HAND.state_index(f"index.{j}") for j in ("pip", "mcp", "dip"))
+    q[pip], q[mcp] = HAND.upper[pip], HAND.lower[mcp]
+    q[dip] = 0.5 * (HAND.lower[dip] + HAND.upper[dip])
+    column = HAND.q_to_v
+    gradient = np.zeros(HAND.n_v)
+    gradient[column[pip]], gradient[column[mcp]], gradient[column[dip]] = -1.0, 1.0, 1.0
+    gradient[:6] = 1.0  # the palm's rotation and translation
+    held = held_at_limits(HAND, q, gradient)
+    assert held[column[pip]] and held[column[mcp]]
+    assert held.sum() == 2
+    assert not held_at_limits(HAND, q, -gradient).any()  # back inside: free
 
 
 # ------------------------------------------------------------------ retraction

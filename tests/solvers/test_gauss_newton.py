@@ -135,6 +135,41 @@ def test_singular_problem_uses_pseudo_inverse_and_conditioning_holds_unseen_stat
     np.testing.assert_array_equal(x[unseen], x0[unseen])
 
 
+class BoundedLinearProblem:
+    """``r = A x - b`` with ``x1 <= 0``: the unconstrained minimum is (1, 1), the bounded
+    one (3, 0). A full step from the bound goes to (1, 1) and is clipped back to (1, 0)
+    every time, so projection alone does not reach (3, 0): Gauss-Newton stays at (1, 0),
+    Levenberg-Marquardt creeps along with shortened steps."""
+
+    n_v = 2
+    A = np.array([[1.0, 2.0], [0.0, 1.0]])
+    b = np.array([3.0, 1.0])
+
+    def residuals(self, x, jacobian):
+        return self.A @ x - self.b, self.A if jacobian else None
+
+    def retract(self, x, dv):
+        return x + dv
+
+    def project(self, x):
+        return np.array([x[0], min(x[1], 0.0)])
+
+
+class HeldBoundedLinearProblem(BoundedLinearProblem):
+    def held(self, x, gradient):
+        return np.array([False, x[1] >= 0.0 and gradient[1] < 0.0])
+
+
+@pytest.mark.parametrize("damping", ["fixed", "levenberg-marquardt"])
+def test_a_step_column_held_at_its_bound_lets_the_others_reach_the_bounded_minimum(damping):
+    options = GaussNewtonOptions(max_iterations=20, damping=damping)
+    x, summary = gauss_newton(HeldBoundedLinearProblem(), np.zeros(2), options)
+    np.testing.assert_allclose(x, [3.0, 0.0], atol=1e-9)
+    assert summary.cost_final == pytest.approx(0.5)  # 0.5 |r|^2 with r = (0, -1)
+    stalled, _ = gauss_newton(BoundedLinearProblem(), np.zeros(2), options)
+    assert abs(stalled[0] - 3.0) > 0.3  # projection alone: stuck at (1, 0), or creeping
+
+
 def test_levenberg_marquardt_rejects_steps_where_gauss_newton_diverges():
     x0 = np.array([3.0])
     _, fixed = gauss_newton(ArctanProblem(), x0, GaussNewtonOptions(max_iterations=5))

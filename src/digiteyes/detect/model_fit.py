@@ -64,6 +64,7 @@ from digiteyes.kinematics import (
     clip_to_limits,
     difference,
     forward_kinematics,
+    held_at_limits,
     integrate,
     point_jacobian,
 )
@@ -101,6 +102,12 @@ class FitOptions:
         ``q0``'s (at ``scale``) within this sigma: with the scale fitted, the hand's
         size is then what its image size is at the start's depth (the keypoint
         tracker's size at the start); None (default): no such prior.
+    active_set : hold, in each step, the joints that sit at a limit the cost pushes beyond
+        (:func:`~digiteyes.kinematics.held_at_limits`, docs/solvers.md): the fit then
+        converges where a joint is at its limit, instead of creeping by rejected,
+        clipped steps. On in the keypoint tracker's fits; off (default) for the fits
+        from the images alone (the start, ``pose``), where it was not measured better
+        (docs/keypoint-tracker.md, "A fit that converges").
     """
 
     sigma_px: float = 4.0
@@ -113,6 +120,7 @@ class FitOptions:
     iterations: int = 10
     motion_sigma: tuple[float, float] | None = None
     hold_position_mm: float | None = None
+    active_set: bool = False
 
 
 @dataclass
@@ -325,6 +333,13 @@ class KeypointFitProblem:
 
     def project(self, x: np.ndarray) -> np.ndarray:
         return np.append(clip_to_limits(self.model, x[:-1]), min(max(x[-1], 0.5), 2.0))
+
+    def held(self, x: np.ndarray, gradient: np.ndarray) -> np.ndarray:
+        """With ``options.active_set``, the joints at a limit that the cost pushes beyond
+        (the scale is never held: its bounds are far from any hand); else none."""
+        if not self.options.active_set:
+            return np.zeros(len(gradient), dtype=bool)
+        return np.append(held_at_limits(self.model, x[:-1], gradient[:-1]), False)
 
 
 def _motion_sigmas(model: KinematicModel, sigma_mm: float, sigma_deg: float) -> np.ndarray:

@@ -8,6 +8,7 @@ from digiteyes.kinematics.state import (
     State,
     clip_to_limits,
     difference,
+    held_at_limits,
     integrate,
     read_states_csv,
     resample_states,
@@ -19,7 +20,7 @@ from digiteyes.kinematics.step_form import STEP_FORMS, StepForm
 __all__ = [
     "STEP_FORMS", "KinematicModel", "Kinematics", "Link", "State", "StepForm",
     "clip_to_limits", "dh_transform", "difference", "format_model_text", "forward_kinematics",
-    "integrate", "load_model", "model_from_file", "parse_model_text", "point_jacobian",
+    "held_at_limits", "integrate", "load_model", "model_from_file", "parse_model_text", "point_jacobian",
     "read_model_file", "read_states_csv", "resample_states", "validate_state",
     "write_states_csv",
 ]

@@ -105,6 +105,23 @@ def clip_to_limits(model: KinematicModel, q: np.ndarray) -> np.ndarray:
     return np.minimum(np.maximum(q, model.lower), model.upper)  # np.clip, without its overhead
 
 
+def held_at_limits(model: KinematicModel, q: np.ndarray, gradient: np.ndarray) -> np.ndarray:
+    """The step columns (n_v,) bool of states that sit at a limit of :func:`clip_to_limits`
+    while the descent direction ``-gradient`` (of the cost, per step column) points out of
+    it: a step along them would only be clipped back. A projected Gauss-Newton solver holds
+    them (the active set of Bertsekas' projected Newton method, docs/solvers.md); the
+    others move freely."""
+    q = np.asarray(q, dtype=float)
+    gradient = np.asarray(gradient, dtype=float)
+    held = np.zeros(len(gradient), dtype=bool)
+    states = np.flatnonzero(model.q_to_v >= 0)
+    columns = model.q_to_v[states]
+    at_lower = (q[states] <= model.lower[states]) & (gradient[columns] > 0.0)
+    at_upper = (q[states] >= model.upper[states]) & (gradient[columns] < 0.0)
+    held[columns] = at_lower | at_upper
+    return held
+
+
 class State:
     """A state vector with names: ``state["index.pip"]``, ``state["q9"]``.
 

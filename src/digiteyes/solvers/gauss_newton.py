@@ -16,6 +16,11 @@ The linear system is Jacobi-scaled and solved by Cholesky; when the scaled matri
 of the largest, so an exactly singular system (a kinematic singularity without
 conditioning, or the scale direction of the raw quaternion form) gets the minimum-norm
 pseudo-inverse step of thesis Sec. 4.3.2 step 6.
+
+A problem with bounds (``project``) may name, at each iterate, the step columns held at a
+bound (``held``, :class:`~digiteyes.solvers.problem.LeastSquaresProblem`): they are fixed
+at zero in that step's system and the free columns are solved for (projected Newton with
+an active set).
 """
 
 from __future__ import annotations
@@ -27,7 +32,12 @@ import numpy as np
 
 from digiteyes.solvers._kernels import scaled_cholesky_solve
 from digiteyes.solvers.options import GaussNewtonOptions
-from digiteyes.solvers.problem import LeastSquaresProblem, SolverSummary, project_if_defined
+from digiteyes.solvers.problem import (
+    LeastSquaresProblem,
+    SolverSummary,
+    held_if_defined,
+    project_if_defined,
+)
 from digiteyes.solvers.robust import robust_cost, robust_weights
 
 RELATIVE_EIGENVALUE_FLOOR = 1e-10
@@ -79,6 +89,20 @@ def solve_normal_equations(A: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, bo
     inverse[keep] = 1.0 / eigenvalues[keep]
     x_scaled = V @ (inverse * (V.T @ g_scaled))
     return d * x_scaled, bool((~keep).any())
+
+
+def _holding(A: np.ndarray, g: np.ndarray,
+             held: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """The normal equations with the ``held`` step columns fixed at zero (their rows and
+    columns replaced by the identity's, their gradient by 0); unchanged for None."""
+    if held is None:
+        return A, g
+    A, g = A.copy(), g.copy()
+    A[held, :] = 0.0
+    A[:, held] = 0.0
+    A[held, held] = 1.0
+    g[held] = 0.0
+    return A, g
 
 
 def _check_conditioning(options: GaussNewtonOptions, n_v: int) -> np.ndarray | None:
@@ -144,7 +168,8 @@ def gauss_newton(
         if levenberg:
             h = np.diag(H)
             A = A + lam * np.diag(np.maximum(h, 1e-6 * max(float(h.max()), 1e-300)))
-        dv, truncated = solve_normal_equations(A, g)
+        dv, truncated = solve_normal_equations(*_holding(A, g,
+                                                         held_if_defined(problem, x, g)))
         dv = -dv
         summary.n_pseudo_inverse += truncated
         finite = bool(np.isfinite(dv).all())

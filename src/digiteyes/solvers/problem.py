@@ -22,7 +22,12 @@ class LeastSquaresProblem(Protocol):
     live in a vector space of ``n_v`` numbers and are applied with :meth:`retract`.
 
     An optional method ``project(x) -> x`` (for example clipping joint limits) is applied
-    after every retraction when the problem defines it.
+    after every retraction when the problem defines it. A problem with such bounds may
+    also define ``held(x, gradient) -> bool (n_v,)``: the step columns at a bound whose
+    descent direction ``-gradient`` points out of it, which the solver then holds for
+    that step (the active set of Bertsekas' projected Newton method): without it a
+    Gauss-Newton step that leans on a bound is clipped back, can raise the cost, and
+    Levenberg-Marquardt spends its evaluations shrinking the step (docs/solvers.md).
     """
 
     n_v: int
@@ -41,6 +46,17 @@ def project_if_defined(problem: LeastSquaresProblem, x: np.ndarray) -> np.ndarra
     """``problem.project(x)`` when the problem has one, else ``x``."""
     project = getattr(problem, "project", None)
     return x if project is None else project(x)
+
+
+def held_if_defined(problem: LeastSquaresProblem, x: np.ndarray,
+                    gradient: np.ndarray) -> np.ndarray | None:
+    """``problem.held(x, gradient)`` when the problem has one and it holds a column,
+    else None."""
+    held = getattr(problem, "held", None)
+    if held is None:
+        return None
+    mask = np.asarray(held(x, gradient), dtype=bool)
+    return mask if mask.any() else None
 
 
 @dataclass

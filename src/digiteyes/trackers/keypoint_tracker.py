@@ -96,14 +96,7 @@ SEGMENT_FRAMES = 10
 measured_segments` reports the segments."""
 SCRATCH_MAX_TURN_DEG = 30.0
 """A fit from scratch replaces a warm fit that explains the keypoints only when it turns
-the palm by less than this (degrees; docs/keypoint-tracker.md), unless the warm fit is
-stuck (:data:`STUCK_KEYPOINTS`)."""
-STUCK_KEYPOINTS = 3
-"""A warm fit that leaves at least this many keypoints beyond ``max_error_px`` (a finger's
-worth), where the fit from scratch puts every keypoint within it, is stuck, and the fit
-from scratch replaces it however far it turns the palm (docs/keypoint-tracker.md: on
-the real video, a fist whose warm fit kept three fingers straight, 100 px off, for 30
-frames)."""
+the palm by less than this (degrees; docs/keypoint-tracker.md)."""
 SIZE_ITERATIONS = 3
 """Gauss-Newton iterations of a frame's size measurement (from the frame's fit)."""
 SIZE_MAX_RMS = 2.0
@@ -129,11 +122,11 @@ class KeypointTrackerOptions(SilhouetteLossOptions, LossHoldOptions):
     max_error_px : a fit explains the keypoints when at least ``min_explained`` of them
         reproject within this distance (px).
     min_explained : that fraction.
-    motion_sigma_mm, motion_sigma_deg : opt-in: the fit from the previous estimate is
-        held to it by a prior on the change per frame, the palm's position (mm) and every
-        angle, the palm's rotation included (deg). It steadies the depth one camera sees
-        poorly, but lets a wrong detection drag the hand past ``max_jump`` a step at a
-        time (docs/keypoint-tracker.md); None (default) for either: no prior.
+    motion_sigma_mm, motion_sigma_deg : the fit from the previous estimate is held to it
+        by a prior on the change per frame, the palm's position (mm) and every angle, the
+        palm's rotation included (deg): 20 mm and 20 degrees (since the twentieth
+        session, when the fit began to converge, docs/keypoint-tracker.md, "A fit that
+        converges"); None for either: no prior.
     max_jump : a fit whose keypoints' centroid moves more than this many hand lengths
         (wrist to middle fingertip) per frame since the last fit taken (counting at most
         :data:`JUMP_FRAMES` frames) is refused: a hand does not cross half a metre
@@ -165,8 +158,8 @@ class KeypointTrackerOptions(SilhouetteLossOptions, LossHoldOptions):
     max_error_px: float = 25.0
     min_explained: float = 0.5
     max_jump: float = 0.5
-    motion_sigma_mm: float | None = None
-    motion_sigma_deg: float | None = None
+    motion_sigma_mm: float | None = 20.0
+    motion_sigma_deg: float | None = 20.0
     start_size: bool = True
     size_frames: float | None = 100.0
     colour_foreground: bool = False
@@ -228,7 +221,8 @@ class KeypointTracker:
                   else (float(opts.motion_sigma_mm), float(opts.motion_sigma_deg)))
         self._fit_options = FitOptions(sigma_px=opts.sigma_px,
                                        sigma_joint_deg=opts.sigma_joint_deg, fit_scale=False,
-                                       iterations=opts.iterations, motion_sigma=motion)
+                                       iterations=opts.iterations, motion_sigma=motion,
+                                       active_set=True)
         self.scale = 1.0
         """The hand's scale relative to the model file (the start's size fit, or the
         on-line size with several cameras)."""
@@ -426,8 +420,8 @@ class KeypointTracker:
         can leave a finger in a local minimum, tens of pixels off, while the rest
         explains the frame; a fit from scratch that turns the palm over is the other
         side of the ambiguity of a planar palm in one view, which the warm start
-        settles, unless the warm fit is stuck, :meth:`_stuck`); None when neither
-        explains the keypoints. Also the solver iterations spent."""
+        settles); None when neither explains the keypoints. Also the solver iterations
+        spent."""
         iterations, best = 0, None
         for q0 in (model_unit_states(self.model, self.state, self.scale), None):
             if best is not None and self._fits_every_keypoint(best):
@@ -438,19 +432,10 @@ class KeypointTracker:
                 continue
             iterations += fit.iterations
             if self._explains(fit) and self._near(fit) and (
-                    best is None or (fit.cost < best.cost and (
-                        self._palm_turn_deg(fit, best) < SCRATCH_MAX_TURN_DEG
-                        or self._stuck(best, fit)))):
+                    best is None or (fit.cost < best.cost and self._palm_turn_deg(fit, best)
+                                     < SCRATCH_MAX_TURN_DEG)):
                 best = fit
         return best, iterations
-
-    def _stuck(self, warm: PoseFit, fresh: PoseFit) -> bool:
-        """Whether ``warm`` leaves at least :data:`STUCK_KEYPOINTS` keypoints beyond
-        ``max_error_px`` where ``fresh`` fits every keypoint: then the warm start has not
-        settled the side of a flat palm but kept a wrong hand."""
-        misses = np.sum(warm.reprojection_px[np.isfinite(warm.reprojection_px)]
-                        > self.options.max_error_px)
-        return bool(misses >= STUCK_KEYPOINTS and self._fits_every_keypoint(fresh))
 
     def _palm_turn_deg(self, a: PoseFit, b: PoseFit) -> float:
         """The angle between the palm orientations of two fits (degrees; 0 for a model
