@@ -20,7 +20,7 @@ from digiteyes.kinematics.step_form import STEP_FORMS, StepForm
 __all__ = [
     "STEP_FORMS", "KinematicModel", "Kinematics", "Link", "State", "StepForm",
     "clip_to_limits", "dh_transform", "difference", "format_model_text", "forward_kinematics",
-    "held_at_limits", "integrate", "load_model", "model_from_file", "parse_model_text", "point_jacobian",
-    "read_model_file", "read_states_csv", "resample_states", "validate_state",
-    "write_states_csv",
+    "held_at_limits", "integrate", "load_model", "model_from_file", "parse_model_text",
+    "point_jacobian", "read_model_file", "read_states_csv", "resample_states",
+    "validate_state", "write_states_csv",
 ]
