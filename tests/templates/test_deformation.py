@@ -70,7 +70,7 @@ def test_world_points_follow_the_shape_frames():
     part_of = np.repeat(np.arange(3), 2)
     templates = CameraTemplates(parts, ab, part_of, [slice(0, 2), slice(2, 4), slice(4, 6)],
                                 np.zeros(6, np.float32), np.zeros(6, np.float32),
-                                np.ones(6, np.float32), np.zeros(3))
+                                np.ones(6, np.float32), np.zeros(3), np.tile(np.eye(3), (3, 1, 1)))
     p_shape = np.random.default_rng(2).normal(size=(6, 3))
     expected = point_jacobian(kin, np.array([parts[k].row for k in part_of]), p_shape)[0]
     np.testing.assert_allclose(world_points(templates, kin, p_shape), expected, atol=1e-9)

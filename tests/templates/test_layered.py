@@ -7,10 +7,12 @@ import pytest
 
 from digiteyes.kinematics import forward_kinematics, integrate
 from digiteyes.occlusion.segmentation import segment_image
+from digiteyes.templates.filtering import TemplateError
 from digiteyes.templates.layered import (
     TemplateOptions,
     acquire_templates,
     evaluate_layered,
+    part_views,
     refresh_templates,
 )
 
@@ -127,6 +129,43 @@ def test_refresh_blends_only_good_frames(setup):
                                atol=1e-3)
     strict = TemplateOptions(refresh_max_rms=1e-3)
     assert refresh_templates(templates, ev, strict) == 0
+
+
+def test_refresh_gated_by_turn_leaves_parts_that_did_not_turn(setup):
+    """With ``refresh_turn_deg`` a part's rate is scaled by its turn since its template was
+    written (frame 0 to 12: the index curls, the palm and the middle finger keep their
+    orientation), and the written orientation follows the refresh."""
+    scenario, images, model, cam, base = setup
+    kin0 = forward_kinematics(model, scenario.states[0])
+    templates = acquire_templates(base.parts, images[0], cam, kin0, spacing_px=2.0)
+    kin = forward_kinematics(model, scenario.states[12])
+    ev = evaluate_layered(templates, images[12], cam, kin, templates.planes(kin, cam), None,
+                          0.0)
+    before, written = templates.values.copy(), templates.views.copy()
+    turn = 3.0
+    options = TemplateOptions(refresh_rate=0.5, reference_pull=0.0, refresh_max_rms=1e3,
+                              refresh_turn_deg=turn)
+    with pytest.raises(TemplateError):
+        refresh_templates(templates, ev, options)
+    assert refresh_templates(templates, ev, options, kin, cam) > 0
+    now = part_views(base.parts, kin, cam)
+    angles = [np.degrees(np.arccos(np.clip((np.trace(a.T @ b) - 1) / 2, -1, 1)))
+              for a, b in zip(written, now, strict=True)]  # the definition, by the trace
+    seen = (ev.visibility >= 0.99) & (base.weights > 0)
+    observed = ev.residuals + before
+    turned = still = 0
+    for k, angle in enumerate(angles):
+        pixels = seen & (templates.part_of == k)
+        rate = 0.5 * min(1.0, angle / turn)
+        np.testing.assert_allclose(templates.values[pixels],
+                                   (before + rate * (observed - before))[pixels], atol=1e-3)
+        if angle < 0.01:
+            still += 1
+            np.testing.assert_allclose(templates.views[k], written[k], atol=1e-12)
+        elif angle >= turn:
+            turned += 1
+            np.testing.assert_allclose(templates.views[k], now[k], atol=1e-9)
+    assert still >= 2 and turned >= 2  # palm and middle finger still; the index curls
 
 
 def test_segmentation_puts_the_front_part_on_top(setup):

@@ -17,6 +17,10 @@ docs/appearance.md), side by side.
   (``finger_search``, off by default: it costs the loss flag its recall on the desk rows
   of ``bench accuracy``; docs/templates.md) with two cameras and, for
   ``templates+features``, one;
+* both trackers on ``two-finger-occlusion`` and ``natural`` with two cameras with the
+  template refresh gated by each part's turn (``refresh_turn_deg`` =
+  :data:`GATED_REFRESH_TURN_DEG`, off by default: it holds the still palm's depth on two
+  fingers and costs ``templates+features`` on ``natural``; docs/templates.md);
 * every run is made on :data:`SEEDS` renders that differ in their sensor noise
   (:data:`~digiteyes.benchmarks.tracker.NOISE_SIGMA` grey levels): a track that passes near
   a decision (a finger that can flip) ends differently with another draw of the noise, so
@@ -61,6 +65,9 @@ STAGES = ("visibility", "template_rendering", "residual", "jacobian", "features"
           "linear_solve")
 SEEDS = (0, 1, 2)
 """Noise seeds of the full run (``--quick``: the first)."""
+GATED_REFRESH_TURN_DEG = 3.0
+"""``TemplateOptions.refresh_turn_deg`` of the runs with the refresh gated by each part's
+turn (opt-in; docs/templates.md, "Refresh and drift")."""
 _SEED_STRIDE = 100_000
 """Frame ``i`` of seed ``s`` is rendered with the noise seed ``i + s * _SEED_STRIDE``."""
 _AVERAGED = ("mean_tip_error_mm", "max_frame_tip_error_mm", "lost_frames",
@@ -106,6 +113,7 @@ def track_scenario(name: str, n_cameras: int, n_frames: int | None,
     out = {"scenario": name, "tracker": tracker, "appearance": appearance,
            "cameras": n_cameras, "seed": seed, "finger_search": options.finger_search,
            "background": options.background,
+           "refresh_turn_deg": options.templates.refresh_turn_deg,
            "frames": len(truth),
            "iterations_per_frame": options.iterations_per_frame,
            "mean_tip_error_mm": float(tip_error.mean()),
@@ -177,7 +185,8 @@ _LABEL = len("templates+features +search")
 def run_label(row: dict) -> str:
     """A row's tracker and the options it runs with beyond the defaults."""
     return (row["tracker"] + (" +search" if row["finger_search"] else "")
-            + (" +background" if row.get("background", "none") != "none" else ""))
+            + (" +background" if row.get("background", "none") != "none" else "")
+            + (" +gated" if row.get("refresh_turn_deg") is not None else ""))
 
 
 def run(json_path: str | None = None, quick: bool = False) -> dict:
@@ -185,16 +194,22 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
     options = LayeredTemplateOptions()
     searching = replace(options, finger_search=True)
     background = replace(options, background="filtered")
+    gated = replace(options, templates=replace(options.templates,
+                                               refresh_turn_deg=GATED_REFRESH_TURN_DEG))
     short = 40 if quick else None
     runs = [("two-finger-occlusion", 1, 30 if quick else None, "templates", options),
             ("two-finger-occlusion", 1, 30 if quick else None, "templates+features", options),
             ("two-finger-occlusion", 1, 30 if quick else None, "templates", background),
+            ("two-finger-occlusion", 1, 30 if quick else None, "templates", gated),
+            ("two-finger-occlusion", 1, 30 if quick else None, "templates+features", gated),
             ("natural", 2, short, "templates", options),
             ("natural", 2, short, "templates+features", options),
             ("natural", 1, short, "templates", options),
             ("natural", 2, short, "templates", searching),
             ("natural", 2, short, "templates+features", searching),
-            ("natural", 1, short, "templates+features", searching)]
+            ("natural", 1, short, "templates+features", searching),
+            ("natural", 2, short, "templates", gated),
+            ("natural", 2, short, "templates+features", gated)]
     seeds = SEEDS[:1] if quick else SEEDS
     with kernel_threads(1, 1):
         tracking = [seed_mean([track_scenario(n, c, f, o, t, a, seed) for seed in seeds])

@@ -78,6 +78,12 @@ class TemplateOptions:
     refresh_max_rms : refresh only frames whose visible-pixel residual RMS is below this
         (grey levels of the filtered image).
     refresh_min_visibility : a pixel is well seen when its ``V`` is at least this.
+    refresh_turn_deg : None refreshes every part at ``refresh_rate``; a number gates each
+        part's refresh by how far the part has turned against the camera since its
+        template was last written (the rotation of its shape frame in the camera frame):
+        the rate is ``refresh_rate * min(1, turn / refresh_turn_deg)``, and the written
+        orientation follows by the same fraction. A part that does not turn keeps its
+        template, so the refresh cannot make it drift (docs/templates.md).
     occlusion_margin_px : occluding outlines are grown by this much (px) in the layered
         error (about the LoG's reach), and parts this close count as overlapping.
     filter_pad_px : after the first frame, images are filtered only within this many px
@@ -93,6 +99,7 @@ class TemplateOptions:
     reference_pull: float = 0.02
     refresh_max_rms: float = 12.0
     refresh_min_visibility: float = 0.99
+    refresh_turn_deg: float | None = None
     occlusion_margin_px: float = 3.0
     filter_pad_px: float | None = 40.0
 
@@ -103,6 +110,9 @@ class TemplateOptions:
             raise TemplateError(f"spacing_px must be positive, got {self.spacing_px!r}")
         if not self.window_px > 0:
             raise TemplateError(f"window_px must be positive, got {self.window_px!r}")
+        if self.refresh_turn_deg is not None and not self.refresh_turn_deg > 0:
+            raise TemplateError(f"refresh_turn_deg must be None or positive, got "
+                                f"{self.refresh_turn_deg!r}")
         if self.filter_pad_px is not None and not self.filter_pad_px >= 0:
             raise TemplateError(f"filter_pad_px must be None or not negative, got "
                                 f"{self.filter_pad_px!r}")
@@ -128,6 +138,9 @@ class CameraTemplates:
     values, reference : (P,) current and reference template grey levels (filtered).
     weights : (P,) 1 where the pixel has been seen (acquired), else 0.
     palm_side : (K,) the palm face each palm template lies on (+1 palmar, -1 dorsal).
+    views : (K, 3, 3) each part's orientation in the camera frame (``R_cam_shape``) when
+        its template was written (acquisition, then refreshes), for
+        ``TemplateOptions.refresh_turn_deg``.
     """
 
     parts: tuple[TemplatePart, ...]
@@ -138,6 +151,7 @@ class CameraTemplates:
     reference: np.ndarray
     weights: np.ndarray
     palm_side: np.ndarray
+    views: np.ndarray
 
     def planes(self, kin: Kinematics, camera: Camera) -> list[TemplatePlane]:
         """Every part's template plane facing ``camera`` at the state of ``kin``."""
@@ -304,7 +318,8 @@ def acquire_templates(parts: tuple[TemplatePart, ...], image: np.ndarray, camera
     P = start
     templates = CameraTemplates(parts, np.concatenate(abs_), np.concatenate(part_of), slices,
                                 np.zeros(P, dtype=np.float32), np.zeros(P, dtype=np.float32),
-                                np.ones(P, dtype=np.float32), np.array(sides))
+                                np.ones(P, dtype=np.float32), np.array(sides),
+                                part_views(parts, kin, camera))
     ev = evaluate_layered(templates, image, camera, kin, planes, None, 0.0, margin=margin,
                           derivatives=False)
     seen = ev.visibility >= 1.0
@@ -315,12 +330,36 @@ def acquire_templates(parts: tuple[TemplatePart, ...], image: np.ndarray, camera
     return templates
 
 
+def part_views(parts: tuple[TemplatePart, ...], kin: Kinematics, camera: Camera
+               ) -> np.ndarray:
+    """Each part's orientation in ``camera``'s frame at the state of ``kin``: (K, 3, 3)
+    ``R_cam_shape``."""
+    R_cam_world = np.asarray(camera.T_cam_world)[:3, :3]
+    rows = [part.row for part in parts]
+    return R_cam_world @ kin.T_world_shape[0, rows, :3, :3]
+
+
+def _turn_fraction(written: np.ndarray, now: np.ndarray, turn_deg: float) -> np.ndarray:
+    """Per part, ``min(1, angle(written -> now) / turn_deg)`` of (K, 3, 3) rotations."""
+    return np.minimum(1.0, rotation_angles_deg(written, now) / turn_deg)
+
+
+def rotation_angles_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angles (degrees) between rotations ``a`` and ``b`` (..., 3, 3), from
+    ``||a - b||_F = 2 sqrt(2) sin(angle / 2)`` (accurate near zero, unlike the trace)."""
+    chord = np.linalg.norm(a - b, axis=(-2, -1)) / (2.0 * np.sqrt(2.0))
+    return np.degrees(2.0 * np.arcsin(np.clip(chord, 0.0, 1.0)))
+
+
 def refresh_templates(templates: CameraTemplates, evaluation: LayeredEvaluation,
-                      options: TemplateOptions) -> int:
+                      options: TemplateOptions, kin: Kinematics | None = None,
+                      camera: Camera | None = None) -> int:
     """Blend the observed grey levels of well-seen pixels into the templates (module
     docstring); returns how many pixels were refreshed (0 when the frame fitted badly).
 
-    Pixels never seen before are adopted outright (value and reference).
+    Pixels never seen before are adopted outright (value and reference). With
+    ``options.refresh_turn_deg``, ``kin`` (the frame's solved state) and ``camera`` gate
+    each part's rate by how far it has turned since its template was written.
     """
     rms = evaluation.visible_rms
     if options.refresh_rate == 0.0 or not np.isfinite(rms) or rms > options.refresh_max_rms:
@@ -330,8 +369,20 @@ def refresh_templates(templates: CameraTemplates, evaluation: LayeredEvaluation,
     inside = (evaluation.pixels >= 0).all(axis=1)
     new = visible & inside & (templates.weights == 0)
     known = visible & (templates.weights > 0)
+    rate: float | np.ndarray = options.refresh_rate
+    if options.refresh_turn_deg is not None:
+        if kin is None or camera is None:
+            raise TemplateError("refresh_turn_deg needs the frame's kinematics and camera")
+        views = part_views(templates.parts, kin, camera)
+        fraction = _turn_fraction(templates.views, views, options.refresh_turn_deg)
+        # the written orientation follows the refresh (the blend projected onto rotations)
+        u, _, vt = np.linalg.svd(templates.views
+                                 + fraction[:, None, None] * (views - templates.views))
+        u[:, :, 2] *= np.linalg.det(u @ vt)[:, None]
+        templates.views[:] = u @ vt
+        rate = options.refresh_rate * fraction[templates.part_of[known]]
     values = templates.values
-    values[known] += options.refresh_rate * (observed[known] - values[known])
+    values[known] += rate * (observed[known] - values[known])
     values += options.reference_pull * (templates.reference - values) * (templates.weights > 0)
     values[new] = observed[new]
     templates.reference[new] = observed[new]

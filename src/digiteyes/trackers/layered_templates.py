@@ -576,8 +576,10 @@ class LayeredTemplateTracker:
         refreshed = 0
         if not residual_reasons:
             tic = time.perf_counter()
-            refreshed = sum(refresh_templates(t, ev, opts.templates)
-                            for t, ev in zip(self.templates, final, strict=True))
+            kin = (forward_kinematics(self.model, q)
+                   if opts.templates.refresh_turn_deg is not None else None)
+            refreshed = sum(refresh_templates(t, ev, opts.templates, kin, cam)
+                            for t, ev, cam in zip(self.templates, final, self.rig, strict=True))
             timings["refresh"] = time.perf_counter() - tic
         feature_links = ([self._unoccluded_links(o) for o in setup["orders"]]
                          if opts.edge_features else [[] for _ in self.rig])
