@@ -113,13 +113,21 @@ def test_gauss_newton_matrix_is_the_visible_region_rows(setup):
                                rtol=1e-8, atol=1e-8 * np.abs(ev.gradient_region).max())
 
 
-def test_refresh_blends_only_good_frames(setup):
+def _refresh_case(setup):
+    """Fresh templates of frame 0 evaluated at frame 12's true state: (templates, the
+    evaluation, frame 12's kinematics)."""
     scenario, images, model, cam, base = setup
     kin0 = forward_kinematics(model, scenario.states[0])
     templates = acquire_templates(base.parts, images[0], cam, kin0, spacing_px=2.0)
     kin = forward_kinematics(model, scenario.states[12])
     ev = evaluate_layered(templates, images[12], cam, kin, templates.planes(kin, cam), None,
                           0.0)
+    return templates, ev, kin
+
+
+def test_refresh_blends_only_good_frames(setup):
+    base = setup[4]
+    templates, ev, _ = _refresh_case(setup)
     before = templates.values.copy()
     options = TemplateOptions(refresh_rate=0.5, reference_pull=0.0, refresh_max_rms=1e3)
     assert refresh_templates(templates, ev, options) > 0
@@ -135,12 +143,8 @@ def test_refresh_gated_by_turn_leaves_parts_that_did_not_turn(setup):
     """With ``refresh_turn_deg`` a part's rate is scaled by its turn since its template was
     written (frame 0 to 12: the index curls, the palm and the middle finger keep their
     orientation), and the written orientation follows the refresh."""
-    scenario, images, model, cam, base = setup
-    kin0 = forward_kinematics(model, scenario.states[0])
-    templates = acquire_templates(base.parts, images[0], cam, kin0, spacing_px=2.0)
-    kin = forward_kinematics(model, scenario.states[12])
-    ev = evaluate_layered(templates, images[12], cam, kin, templates.planes(kin, cam), None,
-                          0.0)
+    cam, base = setup[3], setup[4]
+    templates, ev, kin = _refresh_case(setup)
     before, written = templates.values.copy(), templates.views.copy()
     turn = 3.0
     options = TemplateOptions(refresh_rate=0.5, reference_pull=0.0, refresh_max_rms=1e3,
