@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from digiteyes.kinematics.rotations import (
+    matrix_angle,
     matrix_from_quaternion,
     quaternion_from_matrix,
     quaternion_from_rotvec,
@@ -28,6 +29,16 @@ def axis_angle_matrix(axis, angle: float) -> np.ndarray:
     k = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
     K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
     return np.eye(3) + math.sin(angle) * K + (1 - math.cos(angle)) * K @ K
+
+
+def test_matrix_angle_matches_the_rotation_and_is_accurate_near_zero():
+    rng = np.random.default_rng(3)
+    axes = rng.normal(size=(6, 3))
+    angles = np.array([0.0, 1e-9, 1e-4, 0.3, 2.0, math.pi])
+    rotations = np.array([axis_angle_matrix(k, t) for k, t in zip(axes, angles, strict=True)])
+    base = axis_angle_matrix([0.2, -1.0, 0.5], 0.7)
+    np.testing.assert_allclose(matrix_angle(base, base @ rotations), angles, atol=1e-12)
+    np.testing.assert_allclose(matrix_angle(base @ rotations, base), angles, atol=1e-12)
 
 
 # ------------------------------------------------------------------ skew

@@ -143,3 +143,12 @@ def quaternion_angle(q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
     w = w1 * w2 + np.sum(v1 * v2, axis=-1)
     v = w1[..., None] * v2 - w2[..., None] * v1 - np.cross(v1, v2)
     return 2.0 * np.arctan2(np.linalg.norm(v, axis=-1), np.abs(w))
+
+
+def matrix_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Geodesic angle (radians, in [0, pi]) between rotation matrices ``a`` and ``b``
+    (..., 3, 3), from ``||a - b||_F = 2 sqrt(2) sin(angle / 2)``: accurate near zero,
+    where ``arccos((trace(a^T b) - 1) / 2)`` loses half the digits."""
+    chord = np.linalg.norm(np.asarray(a, dtype=float) - np.asarray(b, dtype=float),
+                           axis=(-2, -1)) / (2.0 * np.sqrt(2.0))
+    return 2.0 * np.arcsin(np.clip(chord, 0.0, 1.0))

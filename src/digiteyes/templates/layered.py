@@ -40,6 +40,7 @@ import numpy as np
 
 from digiteyes.camera import Camera
 from digiteyes.kinematics import Kinematics
+from digiteyes.kinematics.rotations import matrix_angle
 from digiteyes.occlusion.parts import (
     TemplatePart,
     TemplatePlane,
@@ -341,14 +342,7 @@ def part_views(parts: tuple[TemplatePart, ...], kin: Kinematics, camera: Camera
 
 def _turn_fraction(written: np.ndarray, now: np.ndarray, turn_deg: float) -> np.ndarray:
     """Per part, ``min(1, angle(written -> now) / turn_deg)`` of (K, 3, 3) rotations."""
-    return np.minimum(1.0, rotation_angles_deg(written, now) / turn_deg)
-
-
-def rotation_angles_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Angles (degrees) between rotations ``a`` and ``b`` (..., 3, 3), from
-    ``||a - b||_F = 2 sqrt(2) sin(angle / 2)`` (accurate near zero, unlike the trace)."""
-    chord = np.linalg.norm(a - b, axis=(-2, -1)) / (2.0 * np.sqrt(2.0))
-    return np.degrees(2.0 * np.arcsin(np.clip(chord, 0.0, 1.0)))
+    return np.minimum(1.0, np.degrees(matrix_angle(written, now)) / turn_deg)
 
 
 def refresh_templates(templates: CameraTemplates, evaluation: LayeredEvaluation,
