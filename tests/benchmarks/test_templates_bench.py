@@ -57,5 +57,8 @@ def test_a_row_names_the_options_it_runs_with():
     assert run_label(row) == "templates +background"
     assert run_label(row | {"background": "none", "finger_search": True}) == "templates +search"
     assert run_label(row | {"background": "none"}) == "templates"
-    assert row["refresh_turn_deg"] is None
-    assert run_label(row | {"background": "none", "refresh_turn_deg": 3.0}) == "templates +gated"
+    assert row["refresh_gated"]  # one camera: gated by default
+    plain = row | {"background": "none"}
+    assert run_label(plain | {"refresh_gated": False}) == "templates ungated"
+    assert run_label(plain | {"cameras": 2, "refresh_gated": False}) == "templates"
+    assert run_label(plain | {"cameras": 2, "refresh_gated": True}) == "templates +gated"

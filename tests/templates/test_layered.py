@@ -129,13 +129,14 @@ def test_refresh_blends_only_good_frames(setup):
     base = setup[4]
     templates, ev, _ = _refresh_case(setup)
     before = templates.values.copy()
-    options = TemplateOptions(refresh_rate=0.5, reference_pull=0.0, refresh_max_rms=1e3)
+    options = TemplateOptions(refresh_rate=0.5, reference_pull=0.0, refresh_max_rms=1e3,
+                              refresh_turn_deg=None)
     assert refresh_templates(templates, ev, options) > 0
     seen = (ev.visibility >= 0.99) & (base.weights > 0)
     observed = ev.residuals + before
     np.testing.assert_allclose(templates.values[seen], 0.5 * (before + observed)[seen],
                                atol=1e-3)
-    strict = TemplateOptions(refresh_max_rms=1e-3)
+    strict = TemplateOptions(refresh_max_rms=1e-3, refresh_turn_deg=None)
     assert refresh_templates(templates, ev, strict) == 0
 
 
@@ -170,6 +171,18 @@ def test_refresh_gated_by_turn_leaves_parts_that_did_not_turn(setup):
             turned += 1
             np.testing.assert_allclose(templates.views[k], now[k], atol=1e-9)
     assert still >= 2 and turned >= 2  # palm and middle finger still; the index curls
+
+
+def test_the_gate_is_for_rigs_of_one_camera_by_default():
+    options = TemplateOptions()
+    assert options.refresh_turn_deg == 3.0 and options.refresh_turn_cameras == 1
+    assert options.for_rig(1) is options
+    assert options.for_rig(2).refresh_turn_deg is None
+    assert TemplateOptions(refresh_turn_cameras=2).for_rig(2).refresh_turn_deg == 3.0
+    with pytest.raises(TemplateError):
+        TemplateOptions(refresh_turn_cameras=0)
+    with pytest.raises(TemplateError):
+        TemplateOptions(refresh_turn_deg=0.0)
 
 
 def test_segmentation_puts_the_front_part_on_top(setup):

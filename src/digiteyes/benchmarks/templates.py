@@ -17,10 +17,11 @@ docs/appearance.md), side by side.
   (``finger_search``, off by default: it costs the loss flag its recall on the desk rows
   of ``bench accuracy``; docs/templates.md) with two cameras and, for
   ``templates+features``, one;
-* both trackers on ``two-finger-occlusion`` and ``natural`` with two cameras with the
-  template refresh gated by each part's turn (``refresh_turn_deg`` =
-  :data:`GATED_REFRESH_TURN_DEG`, off by default: it holds the still palm's depth on two
-  fingers and costs ``templates+features`` on ``natural``; docs/templates.md);
+* the template refresh is gated by each part's turn with one camera by default
+  (``TemplateOptions.refresh_turn_deg``, ``refresh_turn_cameras``; docs/templates.md,
+  "Refresh and drift"): both trackers also run ``two-finger-occlusion`` with the gate off
+  (``ungated``) and ``natural`` with two cameras with the gate on (``+gated``), the
+  settings it was chosen against;
 * every run is made on :data:`SEEDS` renders that differ in their sensor noise
   (:data:`~digiteyes.benchmarks.tracker.NOISE_SIGMA` grey levels): a track that passes near
   a decision (a finger that can flip) ends differently with another draw of the noise, so
@@ -59,15 +60,13 @@ from digiteyes.pipeline import step_frames
 from digiteyes.synth import RenderOptions, render_views
 from digiteyes.synth.options import APPEARANCES
 from digiteyes.synth.scenarios import build_scenario
+from digiteyes.templates.layered import TemplateOptions
 from digiteyes.trackers import LayeredTemplateOptions, create_tracker
 
 STAGES = ("visibility", "template_rendering", "residual", "jacobian", "features",
           "linear_solve")
 SEEDS = (0, 1, 2)
 """Noise seeds of the full run (``--quick``: the first)."""
-GATED_REFRESH_TURN_DEG = 3.0
-"""``TemplateOptions.refresh_turn_deg`` of the runs with the refresh gated by each part's
-turn (opt-in; docs/templates.md, "Refresh and drift")."""
 _SEED_STRIDE = 100_000
 """Frame ``i`` of seed ``s`` is rendered with the noise seed ``i + s * _SEED_STRIDE``."""
 _AVERAGED = ("mean_tip_error_mm", "max_frame_tip_error_mm", "lost_frames",
@@ -113,7 +112,7 @@ def track_scenario(name: str, n_cameras: int, n_frames: int | None,
     out = {"scenario": name, "tracker": tracker, "appearance": appearance,
            "cameras": n_cameras, "seed": seed, "finger_search": options.finger_search,
            "background": options.background,
-           "refresh_turn_deg": options.templates.refresh_turn_deg,
+           "refresh_gated": options.templates.for_rig(n_cameras).refresh_turn_deg is not None,
            "frames": len(truth),
            "iterations_per_frame": options.iterations_per_frame,
            "mean_tip_error_mm": float(tip_error.mean()),
@@ -178,7 +177,7 @@ def seed_mean(runs: list[dict]) -> dict:
     return row
 
 
-_LABEL = len("templates+features +search")
+_LABEL = len("templates+features ungated")
 """Width of the table's tracker column (the longest :func:`run_label`)."""
 
 
@@ -186,7 +185,14 @@ def run_label(row: dict) -> str:
     """A row's tracker and the options it runs with beyond the defaults."""
     return (row["tracker"] + (" +search" if row["finger_search"] else "")
             + (" +background" if row.get("background", "none") != "none" else "")
-            + (" +gated" if row.get("refresh_turn_deg") is not None else ""))
+            + _gate_label(row))
+
+
+def _gate_label(row: dict) -> str:
+    """`` +gated`` or `` ungated`` where a row's refresh is not its rig's default."""
+    default = TemplateOptions().for_rig(row["cameras"]).refresh_turn_deg is not None
+    gated = row.get("refresh_gated", default)
+    return "" if gated == default else " +gated" if gated else " ungated"
 
 
 def run(json_path: str | None = None, quick: bool = False) -> dict:
@@ -194,14 +200,14 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
     options = LayeredTemplateOptions()
     searching = replace(options, finger_search=True)
     background = replace(options, background="filtered")
-    gated = replace(options, templates=replace(options.templates,
-                                               refresh_turn_deg=GATED_REFRESH_TURN_DEG))
+    ungated = replace(options, templates=replace(options.templates, refresh_turn_deg=None))
+    gated = replace(options, templates=replace(options.templates, refresh_turn_cameras=2))
     short = 40 if quick else None
     runs = [("two-finger-occlusion", 1, 30 if quick else None, "templates", options),
             ("two-finger-occlusion", 1, 30 if quick else None, "templates+features", options),
             ("two-finger-occlusion", 1, 30 if quick else None, "templates", background),
-            ("two-finger-occlusion", 1, 30 if quick else None, "templates", gated),
-            ("two-finger-occlusion", 1, 30 if quick else None, "templates+features", gated),
+            ("two-finger-occlusion", 1, 30 if quick else None, "templates", ungated),
+            ("two-finger-occlusion", 1, 30 if quick else None, "templates+features", ungated),
             ("natural", 2, short, "templates", options),
             ("natural", 2, short, "templates+features", options),
             ("natural", 1, short, "templates", options),
@@ -221,6 +227,8 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
                 "template_weight": options.template_weight,
                 "conditioning": list(options.conditioning), "log": asdict(topts.log),
                 "window": topts.window, "refresh_rate": topts.refresh_rate,
+                "refresh_turn_deg": topts.refresh_turn_deg,
+                "refresh_turn_cameras": topts.refresh_turn_cameras,
                 "filter_pad_px": topts.filter_pad_px, "finger_search": options.finger_search,
                 "seeds": list(seeds), "noise_sigma": NOISE_SIGMA}
     result = {"tracking": tracking, "visibility": visibility, "settings": settings,

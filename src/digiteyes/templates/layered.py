@@ -34,7 +34,7 @@ while a bad frame cannot rewrite a template and errors cannot accumulate without
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -84,7 +84,11 @@ class TemplateOptions:
         template was last written (the rotation of its shape frame in the camera frame):
         the rate is ``refresh_rate * min(1, turn / refresh_turn_deg)``, and the written
         orientation follows by the same fraction. A part that does not turn keeps its
-        template, so the refresh cannot make it drift (docs/templates.md).
+        template, so the refresh cannot make it drift (docs/templates.md, "Refresh and
+        drift").
+    refresh_turn_cameras : the gate applies to rigs of at most this many cameras (1: one
+        camera, which cannot see a still part's drift along its line of sight; a second
+        view pins it, and there the ungated refresh tracked better).
     occlusion_margin_px : occluding outlines are grown by this much (px) in the layered
         error (about the LoG's reach), and parts this close count as overlapping.
     filter_pad_px : after the first frame, images are filtered only within this many px
@@ -100,7 +104,8 @@ class TemplateOptions:
     reference_pull: float = 0.02
     refresh_max_rms: float = 12.0
     refresh_min_visibility: float = 0.99
-    refresh_turn_deg: float | None = None
+    refresh_turn_deg: float | None = 3.0
+    refresh_turn_cameras: int = 1
     occlusion_margin_px: float = 3.0
     filter_pad_px: float | None = 40.0
 
@@ -114,12 +119,23 @@ class TemplateOptions:
         if self.refresh_turn_deg is not None and not self.refresh_turn_deg > 0:
             raise TemplateError(f"refresh_turn_deg must be None or positive, got "
                                 f"{self.refresh_turn_deg!r}")
+        if isinstance(self.refresh_turn_cameras, bool) or \
+                not isinstance(self.refresh_turn_cameras, int) or self.refresh_turn_cameras < 1:
+            raise TemplateError(f"refresh_turn_cameras must be a positive integer, got "
+                                f"{self.refresh_turn_cameras!r}")
         if self.filter_pad_px is not None and not self.filter_pad_px >= 0:
             raise TemplateError(f"filter_pad_px must be None or not negative, got "
                                 f"{self.filter_pad_px!r}")
         for name in ("refresh_rate", "reference_pull", "refresh_min_visibility"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise TemplateError(f"{name} must be in [0, 1], got {getattr(self, name)!r}")
+
+    def for_rig(self, n_cameras: int) -> TemplateOptions:
+        """These settings as a rig of ``n_cameras`` uses them: the refresh ungated
+        (``refresh_turn_deg`` None) beyond ``refresh_turn_cameras`` cameras."""
+        if self.refresh_turn_deg is None or n_cameras <= self.refresh_turn_cameras:
+            return self
+        return replace(self, refresh_turn_deg=None)
 
     @property
     def tau(self) -> float:

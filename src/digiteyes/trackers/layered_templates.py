@@ -576,9 +576,10 @@ class LayeredTemplateTracker:
         refreshed = 0
         if not residual_reasons:
             tic = time.perf_counter()
+            refresh = opts.templates.for_rig(len(self.rig))
             kin = (forward_kinematics(self.model, q)
-                   if opts.templates.refresh_turn_deg is not None else None)
-            refreshed = sum(refresh_templates(t, ev, opts.templates, kin, cam)
+                   if refresh.refresh_turn_deg is not None else None)
+            refreshed = sum(refresh_templates(t, ev, refresh, kin, cam)
                             for t, ev, cam in zip(self.templates, final, self.rig, strict=True))
             timings["refresh"] = time.perf_counter() - tic
         feature_links = ([self._unoccluded_links(o) for o in setup["orders"]]
