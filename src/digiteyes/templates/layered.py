@@ -30,6 +30,10 @@ Refresh (tracking on) blends the observed grey levels of well-seen pixels into t
 template at a small rate when the frame fitted well, and pulls every template back
 towards its reference by another small rate, so slow appearance changes are followed
 while a bad frame cannot rewrite a template and errors cannot accumulate without bound.
+With one camera the rate of each part is also scaled by how far the part has turned
+against the camera since its template was last written (``refresh_turn_deg``): a part
+that holds still keeps its template, and the estimate's error along the line of sight,
+which one camera cannot see, is not written into it.
 """
 
 from __future__ import annotations
@@ -83,7 +87,9 @@ class TemplateOptions:
         part's refresh by how far the part has turned against the camera since its
         template was last written (the rotation of its shape frame in the camera frame):
         the rate is ``refresh_rate * min(1, turn / refresh_turn_deg)``, and the written
-        orientation follows by the same fraction. A part that does not turn keeps its
+        orientation follows by the same fraction (every part's, seen in the frame or not:
+        a part that turns while hidden is not refreshed faster when it reappears, a
+        simplification). A part that does not turn keeps its
         template, so the refresh cannot make it drift (docs/templates.md, "Refresh and
         drift").
     refresh_turn_cameras : the gate applies to rigs of at most this many cameras (1: one
