@@ -487,13 +487,16 @@ class LayeredTemplateTracker:
         return greys if self.options.background == "grey" else images
 
     def _unoccluded_links(self, order: VisibilityOrder) -> list[str]:
-        """Cylinder links that no part occludes and that occlude no part's middle."""
+        """Cylinder links that no part occludes in ``order``. The neighbours of a flexed
+        link count: the revolute-joint rule (Sec. 3.2.2) puts one of two adjacent
+        phalanges in front of the other, so a finger curling away from the camera gets
+        features on few of its links (docs/templates.md, "The desk pair, measured
+        closer")."""
         names = []
         for name in self._feature_links:
             link = next(i for i, lk in enumerate(self.model.links) if lk.name == name)
             k = self._part_of_link.get(link)
-            if k is not None and not order.occluders[k] and not any(
-                    r.back == k and r.rule == "depth" for r in order.relations):
+            if k is not None and not order.occluders[k]:
                 names.append(name)
         return names
 
