@@ -43,7 +43,7 @@ from digiteyes.camera import Rig
 from digiteyes.errors import StateError
 from digiteyes.features import FeatureOptions, feature_residuals, measure_features
 from digiteyes.features.slices import prepare_image
-from digiteyes.kinematics import KinematicModel, forward_kinematics, validate_state
+from digiteyes.kinematics import KinematicModel, Kinematics, forward_kinematics, validate_state
 from digiteyes.kinematics.anatomy import DIGITS
 from digiteyes.occlusion.parts import TemplatePlane, template_parts
 from digiteyes.occlusion.segmentation import segment_image
@@ -379,7 +379,8 @@ class LayeredTemplateTracker:
                       for g, windows in zip(greys, setup["windows"], strict=True)]
             timings["filtering"] += time.perf_counter() - tic
         q, summary = self._solve(predicted, images, greys, setup, timings)
-        final = self._evaluate_all(q, images, setup, timings, derivatives=False)
+        kin = forward_kinematics(self.model, q)  # the final evaluation's and the refresh's
+        final = self._evaluate_all(q, images, setup, timings, kin, derivatives=False)
         verdict = None
         searched = False
         if self.options.silhouette_check:
@@ -392,11 +393,12 @@ class LayeredTemplateTracker:
                 found = self._search_fingers(q, greys, frames, predicted, timings, digits)
                 if found is not None:
                     q, summary, final, setup, verdict, moved = found
+                    kin = forward_kinematics(self.model, q)
                     self.finger_recovery.placed(moved)
                     searched = True
                 timings["finger_search"] = time.perf_counter() - tic
             verdict = self.finger_recovery.judge(verdict)
-        result = self._result(q, predicted, summary, final, setup, timings, verdict)
+        result = self._result(q, kin, predicted, summary, final, setup, timings, verdict)
         result.details.searched = searched
         self.state = q
         self.predictor.update(q, reliable=not (result.details.residual_lost or searched))
@@ -561,9 +563,11 @@ class LayeredTemplateTracker:
         summary.termination = summary.termination or "max_iterations"
         return q, summary
 
-    def _result(self, q, predicted, summary: SolverSummary, final: list[LayeredEvaluation],
-                setup: dict, timings: dict[str, float],
+    def _result(self, q, kin: Kinematics, predicted, summary: SolverSummary,
+                final: list[LayeredEvaluation], setup: dict, timings: dict[str, float],
                 verdict: SilhouetteVerdict | None) -> TrackResult:
+        """The frame's result at the solved state ``q`` (``kin`` its forward kinematics),
+        and the template refresh when the residual rules pass."""
         opts = self.options
         energy = sum(ev.energy for ev in final) * opts.template_weight
         summary.cost_final = energy
@@ -580,8 +584,6 @@ class LayeredTemplateTracker:
         if not residual_reasons:
             tic = time.perf_counter()
             refresh = opts.templates.for_rig(len(self.rig))
-            kin = (forward_kinematics(self.model, q)
-                   if refresh.refresh_turn_deg is not None else None)
             refreshed = sum(refresh_templates(t, ev, refresh, kin, cam)
                             for t, ev, cam in zip(self.templates, final, self.rig, strict=True))
             timings["refresh"] = time.perf_counter() - tic
