@@ -1,6 +1,8 @@
 """The layered template trackers on the first frames of ``two-finger-occlusion``: against
 the truth with tolerances, the details they report, and their option checks."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -60,8 +62,6 @@ def test_refresh_gated_by_turn_keeps_the_still_parts_templates(sequence, turn):
     not turn in this sequence, keeps the template it was acquired with (no drift to
     refresh into it), while the curling index finger's templates follow the images;
     without it the palm's template is rewritten too. The track holds either way."""
-    from dataclasses import replace
-
     scenario, frames = sequence
     options = LayeredTemplateOptions()
     options = replace(options, templates=replace(options.templates, refresh_turn_deg=turn))

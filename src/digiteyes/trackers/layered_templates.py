@@ -307,6 +307,7 @@ class LayeredTemplateTracker:
         self.parts = template_parts(model)
         self.parameterisation = StateParameterisation(model, "tangent", opts.clip_to_limits)
         self.S = hand_conditioning(model, *opts.conditioning)
+        self._refresh = opts.templates.for_rig(len(self.rig))  # the gate as this rig uses it
         self.predictor = StatePredictor(model, opts.prediction, opts.clip_to_limits)
         self._feature_links = [link.name for link in model.links if link.kind == "link"]
         self._part_of_link = {p.link: k for k, p in enumerate(self.parts)}
@@ -583,8 +584,7 @@ class LayeredTemplateTracker:
         refreshed = 0
         if not residual_reasons:
             tic = time.perf_counter()
-            refresh = opts.templates.for_rig(len(self.rig))
-            refreshed = sum(refresh_templates(t, ev, refresh, kin, cam)
+            refreshed = sum(refresh_templates(t, ev, self._refresh, kin, cam)
                             for t, ev, cam in zip(self.templates, final, self.rig, strict=True))
             timings["refresh"] = time.perf_counter() - tic
         feature_links = ([self._unoccluded_links(o) for o in setup["orders"]]
