@@ -209,8 +209,13 @@ def test_keypoints_near_the_truth_hold_the_fingers_the_feature_tracker_loses(mon
 def test_mediapipe_anchors_the_desk_pair_of_the_flesh_hand():
     """With MediaPipe itself, on the desk pair drawn as the flesh hand (colour): the
     detections pass the gate in most frames of both cameras, and the fingertips end
-    closer to the truth than with the feature tracker alone."""
-    n = 24
+    closer to the truth than with the feature tracker alone.
+
+    Over 60 frames, where the fingers curl out of the feature tracker's reach (14.6 against
+    8.3 mm on an AMD EPYC VM, seed 0; 17.1 against 11.6 with seed 1): over the first 24
+    frames, before they do, the two differ by less than the spread between machines
+    (7.7 against 6.8 mm there, passing 0.8 on an Intel Xeon)."""
+    n = 60
     scenario = build_scenario("desk-2cam", seed=0, n_frames=n)
     options = RenderOptions(appearance="flesh", noise_sigma=2.0, color=True)
     frames = [[v.image for v in render_views(scenario.model, scenario.states[k], scenario.rig,
