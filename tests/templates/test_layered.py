@@ -37,12 +37,18 @@ def _off_state(setup):
     return q, kin, templates.planes(kin, cam)
 
 
-@pytest.mark.parametrize("tau", [0.0, 1.5])
-def test_gradient_matches_finite_differences(setup, tau, fd_gradient):
+@pytest.mark.parametrize("tau, pixel_depth", [(0.0, False), (1.5, False), (1.5, True)])
+def test_gradient_matches_finite_differences(setup, tau, pixel_depth, fd_gradient):
     _, images, model, cam, templates = setup
     q, kin, planes = _off_state(setup)
-    ev = evaluate_layered(templates, images[12], cam, kin, planes, None, tau, margin=2.0)
+    ev = evaluate_layered(templates, images[12], cam, kin, planes, None, tau, margin=2.0,
+                          pixel_depth_at_joints=pixel_depth)
     assert ev.order.relations, "the test state must have occlusions"
+    assert bool(ev.order.pixel_depth) == pixel_depth, "the test state must bend a joint"
+    if pixel_depth:  # some pixels are seen that the joint rule alone would hide
+        rule = evaluate_layered(templates, images[12], cam, kin, planes, None, tau,
+                                margin=2.0)
+        assert (ev.visibility > rule.visibility + 0.5).any()
 
     def energy(dv):
         kin_dv = forward_kinematics(model, integrate(model, q, dv))
@@ -176,13 +182,22 @@ def test_refresh_gated_by_turn_leaves_parts_that_did_not_turn(setup):
 def test_the_gate_is_for_rigs_of_one_camera_by_default():
     options = TemplateOptions()
     assert options.refresh_turn_deg == 3.0 and options.refresh_turn_cameras == 1
-    assert options.for_rig(1) is options
+    assert options.for_rig(1).refresh_turn_deg == 3.0
     assert options.for_rig(2).refresh_turn_deg is None
     assert TemplateOptions(refresh_turn_cameras=2).for_rig(2).refresh_turn_deg == 3.0
     with pytest.raises(TemplateError):
         TemplateOptions(refresh_turn_cameras=0)
     with pytest.raises(TemplateError):
         TemplateOptions(refresh_turn_deg=0.0)
+
+
+def test_joints_are_ordered_pixel_by_pixel_with_two_cameras_by_default():
+    options = TemplateOptions()
+    assert options.pixel_depth_at_joints is None
+    assert options.for_rig(1).pixel_depth_at_joints is False
+    assert options.for_rig(2).pixel_depth_at_joints is True
+    assert TemplateOptions(pixel_depth_at_joints=False).for_rig(2).pixel_depth_at_joints is False
+    assert TemplateOptions(pixel_depth_at_joints=True).for_rig(1).pixel_depth_at_joints is True
 
 
 def test_segmentation_puts_the_front_part_on_top(setup):

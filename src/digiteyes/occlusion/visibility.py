@@ -60,19 +60,31 @@ class VisibilityOrder:
     relations : the binary relations kept in the graph.
     cycles : each broken cycle as a list of part indices.
     occluders : for each part, the parts that occlude it (overlapping and earlier).
+    pixel_depth : ``(part, occluder) -> 1 or 2`` for the occluders decided pixel by
+        pixel: the two links of a revolute joint when the order is predicted with
+        ``pixel_depth_at_joints``, each listed as an occluder of the other. At a pixel of
+        the part the occluder hides it where its surface lies nearer the camera along
+        the pixel's ray by more than a tolerance; within the tolerance (the joint, where
+        the two surfaces meet) the joint rule decides: 1 marks the rule's front link, 2
+        its back one.
     """
 
     order: np.ndarray
     relations: list[OcclusionRelation]
     cycles: list[list[int]] = field(default_factory=list)
     occluders: list[list[int]] = field(default_factory=list)
+    pixel_depth: dict[tuple[int, int], int] = field(default_factory=dict)
 
-    def csr(self) -> tuple[np.ndarray, np.ndarray]:
-        """The occluder lists as (start (K + 1,), index) int64 arrays for compiled code."""
+    def csr(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The occluder lists as (start (K + 1,), index) int64 arrays for compiled code,
+        and (index's length,) uint8 flags of :attr:`pixel_depth` (0 for occluders that
+        hide every pixel of their overlap)."""
         start = np.zeros(len(self.occluders) + 1, dtype=np.int64)
         start[1:] = np.cumsum([len(o) for o in self.occluders])
         index = np.array([j for o in self.occluders for j in o], dtype=np.int64)
-        return start, index
+        tested = np.array([self.pixel_depth.get((k, j), 0)
+                           for k, o in enumerate(self.occluders) for j in o], dtype=np.uint8)
+        return start, index, tested
 
     def pairs(self) -> dict[tuple[int, int], int]:
         """``{(min, max): front}`` of every relation (for comparing frames)."""
@@ -170,9 +182,13 @@ def _joint_relation(parts, windows: ImageWindows, camera: Camera, j: int,
             else OcclusionRelation(parent, child, margin, rule))
 
 
-def visibility_order(n_parts: int, relations: list[OcclusionRelation]) -> VisibilityOrder:
+def visibility_order(n_parts: int, relations: list[OcclusionRelation],
+                     pixel_depth_at_joints: bool = False) -> VisibilityOrder:
     """Topological order of the occlusion graph (front first), cycles broken at their
-    weakest edge (Sec. 3.4.2). Parts in no relation keep their index order."""
+    weakest edge (Sec. 3.4.2). Parts in no relation keep their index order. With
+    ``pixel_depth_at_joints`` the two links of each revolute-joint relation (rule
+    ``"joint"``) occlude each other pixel by pixel (:attr:`VisibilityOrder.pixel_depth`)
+    instead of the front one hiding the back one wherever their windows overlap."""
     kept = list(relations)
     cycles: list[list[int]] = []
     while True:
@@ -186,11 +202,16 @@ def visibility_order(n_parts: int, relations: list[OcclusionRelation]) -> Visibi
     rank = np.empty(n_parts, dtype=int)
     rank[order] = np.arange(n_parts)
     occluders: list[list[int]] = [[] for _ in range(n_parts)]
+    pixel_depth: dict[tuple[int, int], int] = {}
     for r in relations:
         front, back = (r.front, r.back) if rank[r.front] < rank[r.back] else (r.back, r.front)
         occluders[back].append(front)
+        if pixel_depth_at_joints and r.rule == "joint":
+            occluders[front].append(back)
+            pixel_depth[back, front] = 1
+            pixel_depth[front, back] = 2
     return VisibilityOrder(np.asarray(order, dtype=np.int64), kept, cycles,
-                           [sorted(o) for o in occluders])
+                           [sorted(o) for o in occluders], pixel_depth)
 
 
 def _topological(n: int, relations: list[OcclusionRelation]
@@ -243,7 +264,10 @@ def occlusion_events(previous: VisibilityOrder | None,
 
 
 def predict_visibility(parts: tuple[TemplatePart, ...], windows: ImageWindows,
-                       camera: Camera, margin: float = 0.0) -> VisibilityOrder:
+                       camera: Camera, margin: float = 0.0,
+                       pixel_depth_at_joints: bool = False) -> VisibilityOrder:
     """Relations, graph and order for one camera at the state of ``windows`` (pairs
-    within ``margin`` px count as overlapping)."""
-    return visibility_order(len(parts), occlusion_relations(parts, windows, camera, margin))
+    within ``margin`` px count as overlapping; ``pixel_depth_at_joints`` as for
+    :func:`visibility_order`)."""
+    return visibility_order(len(parts), occlusion_relations(parts, windows, camera, margin),
+                            pixel_depth_at_joints)

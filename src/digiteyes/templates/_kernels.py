@@ -32,15 +32,53 @@ def bilinear_gradient(image, x, y):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always")
-def _seen_through(win_kind, win_pts, win_r, windows, wx, wy, margin, tau, reach, gw, gp, Ms,
-                  ds):  # pragma: no cover - compiled
+def _nearer_along_ray(eye, p, a, b, radius_front, radius_back):  # pragma: no cover
+    """How much nearer the eye (mm) the capsule of axis ``a``-``b`` (world, mm) lies than
+    the point ``p`` along the ray from ``eye`` through ``p``: ``p``'s distance less
+    ``radius_back`` minus that of the axis point closest to the ray less
+    ``radius_front`` (both surfaces' fronts; ``p`` lies on its part's axis plane)."""
+    ux, uy, uz = p[0] - eye[0], p[1] - eye[1], p[2] - eye[2]
+    t_p = np.sqrt(ux * ux + uy * uy + uz * uz)
+    if t_p <= 0.0:
+        return 0.0
+    ux, uy, uz = ux / t_p, uy / t_p, uz / t_p
+    ex, ey, ez = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+    wx, wy, wz = eye[0] - a[0], eye[1] - a[1], eye[2] - a[2]
+    ue = ux * ex + uy * ey + uz * ez
+    ee = ex * ex + ey * ey + ez * ez
+    uw = ux * wx + uy * wy + uz * wz
+    ew = ex * wx + ey * wy + ez * wz
+    den = ee - ue * ue
+    v = 0.0 if den <= 1e-12 * max(ee, 1e-12) else (ew - ue * uw) / den
+    v = min(max(v, 0.0), 1.0)
+    # the ray parameter of the axis point at v
+    t_axis = ux * (a[0] + v * ex - eye[0]) + uy * (a[1] + v * ey - eye[1]) \
+        + uz * (a[2] + v * ez - eye[2])
+    return (t_p - radius_back) - (t_axis - radius_front)
+
+
+@njit(cache=True, inline="always")
+def _seen_through(win_kind, win_pts, win_r, windows, tested, wx, wy, margin, tau, reach, gw,
+                  gp, Ms, ds, eye, p, win_world, part_r, k,
+                  tie_mm):  # pragma: no cover - compiled
     """``V = prod (1 - M_j)`` at pixel ``(wx, wy)`` over the windows ``windows`` (indices),
     their outlines grown by ``margin``; fills ``Ms``/``ds`` (window values and signed
-    distances, in the order of ``windows``) and says whether any boundary is in reach."""
+    distances, in the order of ``windows``) and says whether any boundary is in reach. A
+    window flagged in ``tested`` counts only where its part lies nearer ``eye`` than the
+    pixel's point ``p`` of part ``k`` (:func:`_nearer_along_ray`, axes ``win_world``,
+    radii ``part_r``) by more than ``tie_mm``, or within it when flagged 1 (the joint
+    rule's front); elsewhere it is left out (``M = 0``, no boundary)."""
     V = 1.0
     boundary = False
     for o in range(windows.shape[0]):
         j = windows[o]
+        if tested[o] > 0:
+            nearer = _nearer_along_ray(eye, p, win_world[j, 0], win_world[j, 1], part_r[j],
+                                       part_r[k])
+            if nearer < (-tie_mm if tested[o] == 1 else tie_mm):
+                Ms[o] = 0.0
+                ds[o] = -np.inf
+                continue
         d = window_distance(win_kind[j], win_pts[j], win_r[j], wx, wy, gw, gp) + margin
         M, _ = window_value(d, tau)
         Ms[o] = M
@@ -74,15 +112,19 @@ def _add_outline_terms(j, kind, c, gp, b_pts, b_r):  # pragma: no cover - compil
 
 @njit(cache=True)
 def layered_kernel(image, pix_part, p_world, w, Jp, values, weights, twists, occ_start,
-                   occ_index, win_kind, win_pts, win_r, win_dpts, win_dr, tau, margin, H6,
-                   g6, b6, b_pts, b_r, r_out, v_out, rows_region, rows_dv,
-                   form_rows, derivatives):  # pragma: no cover - compiled
+                   occ_index, occ_tested, win_kind, win_pts, win_r, win_dpts, win_dr,
+                   win_world, part_r, eye, tie_mm, tau, margin, H6, g6, b6, b_pts, b_r, r_out,
+                   v_out, rows_region, rows_dv, form_rows,
+                   derivatives):  # pragma: no cover - compiled
     """One pass over the template pixels of one camera; returns the layered error
     ``E = sum_i weight_i V_i r_i^2 / 2``.
 
     Per pixel i of part k at image point ``w_i``: ``r_i = I(w_i) - T_i`` (eq. 2.11),
     ``V_i = prod_j (1 - M_j(w_i))`` over the parts j that occlude k (window tree,
-    eq. 3.7, 3.9), the occluders' outlines grown by ``margin`` px. Adds ``V m m^T`` to
+    eq. 3.7, 3.9), the occluders' outlines grown by ``margin`` px; an occluder flagged
+    in ``occ_tested`` counts only at the pixels where it lies nearer the camera (``eye``,
+    world mm) along the pixel's ray (``win_world`` its window's world points, ``part_r``
+    the parts' radii, mm). Adds ``V m m^T`` to
     ``H6[k]`` and ``V r m`` to ``g6[k]`` (region terms, eq. 3.10, in twist coordinates).
     The boundary terms ``r^2 / 2 dV`` (eq. 3.12) are split by what moves: the pixel
     (part k's twist coordinates, ``b6[k]``), the occluder's outline points
@@ -113,8 +155,10 @@ def layered_kernel(image, pix_part, p_world, w, Jp, values, weights, twists, occ
         # visibility through the occluders' windows
         n_occ = occ_start[k + 1] - occ_start[k]
         V, boundary = _seen_through(win_kind, win_pts, win_r,
-                                    occ_index[occ_start[k]:occ_start[k + 1]], wx, wy, margin,
-                                    tau, reach, gw, gp, Ms, ds)
+                                    occ_index[occ_start[k]:occ_start[k + 1]],
+                                    occ_tested[occ_start[k]:occ_start[k + 1]], wx, wy,
+                                    margin, tau, reach, gw, gp, Ms, ds, eye[i], p_world[i],
+                                    win_world, part_r, k, tie_mm)
         value, ix, iy = bilinear_gradient(image, wx, wy)
         r = value - values[i]
         r_out[i] = r
@@ -198,6 +242,10 @@ def background_kernel(image, pixels, values, weights, win_kind, win_pts, win_r, 
     Ms = np.empty(n_win)
     ds = np.empty(n_win)
     every = np.arange(n_win)
+    untested = np.zeros(n_win, dtype=np.uint8)  # the background is behind every part
+    no_point = np.zeros(3)
+    no_axes = np.zeros((n_win, 4, 3))
+    no_radii = np.zeros(n_win)
     reach = BOUNDARY_REACH * tau
     energy = 0.0
     for i in range(pixels.shape[0]):
@@ -207,8 +255,9 @@ def background_kernel(image, pixels, values, weights, win_kind, win_pts, win_r, 
         wt = weights[i]
         if wt <= 0.0:
             continue
-        V, boundary = _seen_through(win_kind, win_pts, win_r, every, float(x), float(y),
-                                    margin, tau, reach, gw, gp, Ms, ds)
+        V, boundary = _seen_through(win_kind, win_pts, win_r, every, untested, float(x),
+                                    float(y), margin, tau, reach, gw, gp, Ms, ds, no_point,
+                                    no_point, no_axes, no_radii, 0, 0.0)
         r = float(image[y, x]) - values[i]
         r_out[i] = r
         v_out[i] = V

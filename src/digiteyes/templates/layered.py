@@ -59,6 +59,10 @@ from digiteyes.templates.deformation import part_twists
 from digiteyes.templates.filtering import LogFilter, TemplateError
 
 WINDOWS = ("unit", "smooth")
+JOINT_DEPTH_TIE_MM = 1.0
+"""With ``pixel_depth_at_joints``: where the two links of a joint lie within this many mm
+of each other along a pixel's ray (at the joint, where their surfaces meet) the joint
+rule decides which one is seen."""
 
 
 @dataclass(frozen=True)
@@ -100,6 +104,12 @@ class TemplateOptions:
     filter_pad_px : after the first frame, images are filtered only within this many px
         of the box around the hand's windows at the predicted state (the template pixels
         a frame's iterations can reach); None filters whole images.
+    pixel_depth_at_joints : the two links of a revolute joint occlude each other pixel by
+        pixel (where the other's surface lies nearer the camera along the pixel's ray)
+        instead of by the joint rule of Sec. 3.2.2 over their whole overlap
+        (docs/templates.md, "Joints ordered pixel by pixel"); None (default): on rigs of
+        two cameras or more, which fix the links' depths, off with one camera, where it
+        cost the two-finger index joints (:meth:`for_rig`).
     """
 
     log: LogFilter = field(default_factory=lambda: LogFilter(size=7, contrast_px=2.0))
@@ -114,6 +124,7 @@ class TemplateOptions:
     refresh_turn_cameras: int = 1
     occlusion_margin_px: float = 3.0
     filter_pad_px: float | None = 40.0
+    pixel_depth_at_joints: bool | None = None
 
     def __post_init__(self) -> None:
         if self.window not in WINDOWS:
@@ -138,10 +149,14 @@ class TemplateOptions:
 
     def for_rig(self, n_cameras: int) -> TemplateOptions:
         """These settings as a rig of ``n_cameras`` uses them: the refresh ungated
-        (``refresh_turn_deg`` None) beyond ``refresh_turn_cameras`` cameras."""
+        (``refresh_turn_deg`` None) beyond ``refresh_turn_cameras`` cameras, and
+        ``pixel_depth_at_joints`` decided (on with two cameras or more unless set)."""
+        rig = self
+        if self.pixel_depth_at_joints is None:
+            rig = replace(rig, pixel_depth_at_joints=n_cameras >= 2)
         if self.refresh_turn_deg is None or n_cameras <= self.refresh_turn_cameras:
-            return self
-        return replace(self, refresh_turn_deg=None)
+            return rig
+        return replace(rig, refresh_turn_deg=None)
 
     @property
     def tau(self) -> float:
@@ -241,7 +256,8 @@ def evaluate_layered(templates: CameraTemplates, image: np.ndarray, camera: Came
                      order: VisibilityOrder | None, tau: float,
                      form_rows: bool = False, p_shape: np.ndarray | None = None,
                      margin: float = 0.0, twists: np.ndarray | None = None,
-                     derivatives: bool = True) -> LayeredEvaluation:
+                     derivatives: bool = True,
+                     pixel_depth_at_joints: bool = False) -> LayeredEvaluation:
     """The layered template error and its derivatives (module docstring) for one camera.
 
     Parameters
@@ -262,6 +278,9 @@ def evaluate_layered(templates: CameraTemplates, image: np.ndarray, camera: Came
         this state if already computed (they do not depend on the camera).
     derivatives : False computes only the error, residuals and visibility (``H`` and the
         gradients None): what a state's final check and the template refresh need.
+    pixel_depth_at_joints : when ``order`` is None, predict it with the joints' links
+        ordered pixel by pixel
+        (:func:`~digiteyes.occlusion.visibility.visibility_order`).
     """
     if form_rows and not derivatives:
         raise ValueError("form_rows needs derivatives")
@@ -270,10 +289,11 @@ def evaluate_layered(templates: CameraTemplates, image: np.ndarray, camera: Came
     parts = templates.parts
     windows = image_windows(parts, planes, kin, camera)
     if order is None:
-        order = predict_visibility(parts, windows, camera, margin)
-    occ_start, occ_index = order.csr()
+        order = predict_visibility(parts, windows, camera, margin, pixel_depth_at_joints)
+    occ_start, occ_index, occ_tested = order.csr()
     K, P = len(parts), len(p_shape)
     p_world = world_points(templates, kin, p_shape)
+    eye = _eyes(camera, p_world) if occ_tested.any() else p_world
     if derivatives:
         if twists is None:
             twists = part_twists(parts, kin)
@@ -292,10 +312,13 @@ def evaluate_layered(templates: CameraTemplates, image: np.ndarray, camera: Came
     rows_r = np.zeros((P if form_rows else 0, n_v))
     rows_v = np.zeros((P if form_rows else 0, n_v))
     energy = layered_kernel(image, templates.part_of, p_world, w, Jp, templates.values,
-                            templates.weights, twists, occ_start, occ_index, windows.kind,
-                            windows.points, windows.radius, windows.d_points,
-                            windows.d_radius, float(tau), float(margin), H6, g6, b6,
-                            b_pts, b_r, r, V, rows_r, rows_v, form_rows, derivatives)
+                            templates.weights, twists, occ_start, occ_index, occ_tested,
+                            windows.kind, windows.points, windows.radius, windows.d_points,
+                            windows.d_radius, windows.world,
+                            np.array([part.radius for part in parts]), eye,
+                            float(JOINT_DEPTH_TIE_MM), float(tau),
+                            float(margin), H6, g6, b6, b_pts, b_r, r, V, rows_r, rows_v,
+                            form_rows, derivatives)
     if not derivatives:
         return LayeredEvaluation(float(energy), None, None, None, None, r, V, w, windows, order)
     g_boundary = (np.einsum("kan,ka->n", twists, b6)
@@ -311,16 +334,27 @@ def evaluate_layered(templates: CameraTemplates, image: np.ndarray, camera: Came
                              rows_r if form_rows else None, rows_v if form_rows else None)
 
 
+def _eyes(camera: Camera, p_world: np.ndarray) -> np.ndarray:
+    """(P, 3) world points the rays to ``p_world`` (P, 3) start from, mm: the camera's
+    centre, or for an orthographic camera a point far back along its optical axis."""
+    if camera.projection == "perspective":
+        return np.ascontiguousarray(np.broadcast_to(np.asarray(camera.centre_world,
+                                                               dtype=float), p_world.shape))
+    return p_world - 1e6 * np.asarray(camera.T_cam_world)[2, :3]
+
+
 def acquire_templates(parts: tuple[TemplatePart, ...], image: np.ndarray, camera: Camera,
                       kin: Kinematics, spacing_px: float = 1.0,
-                      margin: float = 0.0) -> CameraTemplates:
+                      margin: float = 0.0,
+                      pixel_depth_at_joints: bool = False) -> CameraTemplates:
     """Templates of ``parts`` from a filtered ``image`` seen at the known state of
     ``kin`` (thesis Sec. 2.4.1; no label image needed).
 
     Each part's pixel grid has a spacing of ``spacing_px`` image pixels at the part's
     depth. A template pixel is kept (weight 1) where the model's own visibility order
     says it is seen (occluders grown by ``margin`` px) and it falls inside the image;
-    the others wait for a refresh.
+    the others wait for a refresh. ``pixel_depth_at_joints``: that order's joints decided
+    pixel by pixel (:func:`~digiteyes.occlusion.visibility.visibility_order`).
     """
     planes = []
     abs_, part_of, slices, sides = [], [], [], []
@@ -344,7 +378,7 @@ def acquire_templates(parts: tuple[TemplatePart, ...], image: np.ndarray, camera
                                 np.ones(P, dtype=np.float32), np.array(sides),
                                 part_views(parts, kin, camera))
     ev = evaluate_layered(templates, image, camera, kin, planes, None, 0.0, margin=margin,
-                          derivatives=False)
+                          derivatives=False, pixel_depth_at_joints=pixel_depth_at_joints)
     seen = ev.visibility >= 1.0
     observed = (ev.residuals + templates.values).astype(np.float32)
     templates.values[:] = np.where(seen, observed, 0.0)

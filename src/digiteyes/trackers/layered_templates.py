@@ -307,7 +307,7 @@ class LayeredTemplateTracker:
         self.parts = template_parts(model)
         self.parameterisation = StateParameterisation(model, "tangent", opts.clip_to_limits)
         self.S = hand_conditioning(model, *opts.conditioning)
-        self._refresh = opts.templates.for_rig(len(self.rig))  # the gate as this rig uses it
+        self._rig_templates = opts.templates.for_rig(len(self.rig))  # as this rig uses them
         self.predictor = StatePredictor(model, opts.prediction, opts.clip_to_limits)
         self._feature_links = [link.name for link in model.links if link.kind == "link"]
         self._part_of_link = {p.link: k for k, p in enumerate(self.parts)}
@@ -364,7 +364,8 @@ class LayeredTemplateTracker:
         if not self.templates:
             kin = forward_kinematics(self.model, predicted)
             self.templates = [acquire_templates(self.parts, image, cam, kin, topts.spacing_px,
-                                                topts.occlusion_margin_px)
+                                                topts.occlusion_margin_px,
+                                                self._rig_templates.pixel_depth_at_joints)
                               for image, cam in zip(images, self.rig, strict=True)]
             if self.options.background != "none":
                 self.backgrounds = [
@@ -444,7 +445,8 @@ class LayeredTemplateTracker:
                 regions.append(window_region(windows, self.backgrounds[c].values.shape,
                                              self.options.background_pad_px))
             order = predict_visibility(self.parts, windows, cam,
-                                       self.options.templates.occlusion_margin_px)
+                                       self.options.templates.occlusion_margin_px,
+                                       self._rig_templates.pixel_depth_at_joints)
             events.append(occlusion_events(self._orders[c], order))
             orders.append(order)
         self._orders = list(orders)
@@ -495,11 +497,13 @@ class LayeredTemplateTracker:
         phalanges in front of the other, so a finger curling away from the camera gets
         features on few of its links (docs/templates.md, "The desk pair, measured
         closer")."""
+        rank = np.empty(len(order.order), dtype=int)
+        rank[order.order] = np.arange(len(order.order))
         names = []
         for name in self._feature_links:
             link = next(i for i, lk in enumerate(self.model.links) if lk.name == name)
             k = self._part_of_link.get(link)
-            if k is not None and not order.occluders[k]:
+            if k is not None and not any(rank[j] < rank[k] for j in order.occluders[k]):
                 names.append(name)
         return names
 
@@ -584,7 +588,7 @@ class LayeredTemplateTracker:
         refreshed = 0
         if not residual_reasons:
             tic = time.perf_counter()
-            refreshed = sum(refresh_templates(t, ev, self._refresh, kin, cam)
+            refreshed = sum(refresh_templates(t, ev, self._rig_templates, kin, cam)
                             for t, ev, cam in zip(self.templates, final, self.rig, strict=True))
             timings["refresh"] = time.perf_counter() - tic
         feature_links = ([self._unoccluded_links(o) for o in setup["orders"]]
