@@ -22,6 +22,11 @@ docs/appearance.md), side by side.
   "Refresh and drift"): both trackers also run ``two-finger-occlusion`` with the gate off
   (``ungated``) and ``natural`` with two cameras with the gate on (``+gated``), the
   settings it was chosen against;
+* the joints' links are ordered pixel by pixel with two cameras by default
+  (``TemplateOptions.pixel_depth_at_joints``; docs/templates.md): both trackers also run
+  ``natural`` with two cameras by the joint rule alone (``joint rule``), and ``templates``
+  runs ``two-finger-occlusion`` with the pixel order on (``+pixel depth``), the settings
+  the default was chosen against;
 * every run is made on :data:`SEEDS` renders that differ in their sensor noise
   (:data:`~digiteyes.benchmarks.tracker.NOISE_SIGMA` grey levels): a track that passes near
   a decision (a finger that can flip) ends differently with another draw of the noise, so
@@ -113,6 +118,7 @@ def track_scenario(name: str, n_cameras: int, n_frames: int | None,
            "cameras": n_cameras, "seed": seed, "finger_search": options.finger_search,
            "background": options.background,
            "refresh_gated": options.templates.for_rig(n_cameras).refresh_turn_deg is not None,
+           "pixel_depth_at_joints": options.templates.for_rig(n_cameras).pixel_depth_at_joints,
            "frames": len(truth),
            "iterations_per_frame": options.iterations_per_frame,
            "mean_tip_error_mm": float(tip_error.mean()),
@@ -177,7 +183,7 @@ def seed_mean(runs: list[dict]) -> dict:
     return row
 
 
-_LABEL = len("templates+features ungated")
+_LABEL = len("templates+features joint rule")
 """Width of the table's tracker column (the longest :func:`run_label`)."""
 
 
@@ -185,7 +191,7 @@ def run_label(row: dict) -> str:
     """A row's tracker and the options it runs with beyond the defaults."""
     return (row["tracker"] + (" +search" if row["finger_search"] else "")
             + (" +background" if row.get("background", "none") != "none" else "")
-            + _gate_label(row))
+            + _gate_label(row) + _depth_label(row))
 
 
 def _gate_label(row: dict) -> str:
@@ -195,6 +201,14 @@ def _gate_label(row: dict) -> str:
     return "" if gated == default else " +gated" if gated else " ungated"
 
 
+def _depth_label(row: dict) -> str:
+    """`` +pixel depth`` or `` joint rule`` where a row's order at the joints is not its
+    rig's default (:attr:`TemplateOptions.pixel_depth_at_joints`)."""
+    default = TemplateOptions().for_rig(row["cameras"]).pixel_depth_at_joints
+    by_pixel = row.get("pixel_depth_at_joints", default)
+    return "" if by_pixel == default else " +pixel depth" if by_pixel else " joint rule"
+
+
 def run(json_path: str | None = None, quick: bool = False) -> dict:
     """Run the benchmark, print a table, optionally write JSON (see module docstring)."""
     options = LayeredTemplateOptions()
@@ -202,6 +216,10 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
     background = replace(options, background="filtered")
     ungated = replace(options, templates=replace(options.templates, refresh_turn_deg=None))
     gated = replace(options, templates=replace(options.templates, refresh_turn_cameras=2))
+    joint_rule = replace(options, templates=replace(options.templates,
+                                                    pixel_depth_at_joints=False))
+    by_pixel = replace(options, templates=replace(options.templates,
+                                                  pixel_depth_at_joints=True))
     short = 40 if quick else None
     runs = [("two-finger-occlusion", 1, 30 if quick else None, "templates", options),
             ("two-finger-occlusion", 1, 30 if quick else None, "templates+features", options),
@@ -215,7 +233,10 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
             ("natural", 2, short, "templates+features", searching),
             ("natural", 1, short, "templates+features", searching),
             ("natural", 2, short, "templates", gated),
-            ("natural", 2, short, "templates+features", gated)]
+            ("natural", 2, short, "templates+features", gated),
+            ("natural", 2, short, "templates", joint_rule),
+            ("natural", 2, short, "templates+features", joint_rule),
+            ("two-finger-occlusion", 1, 30 if quick else None, "templates", by_pixel)]
     seeds = SEEDS[:1] if quick else SEEDS
     with kernel_threads(1, 1):
         tracking = [seed_mean([track_scenario(n, c, f, o, t, a, seed) for seed in seeds])
@@ -230,6 +251,7 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
                 "refresh_turn_deg": topts.refresh_turn_deg,
                 "refresh_turn_cameras": topts.refresh_turn_cameras,
                 "filter_pad_px": topts.filter_pad_px, "finger_search": options.finger_search,
+                "pixel_depth_at_joints": topts.pixel_depth_at_joints,
                 "seeds": list(seeds), "noise_sigma": NOISE_SIGMA}
     result = {"tracking": tracking, "visibility": visibility, "settings": settings,
               "machine": machine_info(), "quick": quick}

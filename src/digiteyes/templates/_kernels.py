@@ -122,9 +122,11 @@ def layered_kernel(image, pix_part, p_world, w, Jp, values, weights, twists, occ
     Per pixel i of part k at image point ``w_i``: ``r_i = I(w_i) - T_i`` (eq. 2.11),
     ``V_i = prod_j (1 - M_j(w_i))`` over the parts j that occlude k (window tree,
     eq. 3.7, 3.9), the occluders' outlines grown by ``margin`` px; an occluder flagged
-    in ``occ_tested`` counts only at the pixels where it lies nearer the camera (``eye``,
-    world mm) along the pixel's ray (``win_world`` its window's world points, ``part_r``
-    the parts' radii, mm). Adds ``V m m^T`` to
+    in ``occ_tested`` (1 or 2, :attr:`~digiteyes.occlusion.visibility.VisibilityOrder.
+    pixel_depth`) counts only at the pixels where it lies nearer the ray's start ``eye[i]``
+    (world, mm) by more than ``tie_mm``, or within ``tie_mm`` when flagged 1
+    (``win_world`` its window's world points, ``part_r`` the parts' radii, mm). Adds
+    ``V m m^T`` to
     ``H6[k]`` and ``V r m`` to ``g6[k]`` (region terms, eq. 3.10, in twist coordinates).
     The boundary terms ``r^2 / 2 dV`` (eq. 3.12) are split by what moves: the pixel
     (part k's twist coordinates, ``b6[k]``), the occluder's outline points
