@@ -45,7 +45,8 @@ def test_rows_average_over_noise_seeds():
 
 def test_a_row_names_the_options_it_runs_with():
     """The background template and the finger search are opt-in; a row run with either
-    says so in its label, and the background it ran with is in the row."""
+    says so in its label, and the background it ran with is in the row; so does a row
+    whose refresh gate or order at the joints is not its rig's default."""
     from dataclasses import replace
 
     from digiteyes.benchmarks.templates import run_label
@@ -60,5 +61,10 @@ def test_a_row_names_the_options_it_runs_with():
     assert row["refresh_gated"]  # one camera: gated by default
     plain = row | {"background": "none"}
     assert run_label(plain | {"refresh_gated": False}) == "templates ungated"
-    assert run_label(plain | {"cameras": 2, "refresh_gated": False}) == "templates"
-    assert run_label(plain | {"cameras": 2, "refresh_gated": True}) == "templates +gated"
+    assert not row["pixel_depth_at_joints"]  # one camera: the joint rule by default
+    assert run_label(plain | {"pixel_depth_at_joints": True}) == "templates +pixel depth"
+    two = plain | {"cameras": 2, "pixel_depth_at_joints": True}
+    assert run_label(two | {"refresh_gated": False}) == "templates"
+    assert run_label(two | {"refresh_gated": True}) == "templates +gated"
+    assert run_label(two | {"refresh_gated": False, "pixel_depth_at_joints": False}) == (
+        "templates joint rule")
