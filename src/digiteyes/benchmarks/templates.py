@@ -109,6 +109,7 @@ def track_scenario(name: str, n_cameras: int, n_frames: int | None,
                 stage_seconds[stage] += result.timings[stage]
     est = np.array(states)
     truth = scenario.states
+    rig_templates = options.templates.for_rig(n_cameras)
     tips = [link.row for link in model.links if link.kind == "tip"]
     kt = forward_kinematics(model, truth).T_world_shape[:, tips][..., :3, 3]
     ke = forward_kinematics(model, est).T_world_shape[:, tips][..., :3, 3]
@@ -117,8 +118,8 @@ def track_scenario(name: str, n_cameras: int, n_frames: int | None,
     out = {"scenario": name, "tracker": tracker, "appearance": appearance,
            "cameras": n_cameras, "seed": seed, "finger_search": options.finger_search,
            "background": options.background,
-           "refresh_gated": options.templates.for_rig(n_cameras).refresh_turn_deg is not None,
-           "pixel_depth_at_joints": options.templates.for_rig(n_cameras).pixel_depth_at_joints,
+           "refresh_gated": rig_templates.refresh_turn_deg is not None,
+           "pixel_depth_at_joints": rig_templates.pixel_depth_at_joints,
            "frames": len(truth),
            "iterations_per_frame": options.iterations_per_frame,
            "mean_tip_error_mm": float(tip_error.mean()),
@@ -189,24 +190,20 @@ _LABEL = len("templates+features joint rule")
 
 def run_label(row: dict) -> str:
     """A row's tracker and the options it runs with beyond the defaults."""
+    rig = TemplateOptions().for_rig(row["cameras"])  # the defaults as its rig uses them
     return (row["tracker"] + (" +search" if row["finger_search"] else "")
             + (" +background" if row.get("background", "none") != "none" else "")
-            + _gate_label(row) + _depth_label(row))
+            + _off_default(row, "refresh_gated", rig.refresh_turn_deg is not None, " +gated",
+                           " ungated")
+            + _off_default(row, "pixel_depth_at_joints", rig.pixel_depth_at_joints,
+                           " +pixel depth", " joint rule"))
 
 
-def _gate_label(row: dict) -> str:
-    """`` +gated`` or `` ungated`` where a row's refresh is not its rig's default."""
-    default = TemplateOptions().for_rig(row["cameras"]).refresh_turn_deg is not None
-    gated = row.get("refresh_gated", default)
-    return "" if gated == default else " +gated" if gated else " ungated"
-
-
-def _depth_label(row: dict) -> str:
-    """`` +pixel depth`` or `` joint rule`` where a row's order at the joints is not its
-    rig's default (:attr:`TemplateOptions.pixel_depth_at_joints`)."""
-    default = TemplateOptions().for_rig(row["cameras"]).pixel_depth_at_joints
-    by_pixel = row.get("pixel_depth_at_joints", default)
-    return "" if by_pixel == default else " +pixel depth" if by_pixel else " joint rule"
+def _off_default(row: dict, key: str, default: bool, on: str, off: str) -> str:
+    """``on`` or ``off`` where a row's setting ``key`` is not ``default``, its rig's
+    default (a row without the key has the default), else nothing."""
+    value = row.get(key, default)
+    return "" if value == default else on if value else off
 
 
 def run(json_path: str | None = None, quick: bool = False) -> dict:

@@ -37,6 +37,10 @@ from digiteyes.occlusion._kernels import pair_overlap_kernel
 from digiteyes.occlusion.parts import TemplatePart, towards_camera
 from digiteyes.occlusion.windows import CAPSULE, ImageWindows
 
+RULE_FRONT, RULE_BACK = 1, 2
+"""Flags of :attr:`VisibilityOrder.pixel_depth`: the occluder is the joint rule's front
+link (it hides the pixel at a tie) or its back link (it does not)."""
+
 
 @dataclass(frozen=True)
 class OcclusionRelation:
@@ -65,8 +69,8 @@ class VisibilityOrder:
         ``pixel_depth_at_joints``, each listed as an occluder of the other. At a pixel of
         the part the occluder hides it where its surface lies nearer the camera along
         the pixel's ray by more than a tolerance; within the tolerance (the joint, where
-        the two surfaces meet) the joint rule decides: 1 marks the rule's front link, 2
-        its back one.
+        the two surfaces meet) the joint rule decides: :data:`RULE_FRONT` marks the
+        rule's front link, :data:`RULE_BACK` its back one.
     """
 
     order: np.ndarray
@@ -85,6 +89,11 @@ class VisibilityOrder:
         tested = np.array([self.pixel_depth.get((k, j), 0)
                            for k, o in enumerate(self.occluders) for j in o], dtype=np.uint8)
         return start, index, tested
+
+    def in_front(self, k: int) -> list[int]:
+        """The occluders of part ``k`` that come before it in the order (the front of each
+        relation; without the joints' back links that :attr:`pixel_depth` adds)."""
+        return [j for j in self.occluders[k] if self.pixel_depth.get((k, j)) != RULE_BACK]
 
     def pairs(self) -> dict[tuple[int, int], int]:
         """``{(min, max): front}`` of every relation (for comparing frames)."""
@@ -208,8 +217,8 @@ def visibility_order(n_parts: int, relations: list[OcclusionRelation],
         occluders[back].append(front)
         if pixel_depth_at_joints and r.rule == "joint":
             occluders[front].append(back)
-            pixel_depth[back, front] = 1
-            pixel_depth[front, back] = 2
+            pixel_depth[back, front] = RULE_FRONT
+            pixel_depth[front, back] = RULE_BACK
     return VisibilityOrder(np.asarray(order, dtype=np.int64), kept, cycles,
                            [sorted(o) for o in occluders], pixel_depth)
 

@@ -67,7 +67,8 @@ def _seen_through(win_kind, win_pts, win_r, windows, tested, wx, wy, margin, tau
     window flagged in ``tested`` counts only where its part lies nearer ``eye`` than the
     pixel's point ``p`` of part ``k`` (:func:`_nearer_along_ray`, axes ``win_world``,
     radii ``part_r``) by more than ``tie_mm``, or within it when flagged 1 (the joint
-    rule's front); elsewhere it is left out (``M = 0``, no boundary)."""
+    rule's front, :data:`~digiteyes.occlusion.visibility.RULE_FRONT`); elsewhere it is
+    left out (``M = 0``, no boundary)."""
     V = 1.0
     boundary = False
     for o in range(windows.shape[0]):

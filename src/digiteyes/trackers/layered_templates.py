@@ -497,13 +497,11 @@ class LayeredTemplateTracker:
         phalanges in front of the other, so a finger curling away from the camera gets
         features on few of its links (docs/templates.md, "The desk pair, measured
         closer")."""
-        rank = np.empty(len(order.order), dtype=int)
-        rank[order.order] = np.arange(len(order.order))
         names = []
         for name in self._feature_links:
             link = next(i for i, lk in enumerate(self.model.links) if lk.name == name)
             k = self._part_of_link.get(link)
-            if k is not None and not any(rank[j] < rank[k] for j in order.occluders[k]):
+            if k is not None and not order.in_front(k):
                 names.append(name)
         return names
 
