@@ -63,8 +63,13 @@ def test_a_row_names_the_options_it_runs_with():
     assert run_label(plain | {"refresh_gated": False}) == "templates ungated"
     assert not row["pixel_depth_at_joints"]  # one camera: the joint rule by default
     assert run_label(plain | {"pixel_depth_at_joints": True}) == "templates +pixel depth"
-    two = plain | {"cameras": 2, "pixel_depth_at_joints": True}
+    two = plain | {"cameras": 2, "pixel_depth_at_joints": True, "hiding_costs": True}
     assert run_label(two | {"refresh_gated": False}) == "templates"
     assert run_label(two | {"refresh_gated": True}) == "templates +gated"
     assert run_label(two | {"refresh_gated": False, "pixel_depth_at_joints": False}) == (
         "templates joint rule")
+    assert not row["hiding_costs"]  # one camera: hiding is free by default
+    assert run_label(plain | {"hiding_costs": True}) == "templates +hiding cost"
+    assert run_label(two | {"refresh_gated": False, "hiding_costs": False}) == (
+        "templates free hiding")
+    assert run_label(two | {"refresh_gated": False, "hiding_costs": True}) == "templates"

@@ -9,6 +9,7 @@ from digiteyes.kinematics import forward_kinematics, integrate
 from digiteyes.occlusion.segmentation import segment_image
 from digiteyes.templates.filtering import TemplateError
 from digiteyes.templates.layered import (
+    HIDDEN_RESIDUAL_RIG,
     TemplateOptions,
     acquire_templates,
     evaluate_layered,
@@ -37,12 +38,14 @@ def _off_state(setup):
     return q, kin, templates.planes(kin, cam)
 
 
-@pytest.mark.parametrize("tau, pixel_depth", [(0.0, False), (1.5, False), (1.5, True)])
-def test_gradient_matches_finite_differences(setup, tau, pixel_depth, fd_gradient):
+@pytest.mark.parametrize("tau, pixel_depth, hidden", [(0.0, False, 0.0), (1.5, False, 0.0),
+                                                    (1.5, True, 0.0), (1.5, False, 16.0),
+                                                    (1.5, True, 16.0)])
+def test_gradient_matches_finite_differences(setup, tau, pixel_depth, hidden, fd_gradient):
     _, images, model, cam, templates = setup
     q, kin, planes = _off_state(setup)
     ev = evaluate_layered(templates, images[12], cam, kin, planes, None, tau, margin=2.0,
-                          pixel_depth_at_joints=pixel_depth)
+                          pixel_depth_at_joints=pixel_depth, hidden_residual=hidden)
     assert ev.order.relations, "the test state must have occlusions"
     assert bool(ev.order.pixel_depth) == pixel_depth, "the test state must bend a joint"
     if pixel_depth:  # some pixels are seen that the joint rule alone would hide
@@ -53,7 +56,7 @@ def test_gradient_matches_finite_differences(setup, tau, pixel_depth, fd_gradien
     def energy(dv):
         kin_dv = forward_kinematics(model, integrate(model, q, dv))
         return evaluate_layered(templates, images[12], cam, kin_dv, planes, ev.order, tau,
-                                margin=2.0).energy
+                                margin=2.0, hidden_residual=hidden).energy
 
     fd = fd_gradient(energy, model.n_v)
     scale = np.abs(fd).max()
@@ -80,6 +83,26 @@ def test_error_without_derivatives_is_the_same_error(setup, tau):
     with pytest.raises(ValueError, match="form_rows"):
         evaluate_layered(templates, images[12], cam, kin, planes, None, tau,
                          form_rows=True, derivatives=False)
+
+
+def test_hidden_pixels_cost_the_hidden_residual(setup):
+    """``hidden_residual`` h adds h^2 / 2 for each hidden share of a pixel, and changes
+    nothing else: residuals, visibility and the region terms are the thesis's."""
+    _, images, _, cam, templates = setup
+    _, kin, planes = _off_state(setup)
+    plain = evaluate_layered(templates, images[12], cam, kin, planes, None, 1.5, margin=2.0)
+    hidden = 16.0
+    charged = evaluate_layered(templates, images[12], cam, kin, planes, None, 1.5,
+                               margin=2.0, hidden_residual=hidden)
+    seen = templates.weights * ((plain.pixels >= 0).all(axis=1)
+                                & (plain.pixels[:, 0] < cam.width - 1)
+                                & (plain.pixels[:, 1] < cam.height - 1))
+    assert (seen * (1.0 - plain.visibility)).sum() > 20  # the state hides some pixels
+    extra = 0.5 * hidden ** 2 * float((seen * (1.0 - plain.visibility)).sum())
+    assert charged.energy == pytest.approx(plain.energy + extra, rel=1e-9)
+    for name in ("residuals", "visibility", "H", "gradient_region"):
+        np.testing.assert_array_equal(getattr(charged, name), getattr(plain, name))
+    assert not np.allclose(charged.gradient_boundary, plain.gradient_boundary)
 
 
 def test_boundary_term_alone_matches_finite_differences_of_visibility(setup, fd_gradient):
@@ -198,6 +221,17 @@ def test_joints_are_ordered_pixel_by_pixel_with_two_cameras_by_default():
     assert options.for_rig(2).pixel_depth_at_joints is True
     assert TemplateOptions(pixel_depth_at_joints=False).for_rig(2).pixel_depth_at_joints is False
     assert TemplateOptions(pixel_depth_at_joints=True).for_rig(1).pixel_depth_at_joints is True
+
+
+def test_hiding_costs_with_two_cameras_by_default():
+    options = TemplateOptions()
+    assert options.hidden_residual is None
+    assert options.for_rig(1).hidden_residual == 0.0
+    assert options.for_rig(2).hidden_residual == HIDDEN_RESIDUAL_RIG
+    assert TemplateOptions(hidden_residual=0.0).for_rig(3).hidden_residual == 0.0
+    assert TemplateOptions(hidden_residual=9.0).for_rig(1).hidden_residual == 9.0
+    with pytest.raises(TemplateError, match="hidden_residual"):
+        TemplateOptions(hidden_residual=-1.0)
 
 
 def test_segmentation_puts_the_front_part_on_top(setup):

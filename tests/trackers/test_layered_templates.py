@@ -10,6 +10,7 @@ from digiteyes.errors import StateError
 from digiteyes.kinematics import forward_kinematics
 from digiteyes.synth import RenderOptions, render_views
 from digiteyes.synth.scenarios import build_scenario
+from digiteyes.synth.setups import setup_scenario
 from digiteyes.templates.filtering import TemplateError
 from digiteyes.trackers import Tracker, TrackerError, TrackResult, create_tracker
 from digiteyes.trackers.layered_templates import (
@@ -211,3 +212,38 @@ def test_filtering_the_hand_region_only_gives_the_same_track(sequence):
     np.testing.assert_allclose(states[40.0], states[None], atol=1e-9)
     with pytest.raises(TemplateError, match="filter_pad_px"):
         TemplateOptions(filter_pad_px=-1.0)
+
+
+@pytest.fixture(scope="module")
+def desk_pair():
+    """The first 50 frames of the desk pair (two cameras above and behind a palm-down
+    hand; the index curls away from both by frame 20 and is open again by frame 40)."""
+    scenario = setup_scenario("desk", 2, n_frames=50)
+    frames = [[v.image for v in render_views(scenario.model, q, scenario.rig,
+                                             RenderOptions(noise_sigma=2.0), rng=i)]
+              for i, q in enumerate(scenario.states)]
+    return scenario, frames
+
+
+def test_a_reopened_finger_is_found_open_when_hiding_costs(desk_pair):
+    """Without a cost for hidden template pixels (the thesis's error) the index that
+    curled out of sight stays folded under its proximal phalanx and the palm once it has
+    opened again: its pixels leave the error there. With two cameras hiding costs by
+    default, and the open index is found."""
+    scenario, frames = desk_pair
+    model = scenario.model
+    pip = model.state_index("index.pip")
+    open_frames = slice(42, 50)
+    truth = scenario.states[open_frames, pip]
+    assert np.degrees(truth).max() < 15  # the index is open again
+    errors = {}
+    for hidden in (None, 0.0):
+        options = LayeredTemplateOptions()
+        options = replace(options, templates=replace(options.templates,
+                                                     hidden_residual=hidden))
+        tracker = LayeredTemplateTracker(model, scenario.rig, options)
+        results, _ = _track(tracker, scenario, frames)
+        est = np.array([r.state for r in results])[open_frames, pip]
+        errors[hidden] = np.degrees(np.abs(est - truth))
+    assert errors[None].max() < 15, errors[None]
+    assert errors[0.0].mean() > 2 * errors[None].mean() + 10, errors

@@ -27,6 +27,11 @@ docs/appearance.md), side by side.
   ``natural`` with two cameras by the joint rule alone (``joint rule``), and ``templates``
   runs ``two-finger-occlusion`` with the pixel order on (``+pixel depth``), the settings
   the default was chosen against;
+* a hidden template pixel costs ``HIDDEN_RESIDUAL_RIG`` with two cameras by default
+  (``TemplateOptions.hidden_residual``; docs/templates.md, "What hiding costs"): both
+  trackers also run ``natural`` with two cameras with hiding free (``free hiding``, the
+  thesis's error), and ``templates`` runs ``two-finger-occlusion`` with the cost
+  (``+hiding cost``);
 * every run is made on :data:`SEEDS` renders that differ in their sensor noise
   (:data:`~digiteyes.benchmarks.tracker.NOISE_SIGMA` grey levels): a track that passes near
   a decision (a finger that can flip) ends differently with another draw of the noise, so
@@ -65,7 +70,7 @@ from digiteyes.pipeline import step_frames
 from digiteyes.synth import RenderOptions, render_views
 from digiteyes.synth.options import APPEARANCES
 from digiteyes.synth.scenarios import build_scenario
-from digiteyes.templates.layered import TemplateOptions
+from digiteyes.templates.layered import HIDDEN_RESIDUAL_RIG, TemplateOptions
 from digiteyes.trackers import LayeredTemplateOptions, create_tracker
 
 STAGES = ("visibility", "template_rendering", "residual", "jacobian", "features",
@@ -120,6 +125,7 @@ def track_scenario(name: str, n_cameras: int, n_frames: int | None,
            "background": options.background,
            "refresh_gated": rig_templates.refresh_turn_deg is not None,
            "pixel_depth_at_joints": rig_templates.pixel_depth_at_joints,
+           "hiding_costs": rig_templates.hidden_residual > 0,
            "frames": len(truth),
            "iterations_per_frame": options.iterations_per_frame,
            "mean_tip_error_mm": float(tip_error.mean()),
@@ -184,7 +190,7 @@ def seed_mean(runs: list[dict]) -> dict:
     return row
 
 
-_LABEL = len("templates+features joint rule")
+_LABEL = len("templates+features free hiding")
 """Width of the table's tracker column (the longest :func:`run_label`)."""
 
 
@@ -196,7 +202,9 @@ def run_label(row: dict) -> str:
             + _off_default(row, "refresh_gated", rig.refresh_turn_deg is not None, " +gated",
                            " ungated")
             + _off_default(row, "pixel_depth_at_joints", rig.pixel_depth_at_joints,
-                           " +pixel depth", " joint rule"))
+                           " +pixel depth", " joint rule")
+            + _off_default(row, "hiding_costs", rig.hidden_residual > 0, " +hiding cost",
+                           " free hiding"))
 
 
 def _off_default(row: dict, key: str, default: bool, on: str, off: str) -> str:
@@ -217,6 +225,9 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
                                                     pixel_depth_at_joints=False))
     by_pixel = replace(options, templates=replace(options.templates,
                                                   pixel_depth_at_joints=True))
+    free_hiding = replace(options, templates=replace(options.templates, hidden_residual=0.0))
+    hiding_costs = replace(options, templates=replace(options.templates,
+                                                      hidden_residual=HIDDEN_RESIDUAL_RIG))
     short = 40 if quick else None
     runs = [("two-finger-occlusion", 1, 30 if quick else None, "templates", options),
             ("two-finger-occlusion", 1, 30 if quick else None, "templates+features", options),
@@ -233,7 +244,10 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
             ("natural", 2, short, "templates+features", gated),
             ("natural", 2, short, "templates", joint_rule),
             ("natural", 2, short, "templates+features", joint_rule),
-            ("two-finger-occlusion", 1, 30 if quick else None, "templates", by_pixel)]
+            ("two-finger-occlusion", 1, 30 if quick else None, "templates", by_pixel),
+            ("natural", 2, short, "templates", free_hiding),
+            ("natural", 2, short, "templates+features", free_hiding),
+            ("two-finger-occlusion", 1, 30 if quick else None, "templates", hiding_costs)]
     seeds = SEEDS[:1] if quick else SEEDS
     with kernel_threads(1, 1):
         tracking = [seed_mean([track_scenario(n, c, f, o, t, a, seed) for seed in seeds])
@@ -249,6 +263,8 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
                 "refresh_turn_cameras": topts.refresh_turn_cameras,
                 "filter_pad_px": topts.filter_pad_px, "finger_search": options.finger_search,
                 "pixel_depth_at_joints": topts.pixel_depth_at_joints,
+                "hidden_residual": topts.hidden_residual,
+                "hidden_residual_rig": HIDDEN_RESIDUAL_RIG,
                 "seeds": list(seeds), "noise_sigma": NOISE_SIGMA}
     result = {"tracking": tracking, "visibility": visibility, "settings": settings,
               "machine": machine_info(), "quick": quick}

@@ -114,11 +114,12 @@ def _add_outline_terms(j, kind, c, gp, b_pts, b_r):  # pragma: no cover - compil
 @njit(cache=True)
 def layered_kernel(image, pix_part, p_world, w, Jp, values, weights, twists, occ_start,
                    occ_index, occ_tested, win_kind, win_pts, win_r, win_dpts, win_dr,
-                   win_world, part_r, eye, tie_mm, tau, margin, H6, g6, b6, b_pts, b_r, r_out,
-                   v_out, rows_region, rows_dv, form_rows,
+                   win_world, part_r, eye, tie_mm, tau, margin, hidden_cost, H6, g6, b6, b_pts,
+                   b_r, r_out, v_out, rows_region, rows_dv, form_rows,
                    derivatives):  # pragma: no cover - compiled
     """One pass over the template pixels of one camera; returns the layered error
-    ``E = sum_i weight_i V_i r_i^2 / 2``.
+    ``E = sum_i weight_i [V_i r_i^2 + (1 - V_i) c] / 2``, ``c = hidden_cost`` (grey
+    levels squared: what a hidden template pixel costs; 0 is the thesis's error).
 
     Per pixel i of part k at image point ``w_i``: ``r_i = I(w_i) - T_i`` (eq. 2.11),
     ``V_i = prod_j (1 - M_j(w_i))`` over the parts j that occlude k (window tree,
@@ -127,15 +128,15 @@ def layered_kernel(image, pix_part, p_world, w, Jp, values, weights, twists, occ
     pixel_depth`) counts only at the pixels where it lies nearer the ray's start ``eye[i]``
     (world, mm) by more than ``tie_mm``, or within ``tie_mm`` when flagged 1
     (``win_world`` its window's world points, ``part_r`` the parts' radii, mm). Adds
-    ``V m m^T`` to
-    ``H6[k]`` and ``V r m`` to ``g6[k]`` (region terms, eq. 3.10, in twist coordinates).
-    The boundary terms ``r^2 / 2 dV`` (eq. 3.12) are split by what moves: the pixel
-    (part k's twist coordinates, ``b6[k]``), the occluder's outline points
-    (``b_pts[j]``, px) and its radius (``b_r[j]``); the caller chains them with the
-    twists and window Jacobians. With ``form_rows`` the per-pixel rows ``dr/dv`` and
-    ``dV/dv`` are written out too (for tests and the generic solvers). Without
-    ``derivatives`` only ``E``, ``r`` and ``V`` are computed (``Jp`` and ``twists`` are
-    not read; the accumulators stay as given).
+    ``V m m^T`` to ``H6[k]`` and ``V r m`` to ``g6[k]`` (region terms, eq. 3.10, in twist
+    coordinates). The boundary terms ``(r^2 - c) / 2 dV`` (eq. 3.12 and the hidden
+    cost's) are split by what moves: the pixel (part k's twist coordinates, ``b6[k]``),
+    the occluder's outline points (``b_pts[j]``, px) and its radius (``b_r[j]``); the
+    caller chains them with the twists and window Jacobians.
+    With ``form_rows`` the per-pixel rows ``dr/dv`` and ``dV/dv`` are written out too
+    (for tests and the generic solvers). Without ``derivatives`` only ``E``, ``r`` and
+    ``V`` are computed (``Jp`` and ``twists`` are not read; the accumulators stay as
+    given).
     """
     height, width = image.shape
     n_v = twists.shape[2]
@@ -167,7 +168,7 @@ def layered_kernel(image, pix_part, p_world, w, Jp, values, weights, twists, occ
         r_out[i] = r
         v_out[i] = V
         wt = weights[i]
-        energy += 0.5 * wt * V * r * r
+        energy += 0.5 * wt * (V * r * r + (1.0 - V) * hidden_cost)
         if not derivatives:
             continue
         px, py, pz = p_world[i, 0], p_world[i, 1], p_world[i, 2]
@@ -190,7 +191,7 @@ def layered_kernel(image, pix_part, p_world, w, Jp, values, weights, twists, occ
                 rows_dv[i, c] = 0.0
         if not boundary:
             continue
-        half = 0.5 * wt * r * r
+        half = 0.5 * wt * (r * r - hidden_cost)
         for o in range(n_occ):
             if abs(ds[o]) >= reach:
                 continue
@@ -198,13 +199,14 @@ def layered_kernel(image, pix_part, p_world, w, Jp, values, weights, twists, occ
             d = window_distance(win_kind[j], win_pts[j], win_r[j], wx, wy, gw, gp) + margin
             _, dM = window_value(d, tau)
             f = -dM * _through_others(Ms, n_occ, o)  # dV / dd_j
+            e = half * f  # dE / dd_j
             bx = gw[0] * Jp[i, 0, 0] + gw[1] * Jp[i, 1, 0]
             by = gw[0] * Jp[i, 0, 1] + gw[1] * Jp[i, 1, 1]
             bz = gw[0] * Jp[i, 0, 2] + gw[1] * Jp[i, 1, 2]
             n = (py * bz - pz * by, pz * bx - px * bz, px * by - py * bx, bx, by, bz)
             for a in range(6):
-                b6[k, a] += half * f * n[a]
-            _add_outline_terms(j, win_kind[j], half * f, gp, b_pts, b_r)
+                b6[k, a] += e * n[a]
+            _add_outline_terms(j, win_kind[j], e, gp, b_pts, b_r)
             if form_rows:
                 for c in range(n_v):
                     acc = 0.0

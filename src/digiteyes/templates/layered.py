@@ -21,6 +21,18 @@ Sec. 3.3.3:
   windows (Sec. 4.4.2) they vanish almost everywhere; smooth windows give them a
   width (``tau``).
 
+*What hiding costs* (ours; ``TemplateOptions.hidden_residual`` ``h``): in this form a
+pixel hidden behind an occluder's window simply leaves the sum, so a link whose pixels
+do not match can lower ``E`` by slipping behind another part (a finger that reopened
+stays folded under its own proximal phalanx and the palm, the desk pair of
+docs/templates.md). With ``h > 0`` each hidden pixel is charged as a seen one with
+residual ``h``:
+
+    E_h(q) = E(q) + 1/2 sum_k sum_s [1 - V_k(q, s)] h^2,
+
+so hiding pays only where the residual exceeds ``h``; its gradient is the boundary term
+with ``r^2 - h^2`` in place of ``r^2``. ``h = 0`` is the thesis's error.
+
 Gauss-Newton (eq. 2.22) uses ``H = sum V J^T J`` of the region terms and the full
 gradient; gradient descent (eq. 2.12) uses the gradient alone.
 
@@ -63,6 +75,10 @@ JOINT_DEPTH_TIE_MM = 1.0
 """With ``pixel_depth_at_joints``: where the two links of a joint lie within this many mm
 of each other along a pixel's ray (at the joint, where their surfaces meet) the joint
 rule decides which one is seen."""
+HIDDEN_RESIDUAL_RIG = 16.0
+"""``TemplateOptions.hidden_residual`` on rigs of two cameras or more, grey levels: about
+three times the visible residual's RMS of a frame that fits (4.8-5.5 on the desk pair of
+``bench accuracy``)."""
 
 
 @dataclass(frozen=True)
@@ -110,6 +126,13 @@ class TemplateOptions:
         (docs/templates.md, "Joints ordered pixel by pixel"); None (default): on rigs of
         two cameras or more, which fix the links' depths, off with one camera, where it
         cost the two-finger index joints (:meth:`for_rig`).
+    hidden_residual : a template pixel that a window hides costs what a seen one with this
+        residual costs (grey levels of the filtered image), so that a link cannot lower
+        the error by slipping behind another part where the image does not match it
+        (docs/templates.md, "What hiding costs"). 0 is the thesis's error (eq. 3.7); None
+        (default): :data:`HIDDEN_RESIDUAL_RIG` on rigs of two cameras or more, 0 with one
+        camera, where the cost held the two-finger index back from occluding
+        (:meth:`for_rig`).
     """
 
     log: LogFilter = field(default_factory=lambda: LogFilter(size=7, contrast_px=2.0))
@@ -125,6 +148,7 @@ class TemplateOptions:
     occlusion_margin_px: float = 3.0
     filter_pad_px: float | None = 40.0
     pixel_depth_at_joints: bool | None = None
+    hidden_residual: float | None = None
 
     def __post_init__(self) -> None:
         if self.window not in WINDOWS:
@@ -140,6 +164,9 @@ class TemplateOptions:
                 not isinstance(self.refresh_turn_cameras, int) or self.refresh_turn_cameras < 1:
             raise TemplateError(f"refresh_turn_cameras must be a positive integer, got "
                                 f"{self.refresh_turn_cameras!r}")
+        if self.hidden_residual is not None and not self.hidden_residual >= 0:
+            raise TemplateError(f"hidden_residual must be None or not negative, got "
+                                f"{self.hidden_residual!r}")
         if self.filter_pad_px is not None and not self.filter_pad_px >= 0:
             raise TemplateError(f"filter_pad_px must be None or not negative, got "
                                 f"{self.filter_pad_px!r}")
@@ -150,10 +177,13 @@ class TemplateOptions:
     def for_rig(self, n_cameras: int) -> TemplateOptions:
         """These settings as a rig of ``n_cameras`` uses them: the refresh ungated
         (``refresh_turn_deg`` None) beyond ``refresh_turn_cameras`` cameras, and
-        ``pixel_depth_at_joints`` decided (on with two cameras or more unless set)."""
+        ``pixel_depth_at_joints`` and ``hidden_residual`` decided (on with two cameras or
+        more unless set)."""
         rig = self
         if self.pixel_depth_at_joints is None:
             rig = replace(rig, pixel_depth_at_joints=n_cameras >= 2)
+        if self.hidden_residual is None:
+            rig = replace(rig, hidden_residual=HIDDEN_RESIDUAL_RIG if n_cameras >= 2 else 0.0)
         if self.refresh_turn_deg is None or n_cameras <= self.refresh_turn_cameras:
             return rig
         return replace(rig, refresh_turn_deg=None)
@@ -257,7 +287,8 @@ def evaluate_layered(templates: CameraTemplates, image: np.ndarray, camera: Came
                      form_rows: bool = False, p_shape: np.ndarray | None = None,
                      margin: float = 0.0, twists: np.ndarray | None = None,
                      derivatives: bool = True,
-                     pixel_depth_at_joints: bool = False) -> LayeredEvaluation:
+                     pixel_depth_at_joints: bool = False,
+                     hidden_residual: float = 0.0) -> LayeredEvaluation:
     """The layered template error and its derivatives (module docstring) for one camera.
 
     Parameters
@@ -281,6 +312,9 @@ def evaluate_layered(templates: CameraTemplates, image: np.ndarray, camera: Came
     pixel_depth_at_joints : when ``order`` is None, predict it with the joints' links
         ordered pixel by pixel
         (:func:`~digiteyes.occlusion.visibility.visibility_order`).
+    hidden_residual : a hidden template pixel costs what a seen one with this residual
+        costs (grey levels; ``TemplateOptions.hidden_residual``; module docstring). 0 is
+        the thesis's error.
     """
     if form_rows and not derivatives:
         raise ValueError("form_rows needs derivatives")
@@ -316,9 +350,9 @@ def evaluate_layered(templates: CameraTemplates, image: np.ndarray, camera: Came
                             windows.kind, windows.points, windows.radius, windows.d_points,
                             windows.d_radius, windows.world,
                             np.array([part.radius for part in parts]), eye,
-                            float(JOINT_DEPTH_TIE_MM), float(tau),
-                            float(margin), H6, g6, b6, b_pts, b_r, r, V, rows_r, rows_v,
-                            form_rows, derivatives)
+                            float(JOINT_DEPTH_TIE_MM), float(tau), float(margin),
+                            float(hidden_residual) ** 2, H6, g6, b6, b_pts, b_r, r, V, rows_r,
+                            rows_v, form_rows, derivatives)
     if not derivatives:
         return LayeredEvaluation(float(energy), None, None, None, None, r, V, w, windows, order)
     g_boundary = (np.einsum("kan,ka->n", twists, b6)

@@ -481,7 +481,8 @@ class LayeredTemplateTracker:
                                         self.options.templates.tau,
                                         p_shape=setup["points"][c],
                                         margin=self.options.templates.occlusion_margin_px,
-                                        twists=twists, derivatives=derivatives)
+                                        twists=twists, derivatives=derivatives,
+                                        hidden_residual=self._rig_templates.hidden_residual)
                        for c in range(len(self.rig))]
         timings["residual"] += time.perf_counter() - tic
         return evaluations
