@@ -26,6 +26,10 @@ def test_quick_accuracy_bench_writes_every_row(tmp_path):
                     "joint_angle_err_deg_rms", "palm_pos_err_mm_mean", "palm_rot_err_deg_mean"):
             assert math.isfinite(row[key]), (key, row)
         assert 0 <= row["track_life_frames"] <= row["frames"] == accuracy.QUICK_FRAMES
+        # the worst frame's mean fingertip error bounds the run's mean from above
+        assert row["worst_frame_tip_err_mm"] >= row["fingertip_err_mm_mean"] - 1e-9
+        assert row["frames_tip_err_above_30mm"] <= row["truly_lost_frames"]
+        assert (row["frames_tip_err_above_30mm"] > 0) == (row["worst_frame_tip_err_mm"] > 30)
         flag = row["flag"]
         assert flag["true_positive"] + flag["false_negative"] == row["truly_lost_frames"]
         for key in ("precision", "recall"):

@@ -54,7 +54,7 @@ from digiteyes.camera import Rig
 from digiteyes.camera.default import default_camera
 from digiteyes.errors import DigitEyesError
 from digiteyes.evaluate import evaluate_run
-from digiteyes.evaluate.truth_loss import flag_scores, truth_loss
+from digiteyes.evaluate.truth_loss import TRULY_LOST_MEAN_MM, flag_scores, truth_loss
 from digiteyes.kinematics import load_model
 from digiteyes.synth.scenarios import Scenario, build_scenario
 from digiteyes.synth.setups import setup_scenario
@@ -98,14 +98,21 @@ def scenario_for(source: str, hand: str, frames: int, seed: int = SEED) -> Scena
 
 
 def row_figures(sequence: RenderedSequence, outcome: Any) -> dict[str, Any]:
-    """The figures of one row: :func:`accuracy_summary`, the median fingertip error, and
-    the loss flag scored against :func:`truth_loss` (``flag``: precision, recall and the
-    confusion counts; ``truly_lost_frames``)."""
+    """The figures of one row: :func:`accuracy_summary`, the median fingertip error, the
+    worst frame's mean fingertip error and the frames whose mean exceeds
+    :data:`~digiteyes.evaluate.truth_loss.TRULY_LOST_MEAN_MM` (issue 14's desk target:
+    none), and the loss flag scored against :func:`truth_loss` (``flag``: precision,
+    recall and the confusion counts; ``truly_lost_frames``)."""
     model = sequence.scenario.model
     out = accuracy_summary(sequence, outcome)
     metrics = evaluate_run(outcome.log, sequence.truth, model, sequence.rig)
     tip = metrics["fingertip_error_mm"]
     out["fingertip_err_mm_median"] = _number(tip and tip.get("median"))
+    per_frame = np.array([np.nan if e is None else e
+                          for e in metrics["per_frame"]["fingertip_error_mm"] or []], dtype=float)
+    seen = per_frame[np.isfinite(per_frame)]
+    out["worst_frame_tip_err_mm"] = float(seen.max()) if seen.size else None
+    out["frames_tip_err_above_30mm"] = int((seen > TRULY_LOST_MEAN_MM).sum())
     truth = truth_loss(model, outcome.log.states, sequence.truth.states[:len(outcome.log)],
                        sequence.truth_model, hand_scale=outcome.log.hand_scale)
     out["truly_lost_frames"] = int(truth.lost.sum())
