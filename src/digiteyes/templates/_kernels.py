@@ -132,11 +132,10 @@ def layered_kernel(image, pix_part, p_world, w, Jp, values, weights, twists, occ
     coordinates). The boundary terms ``(r^2 - c) / 2 dV`` (eq. 3.12 and the hidden
     cost's) are split by what moves: the pixel (part k's twist coordinates, ``b6[k]``),
     the occluder's outline points (``b_pts[j]``, px) and its radius (``b_r[j]``); the
-    caller chains them with the twists and window Jacobians.
-    With ``form_rows`` the per-pixel rows ``dr/dv`` and ``dV/dv`` are written out too
-    (for tests and the generic solvers). Without ``derivatives`` only ``E``, ``r`` and
-    ``V`` are computed (``Jp`` and ``twists`` are not read; the accumulators stay as
-    given).
+    caller chains them with the twists and window Jacobians. With ``form_rows`` the
+    per-pixel rows ``dr/dv`` and ``dV/dv`` are written out too (for tests and the generic
+    solvers). Without ``derivatives`` only ``E``, ``r`` and ``V`` are computed (``Jp`` and
+    ``twists`` are not read; the accumulators stay as given).
     """
     height, width = image.shape
     n_v = twists.shape[2]
