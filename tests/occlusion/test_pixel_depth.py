@@ -15,19 +15,26 @@ from digiteyes.templates.filtering import LogFilter
 from digiteyes.templates.layered import acquire_templates, evaluate_layered
 
 
+def _nearer(eye, p, axis, radius_front, radius_back):
+    """The compiled ray test for one capsule axis ``axis`` ((3,), (3,)) as window 0."""
+    axes = np.zeros((1, 4, 3))
+    axes[0, :2] = axis
+    return _nearer_along_ray(*eye, *p, axes, 0, radius_front, radius_back)
+
+
 def test_the_ray_test_measures_how_much_nearer_the_capsule_lies():
     eye = np.zeros(3)
     p = np.array([0.0, 0.0, 500.0])  # a pixel's point 500 mm down the ray
     across = (np.array([-20.0, 0.0, 480.0]), np.array([20.0, 0.0, 480.0]))
-    assert _nearer_along_ray(eye, p, *across, 8.0, 8.0) == pytest.approx(20.0)
+    assert _nearer(eye, p, across, 8.0, 8.0) == pytest.approx(20.0)
     behind = (np.array([-20.0, 0.0, 530.0]), np.array([20.0, 0.0, 530.0]))
-    assert _nearer_along_ray(eye, p, *behind, 8.0, 8.0) == pytest.approx(-30.0)
+    assert _nearer(eye, p, behind, 8.0, 8.0) == pytest.approx(-30.0)
     # the axis point nearest the ray, not the nearest end; radii count as surfaces
     slanted = (np.array([0.0, 0.0, 520.0]), np.array([0.0, 40.0, 560.0]))
-    assert _nearer_along_ray(eye, p, *slanted, 10.0, 2.0) == pytest.approx(-12.0)
+    assert _nearer(eye, p, slanted, 10.0, 2.0) == pytest.approx(-12.0)
     # an orthographic camera: an eye far back along the optical axis
     far = p - 1e6 * np.array([0.0, 0.0, 1.0])
-    assert _nearer_along_ray(far, p, *across, 8.0, 8.0) == pytest.approx(20.0, abs=1e-6)
+    assert _nearer(far, p, across, 8.0, 8.0) == pytest.approx(20.0, abs=1e-6)
 
 
 @pytest.fixture(scope="module")

@@ -32,18 +32,22 @@ def bilinear_gradient(image, x, y):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always")
-def _nearer_along_ray(eye, p, a, b, radius_front, radius_back):  # pragma: no cover
-    """How much nearer the eye (mm) the capsule of axis ``a``-``b`` (world, mm) lies than
-    the point ``p`` along the ray from ``eye`` through ``p``: ``p``'s distance less
-    ``radius_back`` minus that of the axis point closest to the ray less
-    ``radius_front`` (both surfaces' fronts; ``p`` lies on its part's axis plane)."""
-    ux, uy, uz = p[0] - eye[0], p[1] - eye[1], p[2] - eye[2]
+def _nearer_along_ray(e0, e1, e2, p0, p1, p2, axes, j, radius_front,
+                      radius_back):  # pragma: no cover - compiled
+    """How much nearer the eye ``(e0, e1, e2)`` (mm) the capsule of axis ``axes[j, 0]``-
+    ``axes[j, 1]`` (world, mm) lies than the point ``(p0, p1, p2)`` along the ray from the
+    eye through the point: the point's distance less ``radius_back`` minus that of the
+    axis point closest to the ray less ``radius_front`` (both surfaces' fronts; the point
+    lies on its part's axis plane). Scalars in, so that the per-pixel loop passes no
+    arrays for the pixel (each array passed costs reference counting)."""
+    ux, uy, uz = p0 - e0, p1 - e1, p2 - e2
     t_p = np.sqrt(ux * ux + uy * uy + uz * uz)
     if t_p <= 0.0:
         return 0.0
     ux, uy, uz = ux / t_p, uy / t_p, uz / t_p
-    ex, ey, ez = b[0] - a[0], b[1] - a[1], b[2] - a[2]
-    wx, wy, wz = eye[0] - a[0], eye[1] - a[1], eye[2] - a[2]
+    a0, a1, a2 = axes[j, 0, 0], axes[j, 0, 1], axes[j, 0, 2]
+    ex, ey, ez = axes[j, 1, 0] - a0, axes[j, 1, 1] - a1, axes[j, 1, 2] - a2
+    wx, wy, wz = e0 - a0, e1 - a1, e2 - a2
     ue = ux * ex + uy * ey + uz * ez
     ee = ex * ex + ey * ey + ez * ez
     uw = ux * wx + uy * wy + uz * wz
@@ -52,42 +56,18 @@ def _nearer_along_ray(eye, p, a, b, radius_front, radius_back):  # pragma: no co
     v = 0.0 if den <= 1e-12 * max(ee, 1e-12) else (ew - ue * uw) / den
     v = min(max(v, 0.0), 1.0)
     # the ray parameter of the axis point at v
-    t_axis = ux * (a[0] + v * ex - eye[0]) + uy * (a[1] + v * ey - eye[1]) \
-        + uz * (a[2] + v * ez - eye[2])
+    t_axis = ux * (a0 + v * ex - e0) + uy * (a1 + v * ey - e1) + uz * (a2 + v * ez - e2)
     return (t_p - radius_back) - (t_axis - radius_front)
 
 
 @njit(cache=True, inline="always")
-def _seen_through(win_kind, win_pts, win_r, windows, tested, wx, wy, margin, tau, reach, gw,
-                  gp, Ms, ds, eye, p, win_world, part_r, k,
-                  tie_mm):  # pragma: no cover - compiled
-    """``V = prod (1 - M_j)`` at pixel ``(wx, wy)`` over the windows ``windows`` (indices),
-    their outlines grown by ``margin``; fills ``Ms``/``ds`` (window values and signed
-    distances, in the order of ``windows``) and says whether any boundary is in reach. A
-    window flagged in ``tested`` counts only where its part lies nearer ``eye`` than the
-    pixel's point ``p`` of part ``k`` (:func:`_nearer_along_ray`, axes ``win_world``,
-    radii ``part_r``) by more than ``tie_mm``, or within it when flagged 1 (the joint
-    rule's front, :data:`~digiteyes.occlusion.visibility.RULE_FRONT`); elsewhere it is
-    left out (``M = 0``, no boundary)."""
-    V = 1.0
-    boundary = False
-    for o in range(windows.shape[0]):
-        j = windows[o]
-        if tested[o] > 0:
-            nearer = _nearer_along_ray(eye, p, win_world[j, 0], win_world[j, 1], part_r[j],
-                                       part_r[k])
-            if nearer < (-tie_mm if tested[o] == 1 else tie_mm):
-                Ms[o] = 0.0
-                ds[o] = -np.inf
-                continue
-        d = window_distance(win_kind[j], win_pts[j], win_r[j], wx, wy, gw, gp) + margin
-        M, _ = window_value(d, tau)
-        Ms[o] = M
-        ds[o] = d
-        V *= 1.0 - M
-        if tau > 0.0 and abs(d) < reach:
-            boundary = True
-    return V, boundary
+def _window_at(kind, pts, r, wx, wy, margin, tau, gw, gp):  # pragma: no cover - compiled
+    """Signed distance ``d`` (px) of pixel ``(wx, wy)`` to a window's outline grown by
+    ``margin`` and the window's value ``M`` there (:mod:`~digiteyes.occlusion.
+    window_functions`; ``gw``/``gp`` receive the distance's derivatives)."""
+    d = window_distance(kind, pts, r, wx, wy, gw, gp) + margin
+    M, _ = window_value(d, tau)
+    return d, M
 
 
 @njit(cache=True, inline="always")
@@ -155,13 +135,29 @@ def layered_kernel(image, pix_part, p_world, w, Jp, values, weights, twists, occ
         v_out[i] = 0.0
         if weights[i] <= 0.0 or not (0.0 <= wx < width - 1 and 0.0 <= wy < height - 1):
             continue
-        # visibility through the occluders' windows
+        # visibility through the occluders' windows, V = prod (1 - M_j); a tested
+        # occluder counts only where it lies nearer along the pixel's ray (M = 0 and no
+        # boundary elsewhere). Written out here: a call that takes the arrays costs more
+        # than the work (reference counting per array and pixel)
         n_occ = occ_start[k + 1] - occ_start[k]
-        V, boundary = _seen_through(win_kind, win_pts, win_r,
-                                    occ_index[occ_start[k]:occ_start[k + 1]],
-                                    occ_tested[occ_start[k]:occ_start[k + 1]], wx, wy,
-                                    margin, tau, reach, gw, gp, Ms, ds, eye[i], p_world[i],
-                                    win_world, part_r, k, tie_mm)
+        V = 1.0
+        boundary = False
+        for o in range(n_occ):
+            j = occ_index[occ_start[k] + o]
+            flag = occ_tested[occ_start[k] + o]
+            if flag > 0:
+                nearer = _nearer_along_ray(eye[i, 0], eye[i, 1], eye[i, 2], p_world[i, 0],
+                                           p_world[i, 1], p_world[i, 2], win_world, j,
+                                           part_r[j], part_r[k])
+                if nearer < (-tie_mm if flag == 1 else tie_mm):
+                    Ms[o] = 0.0
+                    ds[o] = -np.inf
+                    continue
+            d, M = _window_at(win_kind[j], win_pts[j], win_r[j], wx, wy, margin, tau, gw, gp)
+            Ms[o] = M
+            ds[o] = d
+            V *= 1.0 - M
+            boundary = boundary or (tau > 0.0 and abs(d) < reach)
         value, ix, iy = bilinear_gradient(image, wx, wy)
         r = value - values[i]
         r_out[i] = r
@@ -245,11 +241,6 @@ def background_kernel(image, pixels, values, weights, win_kind, win_pts, win_r, 
     gp = np.empty((4, 2))
     Ms = np.empty(n_win)
     ds = np.empty(n_win)
-    every = np.arange(n_win)
-    untested = np.zeros(n_win, dtype=np.uint8)  # the background is behind every part
-    no_point = np.zeros(3)
-    no_axes = np.zeros((n_win, 4, 3))
-    no_radii = np.zeros(n_win)
     reach = BOUNDARY_REACH * tau
     energy = 0.0
     for i in range(pixels.shape[0]):
@@ -259,9 +250,15 @@ def background_kernel(image, pixels, values, weights, win_kind, win_pts, win_r, 
         wt = weights[i]
         if wt <= 0.0:
             continue
-        V, boundary = _seen_through(win_kind, win_pts, win_r, every, untested, float(x),
-                                    float(y), margin, tau, reach, gw, gp, Ms, ds, no_point,
-                                    no_point, no_axes, no_radii, 0, 0.0)
+        V = 1.0
+        boundary = False
+        for j in range(n_win):  # the background lies behind every part
+            d, M = _window_at(win_kind[j], win_pts[j], win_r[j], float(x), float(y), margin,
+                              tau, gw, gp)
+            Ms[j] = M
+            ds[j] = d
+            V *= 1.0 - M
+            boundary = boundary or (tau > 0.0 and abs(d) < reach)
         r = float(image[y, x]) - values[i]
         r_out[i] = r
         v_out[i] = V
