@@ -219,15 +219,16 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
     options = LayeredTemplateOptions()
     searching = replace(options, finger_search=True)
     background = replace(options, background="filtered")
-    ungated = replace(options, templates=replace(options.templates, refresh_turn_deg=None))
-    gated = replace(options, templates=replace(options.templates, refresh_turn_cameras=2))
-    joint_rule = replace(options, templates=replace(options.templates,
-                                                    pixel_depth_at_joints=False))
-    by_pixel = replace(options, templates=replace(options.templates,
-                                                  pixel_depth_at_joints=True))
-    free_hiding = replace(options, templates=replace(options.templates, hidden_residual=0.0))
-    hiding_costs = replace(options, templates=replace(options.templates,
-                                                      hidden_residual=HIDDEN_RESIDUAL_RIG))
+
+    def with_templates(**settings) -> LayeredTemplateOptions:
+        return replace(options, templates=replace(options.templates, **settings))
+
+    ungated = with_templates(refresh_turn_deg=None)
+    gated = with_templates(refresh_turn_cameras=2)
+    joint_rule = with_templates(pixel_depth_at_joints=False)
+    by_pixel = with_templates(pixel_depth_at_joints=True)
+    free_hiding = with_templates(hidden_residual=0.0)
+    hiding_costs = with_templates(hidden_residual=HIDDEN_RESIDUAL_RIG)
     short = 40 if quick else None
     runs = [("two-finger-occlusion", 1, 30 if quick else None, "templates", options),
             ("two-finger-occlusion", 1, 30 if quick else None, "templates+features", options),

@@ -209,6 +209,7 @@ class CameraTemplates:
     views : (K, 3, 3) each part's orientation in the camera frame (``R_cam_shape``) when
         its template was written (acquisition, then refreshes), for
         ``TemplateOptions.refresh_turn_deg``.
+    radii : (K,) the parts' radii, mm (derived from ``parts``; the pixel order at joints).
     """
 
     parts: tuple[TemplatePart, ...]
@@ -220,6 +221,10 @@ class CameraTemplates:
     weights: np.ndarray
     palm_side: np.ndarray
     views: np.ndarray
+    radii: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self.radii = np.array([part.radius for part in self.parts], dtype=float)
 
     def planes(self, kin: Kinematics, camera: Camera) -> list[TemplatePlane]:
         """Every part's template plane facing ``camera`` at the state of ``kin``."""
@@ -348,8 +353,7 @@ def evaluate_layered(templates: CameraTemplates, image: np.ndarray, camera: Came
     energy = layered_kernel(image, templates.part_of, p_world, w, Jp, templates.values,
                             templates.weights, twists, occ_start, occ_index, occ_tested,
                             windows.kind, windows.points, windows.radius, windows.d_points,
-                            windows.d_radius, windows.world,
-                            np.array([part.radius for part in parts]), eye,
+                            windows.d_radius, windows.world, templates.radii, eye,
                             float(JOINT_DEPTH_TIE_MM), float(tau), float(margin),
                             float(hidden_residual) ** 2, H6, g6, b6, b_pts, b_r, r, V, rows_r,
                             rows_v, form_rows, derivatives)

@@ -476,13 +476,13 @@ class LayeredTemplateTracker:
         kin = forward_kinematics(self.model, q) if kin is None else kin
         tic = time.perf_counter()
         twists = part_twists(self.parts, kin) if derivatives else None
+        rig = self._rig_templates
         evaluations = [evaluate_layered(self.templates[c], images[c], self.rig[c], kin,
-                                        setup["planes"][c], setup["orders"][c],
-                                        self.options.templates.tau,
+                                        setup["planes"][c], setup["orders"][c], rig.tau,
                                         p_shape=setup["points"][c],
-                                        margin=self.options.templates.occlusion_margin_px,
-                                        twists=twists, derivatives=derivatives,
-                                        hidden_residual=self._rig_templates.hidden_residual)
+                                        margin=rig.occlusion_margin_px, twists=twists,
+                                        derivatives=derivatives,
+                                        hidden_residual=rig.hidden_residual)
                        for c in range(len(self.rig))]
         timings["residual"] += time.perf_counter() - tic
         return evaluations
