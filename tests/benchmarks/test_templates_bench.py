@@ -73,3 +73,23 @@ def test_a_row_names_the_options_it_runs_with():
     assert run_label(two | {"refresh_gated": False, "hiding_costs": False}) == (
         "templates free hiding")
     assert run_label(two | {"refresh_gated": False, "hiding_costs": True}) == "templates"
+
+
+def test_the_desk_rows_compare_the_curl_search_with_the_defaults():
+    """The desk section: for each appearance and hand both trackers at their defaults and
+    with the curl search, each row with the worst frame, the frames above 30 mm and the
+    loss flag's scores; the first frames of the desk pair are tracked closely."""
+    from digiteyes.benchmarks.templates import CURL_SEARCH, desk_lines, desk_pair
+
+    rows = desk_pair(4)
+    assert len(rows) == 16
+    assert {(r["appearance"], r["hand"], r["tracker"], r["setting"]) for r in rows} == {
+        (a, h, t, s) for a in ("model", "flesh") for h in ("exact", "scaled")
+        for t in ("templates", "templates+features") for s in ("default", "+curl search")}
+    assert all(CURL_SEARCH.values())
+    for r in rows:
+        assert r["worst_frame_tip_err_mm"] >= r["fingertip_err_mm_mean"]
+        assert r["worst_frame_tip_err_mm"] < 15.0  # before the fingers curl
+        assert r["frames_tip_err_above_30mm"] == 0 and r["truly_lost_frames"] == 0
+        assert set(r["flag"]) >= {"precision", "recall"}
+    assert len(desk_lines(rows)) == 2 + len(rows)

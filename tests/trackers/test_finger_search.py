@@ -180,3 +180,24 @@ def test_trackers_open_a_finger_they_hid_while_the_hand_shows_it(desk, tracker):
         third = runner.step([image])
         assert third.lost is not hidden_search, third.loss_reason
     assert errors[False] > 60.0 and errors[True] < 25.0, errors
+
+
+def test_the_named_search_takes_the_digits_the_rule_flags_too(desk):
+    """``named_finger_search``: the digits the rule flags (here the index drawn curled
+    under the palm while the image shows it straight, and a digit drawn over the
+    backdrop) are searched, as are those of the hidden-digit test; a verdict that flags
+    nothing names nothing."""
+    from dataclasses import replace
+
+    from digiteyes.trackers.finger_search import FingerRecovery, FingerSearchOptions
+
+    model, rig, q, curled, image, _ = desk
+    rule = SilhouetteLoss(model, rig)
+    rule.check([image], q, q)
+    verdict = rule.check([image], curled, q)
+    named = FingerRecovery(model, rule, FingerSearchOptions(named_finger_search=True))
+    assert named.digits_to_search(verdict) == ["index"]
+    off_silhouette = replace(verdict, hidden_shown=(),
+                             finger_lost={**verdict.finger_lost, "index": False, "ring": True})
+    assert named.digits_to_search(off_silhouette) == ["ring"]
+    assert named.digits_to_search(rule.check([image], q, q)) == []

@@ -440,3 +440,33 @@ def test_a_hand_as_dark_as_the_backdrop_is_not_thresholded():
         fg = fit_foreground(image, labels)
         assert (fg is None) == (tone == "dark")
     assert kept[None] > 0.9 and kept["dark"] < MIN_HAND_KEPT
+
+
+def test_a_finger_held_curled_in_view_while_the_image_shows_it_open(desk):
+    """``judge_curled_digits``: the estimate bends the index at its middle joints, its
+    end still in view, while the hand holds it straight. The hidden-digit test alone passes it (the
+    end shows), the option names it as curled by the estimate (the global share rule is
+    turned off to see this test alone); the same estimate on a hand that bends the
+    index as far is not flagged, and neither is the right estimate."""
+    from digiteyes.synth import RenderOptions, render_views
+
+    model, rig, q, _, image, _ = desk
+    bent = q.copy()
+    for joint, angle in (("mcp", 0.0), ("pip", 60.0), ("dip", 40.0)):
+        bent[model.state_index(f"index.{joint}")] = np.radians(angle)
+    image_bent = render_views(model, bent, rig, RenderOptions(appearance="flesh",
+                                                              noise_sigma=2.0), rng=2)[0].image
+    plain = SilhouetteLoss(model, rig, max_unexplained=1.0)
+    judging = SilhouetteLoss(model, rig, max_unexplained=1.0, judge_curled_digits=True)
+    for rule in (plain, judging):
+        assert not rule.check([image], q, q).reasons
+    assert plain.end_shown("index", plain.check([image], bent, q).checks)
+    assert not plain.check([image], bent, q).reasons
+    verdict = judging.check([image], bent, q)
+    assert len(verdict.reasons) == 1
+    assert verdict.reasons[0].startswith("curled by the estimate while the image shows it: "
+                                         "index (")
+    assert verdict.finger_lost["index"] and verdict.hidden_shown == ("index",)
+    assert not any(v for k, v in verdict.finger_lost.items() if k != "index")
+    agreeing = judging.check([image_bent], bent, q)
+    assert not agreeing.reasons, agreeing.reasons

@@ -32,6 +32,15 @@ docs/appearance.md), side by side.
   trackers also run ``natural`` with two cameras with hiding free (``free hiding``, the
   thesis's error), and ``templates`` runs ``two-finger-occlusion`` with the cost
   (``+hiding cost``);
+* the desk pair of ``bench accuracy`` (issue 14's third target: no frame whose mean
+  fingertip error exceeds 30 mm, two cameras, the hand of the model's size and one 0.9x
+  its size): both trackers at their defaults and with the curl search
+  (:data:`CURL_SEARCH`: the silhouette rule's open-digit test for every digit,
+  ``judge_curled_digits``, and the finger search of the digits the rule names,
+  ``named_finger_search``; off by default: it costs the loss flag its precision on
+  those rows, docs/templates.md), with the worst frame, the frames above 30 mm and the
+  loss flag's precision and recall; one render per hand, the noise of ``bench
+  accuracy``;
 * every run is made on :data:`SEEDS` renders that differ in their sensor noise
   (:data:`~digiteyes.benchmarks.tracker.NOISE_SIGMA` grey levels): a track that passes near
   a decision (a finger that can flip) ends differently with another draw of the noise, so
@@ -58,7 +67,8 @@ from dataclasses import asdict, fields, replace
 import numpy as np
 
 from digiteyes.benchmarks._machine import emit, kernel_threads, machine_info, machine_lines
-from digiteyes.benchmarks.tracker import NOISE_SIGMA
+from digiteyes.benchmarks.accuracy import HANDS, row_figures, scenario_for
+from digiteyes.benchmarks.tracker import NOISE_SIGMA, render_sequence, track_sequence
 from digiteyes.camera import Rig
 from digiteyes.evaluate.truth_loss import truth_loss
 from digiteyes.kinematics import forward_kinematics
@@ -79,6 +89,10 @@ SEEDS = (0, 1, 2)
 """Noise seeds of the full run (``--quick``: the first)."""
 _SEED_STRIDE = 100_000
 """Frame ``i`` of seed ``s`` is rendered with the noise seed ``i + s * _SEED_STRIDE``."""
+CURL_SEARCH = {"named_finger_search": True, "judge_curled_digits": True}
+"""The options of the desk rows' curl search (``--option KEY=true`` for each)."""
+DESK_FRAMES = 120
+"""Frames of the desk pair (``bench accuracy``'s; ``--quick``: 20)."""
 _AVERAGED = ("mean_tip_error_mm", "max_frame_tip_error_mm", "lost_frames",
              "truly_lost_frames", "frames_per_second", "index_joint_rms_deg",
              "middle_max_deviation_rad")
@@ -173,6 +187,50 @@ def visibility_agreement(name: str, n_states: int, seed: int = 0) -> dict:
             "ms_per_order": 1e3 * seconds / n_states}
 
 
+def desk_pair(n_frames: int = DESK_FRAMES) -> list[dict]:
+    """The desk rows (module docstring): per appearance and hand one render
+    (:func:`~digiteyes.benchmarks.accuracy.scenario_for`, ``bench accuracy``'s motion and
+    noise), tracked by both template trackers at their defaults and with
+    :data:`CURL_SEARCH`; the figures of
+    :func:`~digiteyes.benchmarks.accuracy.row_figures` per row."""
+    rows = []
+    for appearance in APPEARANCES:
+        for hand in HANDS:
+            sequence = render_sequence(scenario_for("desk", hand, n_frames),
+                                       appearance=appearance)
+            for tracker in ("templates", "templates+features"):
+                for label, settings in (("default", {}), ("+curl search", CURL_SEARCH)):
+                    options = replace(LayeredTemplateOptions(), **settings)
+                    outcome = track_sequence(sequence, options, tracker=tracker)
+                    figures = row_figures(sequence, outcome)
+                    rows.append({"tracker": tracker, "setting": label,
+                                 "appearance": appearance, "hand": hand,
+                                 "frames_per_second": len(outcome.log) / max(
+                                     outcome.tracker_seconds, 1e-9)}
+                                | {k: figures[k] for k in (
+                                    "fingertip_err_mm_mean", "worst_frame_tip_err_mm",
+                                    "frames_tip_err_above_30mm", "truly_lost_frames",
+                                    "flag")})
+    return rows
+
+
+def desk_lines(rows: list[dict]) -> list[str]:
+    """The desk rows as table lines."""
+    lines = ["desk pair (two cameras, 45 degrees above a palm-down hand; target: no frame "
+             "above 30 mm)",
+             f"{'tracker':<19} {'setting':<13} appearance hand    tip mm  worst mm  >30 mm"
+             "  truly lost  flag P/R      fps"]
+    for r in rows:
+        flag = r["flag"]
+        pr = "/".join("-" if flag[k] is None else f"{100 * flag[k]:.0f}"
+                      for k in ("precision", "recall"))
+        lines.append(f"{r['tracker']:<19} {r['setting']:<13} {r['appearance']:<10} "
+                     f"{r['hand']:<6} {r['fingertip_err_mm_mean']:>7.2f} "
+                     f"{r['worst_frame_tip_err_mm']:>9.2f} {r['frames_tip_err_above_30mm']:>7d}"
+                     f" {r['truly_lost_frames']:>11d}  {pr:<9} {r['frames_per_second']:>6.1f}")
+    return lines
+
+
 def seed_mean(runs: list[dict]) -> dict:
     """One row from the runs of the same setting on several seeds: the figures of
     ``_AVERAGED`` and the stage times averaged, each seed's figures under ``per_seed``,
@@ -255,6 +313,7 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
                     for n, c, f, t, o in runs for a in APPEARANCES]
         visibility = [visibility_agreement(n, 5 if quick else 30)
                       for n in ("two-finger-occlusion", "natural")]
+        desk = desk_pair(20 if quick else DESK_FRAMES)
     topts = options.templates
     settings = {"iterations_per_frame": options.iterations_per_frame,
                 "template_weight": options.template_weight,
@@ -266,8 +325,10 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
                 "pixel_depth_at_joints": topts.pixel_depth_at_joints,
                 "hidden_residual": topts.hidden_residual,
                 "hidden_residual_rig": HIDDEN_RESIDUAL_RIG,
-                "seeds": list(seeds), "noise_sigma": NOISE_SIGMA}
-    result = {"tracking": tracking, "visibility": visibility, "settings": settings,
+                "seeds": list(seeds), "noise_sigma": NOISE_SIGMA,
+                "curl_search": CURL_SEARCH}
+    result = {"tracking": tracking, "visibility": visibility, "desk_pair": desk,
+              "settings": settings,
               "machine": machine_info(), "quick": quick}
     lines = [*machine_lines(result["machine"]), "",
              f"mean over {len(seeds)} noise seed(s); tip mm: mean (lowest-highest seed)", "",
@@ -293,6 +354,7 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
         lines.append(f"{t['scenario']:<21} {label:<{_LABEL}} {t['appearance']:<6} "
                      f"{t['cameras']} cam: " + "  ".join(
             f"{t['ms_per_iteration'][s]:.2f}" for s in STAGES))
+    lines += ["", *desk_lines(desk)]
     lines += ["", "visibility order vs depth buffer"]
     for v in visibility:
         lines.append(f"{v['scenario']:<22} agreement {v['agreement']:.3f} over "

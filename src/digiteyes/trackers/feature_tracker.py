@@ -178,6 +178,9 @@ class FeatureTrackerOptions(SilhouetteLossOptions, LossHoldOptions, FingerSearch
         the result (:mod:`digiteyes.trackers.finger_search`; off by default).
     hidden_finger_search : search only the digits the rule's hidden-digit test names, on
         the frames it names them (off by default).
+    named_finger_search : search the digits the rule flags or names hidden (with
+        ``judge_curled_digits``, also curled) while the image shows them open (off by
+        default; :class:`~digiteyes.trackers.finger_search.FingerSearchOptions`).
     """
 
     iterations_per_frame: int = 5

@@ -56,6 +56,13 @@ class FingerSearchOptions:
         lowers the feature and template trackers' mean fingertip error by 1-6 mm, but the
         loss flag's precision over all trackers on the flesh hand falls to 79 % (target
         80; docs/accuracy.md).
+    named_finger_search : search the digits the silhouette rule names on each frame: those
+        it flags (drawn over the backdrop) and those of its hidden-digit test; with the
+        rule's ``judge_curled_digits`` also a digit held curled in view while the image
+        shows it open. Off by default: on the desk pair it keeps every frame within 30 mm
+        (issue 14's target), but the digits it places out of sight stay flagged until
+        seen, and the loss flag's precision on those rows falls (``bench templates``,
+        docs/templates.md).
     finger_search_levels : curls tried per digit, evenly from fully extended (0) to fully
         curled (1).
     finger_search_margin : a digit's new curl is kept only if it lowers the symmetric
@@ -65,6 +72,7 @@ class FingerSearchOptions:
 
     finger_search: bool = False
     hidden_finger_search: bool = False
+    named_finger_search: bool = False
     finger_search_levels: int = 5
     finger_search_margin: float = 0.02
 
@@ -171,10 +179,14 @@ class FingerRecovery:
 
     def digits_to_search(self, verdict: SilhouetteVerdict) -> list[str]:
         """The digits to search after ``verdict``: every digit of the model when
-        ``finger_search`` is on and the frame is lost, the digits its hidden-digit test
-        named when ``hidden_finger_search`` is on, else none."""
+        ``finger_search`` is on and the frame is lost, the digits it flags and those of
+        its hidden-digit test when ``named_finger_search`` is on, the latter alone when
+        ``hidden_finger_search`` is on, else none."""
         if self.options.finger_search and verdict.reasons:
             return list(digit_curl_paths(self.model))
+        if self.options.named_finger_search:
+            flagged = [d for d, lost in verdict.finger_lost.items() if lost]
+            return list(dict.fromkeys([*verdict.hidden_shown, *flagged]))
         if self.options.hidden_finger_search:
             return list(verdict.hidden_shown)
         return []

@@ -150,6 +150,9 @@ class LayeredTemplateOptions(SilhouetteLossOptions, LossHoldOptions, FingerSearc
         the result (:mod:`digiteyes.trackers.finger_search`; off by default).
     hidden_finger_search : search only the digits the rule's hidden-digit test names, on
         the frames it names them (off by default).
+    named_finger_search : search the digits the rule flags or names hidden (with
+        ``judge_curled_digits``, also curled) while the image shows them open (off by
+        default; :class:`~digiteyes.trackers.finger_search.FingerSearchOptions`).
     start_size : on the first frame of a track, before the templates are acquired,
         measure the hand's size at the start state from the feature tracker's line and
         tip features (:mod:`digiteyes.trackers.feature_size`) and track a model of that

@@ -23,7 +23,10 @@ estimate is drawn in each checked camera and compared with the foreground
   (:func:`~digiteyes.features.foreground.unexplained_where_open`): the estimate has curled
   a finger out of sight while the real one is out. A thin finger's unexplained pixels are
   mostly eaten by the tolerance band, so the first rule misses it; this one looks only
-  where that finger would be. That digit is flagged.
+  where that finger would be. That digit is flagged. With ``judge_curled_digits`` the
+  same test is applied to every digit that showed at the start state, hidden or not: a
+  finger the estimate holds curled in view while the real one has opened again (the desk
+  camera's curling fingers, docs/accuracy.md).
 
 Over a textured backdrop, where no grey threshold fits, a colour image is split by a
 colour model of hand and backdrop learned on the first frame
@@ -126,6 +129,9 @@ class SilhouetteLossOptions:
     flag_hidden_fingers : also flag a digit whose end the estimate hides in every checked
         camera while it showed at the start state (where a hidden finger lies, no
         silhouette can say).
+    judge_curled_digits : apply the hidden-digit test (``max_hidden_unexplained``) to
+        every digit that showed at the start state, not only to those the estimate
+        hides: a finger held curled in view while the real one is open is caught too.
     colour_foreground : over a textured backdrop, where no grey threshold separates the
         hand, find it in colour images by a colour model learned on the first frame
         (:mod:`~digiteyes.features.colour_foreground`; the camera stays unchecked when
@@ -138,6 +144,7 @@ class SilhouetteLossOptions:
     max_finger_outside: float = MAX_FINGER_OUTSIDE
     max_hidden_unexplained: float = MAX_HIDDEN_UNEXPLAINED
     flag_hidden_fingers: bool = False
+    judge_curled_digits: bool = False
     colour_foreground: bool = True
 
 
@@ -145,8 +152,9 @@ class SilhouetteLossOptions:
 class SilhouetteVerdict:
     """One frame's silhouette rule: ``reasons`` (empty when the track holds),
     ``finger_lost`` (digit -> bool, the digits judged), ``checks`` (one per checked
-    camera), ``hidden_shown`` (the digits the estimate hides while the image shows them
-    where they would lie open: the hidden-digit test's)."""
+    camera), ``hidden_shown`` (the digits the estimate hides, or with
+    ``judge_curled_digits`` holds curled, while the image shows them where they would lie
+    open: the hidden-digit test's)."""
 
     reasons: list[str]
     finger_lost: dict[str, bool]
@@ -167,6 +175,8 @@ class SilhouetteLoss:
     max_hidden_unexplained : the hidden-digit threshold (a fraction in (0, 1]; 1 turns
         the rule off).
     flag_hidden_fingers : flag every digit the estimate hides (module docstring).
+    judge_curled_digits : the hidden-digit test for every digit, hidden or not (module
+        docstring).
     colour_foreground : the colour model over a textured backdrop (module docstring).
 
     Raises :class:`~digiteyes.errors.DigitEyesError` for a negative or non-integer
@@ -177,7 +187,8 @@ class SilhouetteLoss:
                  max_unexplained: float = MAX_UNEXPLAINED,
                  max_finger_outside: float = MAX_FINGER_OUTSIDE,
                  max_hidden_unexplained: float = MAX_HIDDEN_UNEXPLAINED,
-                 flag_hidden_fingers: bool = False, colour_foreground: bool = True) -> None:
+                 flag_hidden_fingers: bool = False, judge_curled_digits: bool = False,
+                 colour_foreground: bool = True) -> None:
         if isinstance(tolerance_px, bool) or not isinstance(tolerance_px, int | np.integer) \
                 or tolerance_px < 0:
             raise DigitEyesError(f"silhouette_tolerance_px must be an integer >= 0, got "
@@ -198,6 +209,7 @@ class SilhouetteLoss:
         self.max_finger_outside = max_finger_outside
         self.max_hidden_unexplained = max_hidden_unexplained
         self.flag_hidden_fingers = flag_hidden_fingers
+        self.judge_curled_digits = judge_curled_digits
         self.colour_foreground = colour_foreground
         self._digit_links = digit_links(model)
         self._digit_ends = {d: np.array([i for i, link in enumerate(model.links)
@@ -211,7 +223,8 @@ class SilhouetteLoss:
         """The rule with the settings of a tracker's options."""
         return cls(model, rig, options.silhouette_tolerance_px, options.max_unexplained,
                    options.max_finger_outside, options.max_hidden_unexplained,
-                   options.flag_hidden_fingers, options.colour_foreground)
+                   options.flag_hidden_fingers, options.judge_curled_digits,
+                   options.colour_foreground)
 
     def reset(self) -> None:
         """Forget the foreground and the baseline: the next :meth:`check` fits them."""
@@ -375,14 +388,19 @@ class SilhouetteLoss:
         hidden = self.hidden_digits(checks) if checks else []
         shown: dict[str, float] = {}
         if self.max_hidden_unexplained < 1:
-            shares = self.unexplained_where_open(checks, state, hidden)
+            judged = ([d for d in DIGITS if d in self._shown_baseline]
+                      if self.judge_curled_digits and checks else hidden)
+            shares = self.unexplained_where_open(checks, state, judged)
             shown = {d: v for d, v in shares.items() if v > self.max_hidden_unexplained}
             for digit in shown:
                 fingers[digit] = True
-            if shown:
-                reasons.append("hidden by the estimate while the image shows it: " + ", ".join(
-                    f"{d} ({v:.0%} of where it would lie open unexplained)"
-                    for d, v in shown.items()))
+            for label, names in (("hidden by the estimate", [d for d in shown if d in hidden]),
+                                 ("curled by the estimate", [d for d in shown
+                                                             if d not in hidden])):
+                if names:
+                    reasons.append(f"{label} while the image shows it: " + ", ".join(
+                        f"{d} ({shown[d]:.0%} of where it would lie open unexplained)"
+                        for d in names))
         if self.flag_hidden_fingers and hidden:
             for digit in hidden:
                 fingers[digit] = True
