@@ -93,3 +93,15 @@ def test_the_desk_rows_compare_the_curl_search_with_the_defaults():
         assert r["frames_tip_err_above_30mm"] == 0 and r["truly_lost_frames"] == 0
         assert set(r["flag"]) >= {"precision", "recall"}
     assert len(desk_lines(rows)) == 2 + len(rows)
+
+
+def test_a_curl_search_row_says_so():
+    from dataclasses import replace
+
+    from digiteyes.benchmarks.templates import CURL_SEARCH, run_label
+
+    row = track_scenario("two-finger-occlusion", 1, 3,
+                         replace(LayeredTemplateOptions(), **CURL_SEARCH), "templates", "model")
+    assert row["curl_search"] and run_label(row) == "templates +curl search"
+    assert not track_scenario("two-finger-occlusion", 1, 3, LayeredTemplateOptions(),
+                              "templates", "model")["curl_search"]

@@ -40,7 +40,7 @@ docs/appearance.md), side by side.
   ``named_finger_search``; off by default: it costs the loss flag its precision on
   those rows, docs/templates.md), with the worst frame, the frames above 30 mm and the
   loss flag's precision and recall; one render per hand, the noise of ``bench
-  accuracy``;
+  accuracy``; the curl search also on ``natural`` with one and two cameras;
 * every run is made on :data:`SEEDS` renders that differ in their sensor noise
   (:data:`~digiteyes.benchmarks.tracker.NOISE_SIGMA` grey levels): a track that passes near
   a decision (a finger that can flip) ends differently with another draw of the noise, so
@@ -136,6 +136,7 @@ def track_scenario(name: str, n_cameras: int, n_frames: int | None,
     per_frame = tip_error.mean(axis=1)
     out = {"scenario": name, "tracker": tracker, "appearance": appearance,
            "cameras": n_cameras, "seed": seed, "finger_search": options.finger_search,
+           "curl_search": all(getattr(options, k) == v for k, v in CURL_SEARCH.items()),
            "background": options.background,
            "refresh_gated": rig_templates.refresh_turn_deg is not None,
            "pixel_depth_at_joints": rig_templates.pixel_depth_at_joints,
@@ -248,7 +249,7 @@ def seed_mean(runs: list[dict]) -> dict:
     return row
 
 
-_LABEL = len("templates+features free hiding")
+_LABEL = len("templates+features +curl search")
 """Width of the table's tracker column (the longest :func:`run_label`)."""
 
 
@@ -256,6 +257,7 @@ def run_label(row: dict) -> str:
     """A row's tracker and the options it runs with beyond the defaults."""
     rig = TemplateOptions().for_rig(row["cameras"])  # the defaults as its rig uses them
     return (row["tracker"] + (" +search" if row["finger_search"] else "")
+            + (" +curl search" if row.get("curl_search") else "")
             + (" +background" if row.get("background", "none") != "none" else "")
             + _off_default(row, "refresh_gated", rig.refresh_turn_deg is not None, " +gated",
                            " ungated")
@@ -276,6 +278,7 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
     """Run the benchmark, print a table, optionally write JSON (see module docstring)."""
     options = LayeredTemplateOptions()
     searching = replace(options, finger_search=True)
+    curling = replace(options, **CURL_SEARCH)
     background = replace(options, background="filtered")
 
     def with_templates(**settings) -> LayeredTemplateOptions:
@@ -306,7 +309,11 @@ def run(json_path: str | None = None, quick: bool = False) -> dict:
             ("two-finger-occlusion", 1, 30 if quick else None, "templates", by_pixel),
             ("natural", 2, short, "templates", free_hiding),
             ("natural", 2, short, "templates+features", free_hiding),
-            ("two-finger-occlusion", 1, 30 if quick else None, "templates", hiding_costs)]
+            ("two-finger-occlusion", 1, 30 if quick else None, "templates", hiding_costs),
+            ("natural", 2, short, "templates", curling),
+            ("natural", 2, short, "templates+features", curling),
+            ("natural", 1, short, "templates", curling),
+            ("natural", 1, short, "templates+features", curling)]
     seeds = SEEDS[:1] if quick else SEEDS
     with kernel_threads(1, 1):
         tracking = [seed_mean([track_scenario(n, c, f, o, t, a, seed) for seed in seeds])

@@ -388,7 +388,7 @@ class SilhouetteLoss:
         hidden = self.hidden_digits(checks) if checks else []
         shown: dict[str, float] = {}
         if self.max_hidden_unexplained < 1:
-            judged = ([d for d in DIGITS if d in self._shown_baseline]
+            judged = ([d for d in DIGITS if d in self._shown_baseline and d in self._digit_links]
                       if self.judge_curled_digits and checks else hidden)
             shares = self.unexplained_where_open(checks, state, judged)
             shown = {d: v for d, v in shares.items() if v > self.max_hidden_unexplained}
