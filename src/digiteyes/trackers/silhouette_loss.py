@@ -26,7 +26,7 @@ estimate is drawn in each checked camera and compared with the foreground
   where that finger would be. That digit is flagged. With ``judge_curled_digits`` the
   same test is applied to every digit that showed at the start state, hidden or not: a
   finger the estimate holds curled in view while the real one has opened again (the desk
-  camera's curling fingers, docs/accuracy.md).
+  camera's curling fingers, docs/templates.md).
 
 Over a textured backdrop, where no grey threshold fits, a colour image is split by a
 colour model of hand and backdrop learned on the first frame
