@@ -252,7 +252,7 @@ class SilhouetteLoss:
             baseline = self._checks(images, forward_kinematics(self.model, reference))
             self._unexplained_baseline = {c.camera: c.unexplained for c in baseline}
             self._outside_baseline = {c.camera: dict(c.finger_outside) for c in baseline}
-            self._shown_baseline = {d for d in DIGITS if self.end_shown(d, baseline)}
+            self._shown_baseline = {d for d in self._digit_links if self.end_shown(d, baseline)}
         checks = self._checks(images, forward_kinematics(self.model, state))
         reasons, fingers, shown = self._reasons(checks, state)
         return SilhouetteVerdict(reasons, fingers, checks, shown)
@@ -388,7 +388,7 @@ class SilhouetteLoss:
         hidden = self.hidden_digits(checks) if checks else []
         shown: dict[str, float] = {}
         if self.max_hidden_unexplained < 1:
-            judged = ([d for d in DIGITS if d in self._shown_baseline and d in self._digit_links]
+            judged = ([d for d in DIGITS if d in self._shown_baseline]
                       if self.judge_curled_digits and checks else hidden)
             shares = self.unexplained_where_open(checks, state, judged)
             shown = {d: v for d, v in shares.items() if v > self.max_hidden_unexplained}
