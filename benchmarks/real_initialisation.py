@@ -23,7 +23,9 @@ Usage::
 2b. **Link lengths on STB** (both images of the pair, the calibrated stereo rig): each
    detector's keypoints in the two views triangulated
    (:func:`digiteyes.detect.link_lengths.triangulate`) and the 15 finger segments
-   measured, against the same segments of the 3D labels (mm).
+   measured, against the same segments of the 3D labels (mm); and both views fitted
+   together with the hand's scale free, as ``pose LEFT RIGHT --rig`` fits them
+   (root-relative and root errors), beside each MediaPipe view's own 3D keypoints.
 2c. **InterHand2.6M** (4 annotated 334x512 images with 3D joints and their cameras):
    for each annotated hand (three right, three left; a left hand through the mirror image,
    as ``--hand left`` runs it), each detector's candidate nearest the hand's projected
@@ -349,6 +351,14 @@ def stb_link_length_stage(data: Path, hand) -> dict | None:
         if measured_hand.lengths is not None:
             variants.append(("personal", with_link_lengths(scaled_model(hand, scale),
                                                            measured_hand.lengths), 1.0))
+        both = estimate_pose(images, rig, det, hand).fit  # `pose LEFT RIGHT --rig`
+        if both is not None:
+            out[name]["both_views"] = {"scale": both.scale,
+                                       **root_errors(both.keypoints_world, truth21)}
+        own = [f[0].keypoints_3d for f in found]
+        if all(k is not None for k in own):  # the views share the left camera's axes
+            out[name]["own_3d_root_relative_mm_per_view"] = [
+                root_errors(k, truth21)["root_relative_mm"] for k in own]
         left = [KeypointObservation.of(found[0][0], rig[0])]
         for label, model, s in variants:
             p = fit_keypoints(model, left, options=FitOptions(scale=s)).keypoints_world
@@ -407,6 +417,16 @@ def format_table(result: dict) -> str:
             lines.append(f"  {name:<14} mean |error| {r['abs_error_mm_mean']:.1f} mm "
                          f"({100 * r['relative_error_mean']:.0f} %), worst "
                          f"{r['abs_error_mm_max']:.1f} mm")
+            if "both_views" in r:
+                b = r["both_views"]
+                lines.append(f"  {name:<14} both views fitted together, scale free (`pose "
+                             f"LEFT RIGHT --rig`; scale {b['scale']:.3f}): root-relative "
+                             f"{b['root_relative_mm']:.1f} mm, root {b['root_position_mm']:.1f} mm")
+            if "own_3d_root_relative_mm_per_view" in r:
+                lines.append(f"  {name:<14} its own 3D keypoints, left and right view: "
+                             "root-relative " + " and ".join(
+                                 f"{v:.1f}" for v in r["own_3d_root_relative_mm_per_view"])
+                             + " mm")
             for label in ("calibrated", "personal"):
                 if label not in r:
                     continue
