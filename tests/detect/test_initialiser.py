@@ -8,11 +8,12 @@ import sys
 import numpy as np
 import pytest
 
+from digiteyes.benchmarks.tracker import render_sequence
 from digiteyes.camera import Camera, Rig
 from digiteyes.detect import pose
 from digiteyes.detect.candidate import HandCandidate
 from digiteyes.detect.classic import ClassicDetector
-from digiteyes.detect.fallback import FallbackDetector
+from digiteyes.detect.fallback import FallbackDetector, keypoint_span
 from digiteyes.detect.hand21 import model_anchors
 from digiteyes.detect.hand_size import model_hand_length
 from digiteyes.detect.initialiser import AutoInitialiser
@@ -70,11 +71,13 @@ class Stub:
 
     def __init__(self, name: str, confidences: list[float]) -> None:
         self.name, self.confidences, self.calls = name, confidences, 0
+        self.points = np.zeros((2, 2))
 
     def detect(self, image, camera=None):
         self.calls += 1
-        return [HandCandidate(np.zeros((21, 2)), np.ones(21), c, (0.0, 0.0, 1.0, 1.0),
-                              None, self.name) for c in self.confidences]
+        keypoints = np.resize(self.points, (21, 2))  # the given points, repeated
+        return [HandCandidate(keypoints, np.ones(21), c, (0.0, 0.0, 1.0, 1.0), None,
+                              self.name) for c in self.confidences]
 
 
 def test_the_fallback_detector_asks_the_second_only_when_the_first_finds_nothing():
@@ -86,6 +89,28 @@ def test_the_fallback_detector_asks_the_second_only_when_the_first_finds_nothing
     found = both.detect(image)
     assert [(c.detector, c.confidence) for c in found] == [("second", 0.8)]  # 0.6 < 0.7
     assert second.calls == 1 and both.name == "first, else second"
+
+
+def test_an_unsure_first_hand_gives_way_to_a_confident_second_that_spans_more():
+    """A first-detector hand below 0.8 that spans a third of the second detector's
+    (MediaPipe's part of a dim hand against its silhouette) comes after the second's;
+    an unsure one of about the same span, or of a seventeenth (the second's silhouette is
+    a body), or a sure one, stays first."""
+    image = np.zeros((4, 4), np.uint8)
+    square = np.array([[0.0, 0.0], [100.0, 100.0]])
+    first, second = Stub("first", [0.6]), Stub("second", [0.75])
+    first.points, second.points = square, 3.0 * square
+    both = FallbackDetector(first, second)
+    assert [c.detector for c in both.detect(image)] == ["second", "first"]
+    second.points = 1.2 * square
+    assert [c.detector for c in both.detect(image)] == ["first"]
+    second.points = 17.0 * square  # a body's silhouette, not this hand
+    assert [c.detector for c in both.detect(image)] == ["first"]
+    second.points, second.confidences = 3.0 * square, [0.65]  # not confident: not taken
+    assert [c.detector for c in both.detect(image)] == ["first"]
+    first.confidences, calls = [0.85], second.calls
+    assert [c.detector for c in both.detect(image)] == ["first"] and second.calls == calls
+    assert keypoint_span(Stub("s", [1.0]).detect(image)[0]) == 0.0
 
 
 def test_auto_falls_back_to_the_classic_detector_only_beside_mediapipe(hand, camera,
@@ -114,6 +139,25 @@ def test_auto_starts_where_mediapipe_sees_no_hand():
     init = AutoInitialiser(scenario.model, scenario.rig, "auto")
     assert isinstance(init._detector, FallbackDetector)
     state = init([image])
+    assert state is not None and init.last.candidates[0].detector == "classic"
+    _, start = keypoints(scenario.model, forward_kinematics(scenario.model, state[None]))
+    _, true = keypoints(scenario.model, forward_kinematics(scenario.model,
+                                                           scenario.states[:1]))
+    assert np.linalg.norm(start - true, axis=2).mean() < 20.0
+
+
+@pytest.mark.skipif(not mediapipe_available(), reason="optional extra digiteyes[mediapipe]")
+def test_a_hand_mediapipe_sees_only_in_part_does_not_start_the_run_300_mm_away():
+    """The webcam render of seed 3 (`bench auto-start`'s frames): MediaPipe labels part of
+    the dim hand (confidence about 0.5); the fit of those keypoints put the start 400 mm
+    off. The classic detector's silhouette shows the whole hand, and the start is within
+    20 mm."""
+    scenario = build_scenario("webcam-1cam", seed=3, n_frames=1)
+    sequence = render_sequence(scenario, seed=3, appearance="flesh", color=True)
+    found = MediaPipeDetector().detect(sequence.images[0][0])
+    assert found and found[0].confidence < 0.8
+    init = AutoInitialiser(scenario.model, sequence.rig, "auto")
+    state = init(sequence.images[0])
     assert state is not None and init.last.candidates[0].detector == "classic"
     _, start = keypoints(scenario.model, forward_kinematics(scenario.model, state[None]))
     _, true = keypoints(scenario.model, forward_kinematics(scenario.model,
