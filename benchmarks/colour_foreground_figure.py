@@ -11,22 +11,21 @@ Run: ``python benchmarks/colour_foreground_figure.py [--data ../shared/data]``
 from __future__ import annotations
 
 import argparse
-import tempfile
 from pathlib import Path
 
 import cv2
 import numpy as np
+from footage_runs import keypoint_states
 
 from digiteyes.camera import Rig
 from digiteyes.camera.default import default_camera
 from digiteyes.features.colour_foreground import fit_colour_foreground
 from digiteyes.features.foreground import MARGIN_PX, model_labels
-from digiteyes.io import VideoReader, read_state_log
+from digiteyes.io import VideoReader
 from digiteyes.kinematics import forward_kinematics, load_model
 from digiteyes.kinematics.anatomy import with_digits
 from digiteyes.synth import RenderOptions, render_views
 from digiteyes.synth.scenarios import build_scenario
-from digiteyes.track_job import AUTO, TrackJob, run_track_job
 
 OUT = Path(__file__).resolve().parent.parent / "docs" / "images" / "colour-foreground.png"
 VIDEO = Path("real_video") / "human_hand_video.mp4"
@@ -67,12 +66,8 @@ def real_panel(data: Path) -> np.ndarray | None:
     video = data / VIDEO
     if not video.is_file():
         return None
-    with tempfile.TemporaryDirectory() as out:
-        run_track_job(TrackJob((str(video),), out, "hand", init_path=AUTO,
-                               max_frames=REAL_FRAME + 1, overlay=False, progress=False,
-                               tracker_name="keypoints"))
-        model = load_model("hand")
-        log = read_state_log(Path(out) / "states.csv", model)
+    log = keypoint_states(video, REAL_FRAME + 1)
+    model = load_model("hand")
     frames = []
     with VideoReader(str(video)) as reader:
         for i, frame in enumerate(reader):

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -45,6 +46,16 @@ def can_run(data: Path, name: str) -> bool:
         return True
     print(f"{name}: needs {VIDEO} under {data} and the mediapipe extra; skipped")
     return False
+
+
+def keypoint_states(video: Path, frames: int):
+    """The keypoint tracker's state log (:class:`~digiteyes.io.StateLog`, the ``hand``
+    model) on the first ``frames`` frames of ``video``, started as ``digiteyes track
+    VIDEO --init auto --tracker keypoints`` starts (the pictures' states)."""
+    with tempfile.TemporaryDirectory() as out:
+        run_track_job(TrackJob((str(video),), out, "hand", init_path=AUTO, max_frames=frames,
+                               overlay=False, progress=False, tracker_name="keypoints"))
+        return read_state_log(Path(out) / "states.csv", load_model("hand"))
 
 
 def read_frames(video: Path, frames: int | None) -> list[np.ndarray]:

@@ -17,21 +17,20 @@ Run: ``python benchmarks/templates_figures.py [--data ../shared/data]``
 from __future__ import annotations
 
 import argparse
-import tempfile
 from dataclasses import replace
 from pathlib import Path
 
 import cv2
 import numpy as np
+from footage_runs import keypoint_states
 
 from digiteyes.camera import Rig
 from digiteyes.camera.default import default_camera
 from digiteyes.features.slices import prepare_image
-from digiteyes.io import VideoReader, read_state_log
+from digiteyes.io import VideoReader
 from digiteyes.kinematics import load_model
 from digiteyes.synth import RenderOptions, render_views
 from digiteyes.synth.scenarios import build_scenario
-from digiteyes.track_job import AUTO, TrackJob, run_track_job
 from digiteyes.trackers import TrackResult
 from digiteyes.trackers.layered_templates import LayeredTemplateOptions, LayeredTemplateTracker
 from digiteyes.viz.overlay import to_rgb
@@ -126,12 +125,8 @@ def real_figures(data: Path) -> bool:
     video = data / VIDEO
     if not video.is_file():
         return False
-    with tempfile.TemporaryDirectory() as out:
-        run_track_job(TrackJob((str(video),), out, "hand", init_path=AUTO,
-                               max_frames=REAL_FRAME + 1, overlay=False, progress=False,
-                               tracker_name="keypoints"))
-        model = load_model("hand")
-        log = read_state_log(Path(out) / "states.csv", model)
+    log = keypoint_states(video, REAL_FRAME + 1)
+    model = load_model("hand")
     with VideoReader(str(video)) as reader:
         frames = [frame for i, frame in zip(range(REAL_FRAME + 1), reader, strict=False)
                   if i >= REAL_FRAME - 1]
