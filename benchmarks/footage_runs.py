@@ -21,7 +21,7 @@ from real_video import DEFAULT_DATA, RESULTS, VIDEO, image_gaps
 from digiteyes.camera.default import DEFAULT_HFOV_DEG, default_camera
 from digiteyes.camera.mirror import mirrored_camera, unmirror_pixels
 from digiteyes.detect.mediapipe_detector import MediaPipeDetector, mediapipe_available
-from digiteyes.io import VideoReader, read_state_log
+from digiteyes.io import StateLog, VideoReader, read_state_log
 from digiteyes.io.video import VideoWriter
 from digiteyes.kinematics import load_model
 from digiteyes.track_job import AUTO, TrackJob, run_track_job
@@ -48,7 +48,7 @@ def can_run(data: Path, name: str) -> bool:
     return False
 
 
-def keypoint_states(video: Path, frames: int):
+def keypoint_states(video: Path, frames: int) -> StateLog:
     """The keypoint tracker's state log (:class:`~digiteyes.io.StateLog`, the ``hand``
     model) on the first ``frames`` frames of ``video``, started as ``digiteyes track
     VIDEO --init auto --tracker keypoints`` starts (the pictures' states)."""

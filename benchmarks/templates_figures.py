@@ -23,6 +23,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 from footage_runs import keypoint_states
+from real_video import VIDEO
 
 from digiteyes.camera import Rig
 from digiteyes.camera.default import default_camera
@@ -38,7 +39,6 @@ from digiteyes.viz.templates import PALETTE, draw_templates, residual_image
 
 OUT = Path(__file__).resolve().parent.parent / "docs" / "images"
 FRAME = 30
-VIDEO = Path("real_video") / "human_hand_video.mp4"
 REAL_FRAME = 108
 """The real video's frame drawn: the middle finger curls down onto the thumb in front of
 the palm and the other fingers (the pinch of frames 100-120)."""
@@ -54,7 +54,7 @@ def grey(image: np.ndarray, scale: float) -> np.ndarray:
     return np.clip(128 + image * scale, 0, 255).astype(np.uint8)
 
 
-def template_tiles(result: TrackResult, tracker: LayeredTemplateTracker) -> np.ndarray:
+def template_tiles(result: TrackResult) -> np.ndarray:
     """The templates of camera 0, each part's (a, b) grid as an image, side by side."""
     t = result.details.templates[0]
     tiles = []
@@ -101,7 +101,7 @@ def write_figures(tracker: LayeredTemplateTracker, result: TrackResult, image: n
     OUT.mkdir(parents=True, exist_ok=True)
     for name, picture in pictures.items():
         cv2.imwrite(str(OUT / f"{prefix}_{name}.png"), np.ascontiguousarray(picture[rows, cols]))
-    cv2.imwrite(str(OUT / f"{prefix}_templates.png"), template_tiles(result, tracker))
+    cv2.imwrite(str(OUT / f"{prefix}_templates.png"), template_tiles(result))
     print(f"{prefix}: order (front first):", [names[k] for k in order.order])
     print(f"{prefix}: relations:",
           [(names[r.front], names[r.back], r.rule) for r in order.relations])
