@@ -75,6 +75,7 @@ from digiteyes.detect.mediapipe_detector import mediapipe_available
 from digiteyes.detect.model_fit import FitOptions, KeypointObservation, fit_keypoints
 from digiteyes.detect.pose import estimate_pose, make_detector
 from digiteyes.detect.side import is_other_hand
+from digiteyes.errors import DigitEyesError
 from digiteyes.io.video import VideoReader
 from digiteyes.kinematics.procrustes import kabsch
 from digiteyes.kinematics.scaling import scaled_model
@@ -351,10 +352,16 @@ def stb_link_length_stage(data: Path, hand) -> dict | None:
         if measured_hand.lengths is not None:
             variants.append(("personal", with_link_lengths(scaled_model(hand, scale),
                                                            measured_hand.lengths), 1.0))
-        both = estimate_pose(images, rig, det, hand).fit  # `pose LEFT RIGHT --rig`
-        if both is not None:
+        # both views fitted together, as `pose LEFT RIGHT --rig` fits them
+        # (estimate_pose's fit of the detections above)
+        try:
+            both = fit_keypoints(hand, [KeypointObservation.of(f[0], cam)
+                                        for f, cam in zip(found, rig, strict=True)],
+                                 options=FitOptions())
             out[name]["both_views"] = {"scale": both.scale,
                                        **root_errors(both.keypoints_world, truth21)}
+        except DigitEyesError:  # detections no pose of the hand explains
+            pass
         own = [f[0].keypoints_3d for f in found]
         if all(k is not None for k in own):  # the views share the left camera's axes
             out[name]["own_3d_root_relative_mm_per_view"] = [

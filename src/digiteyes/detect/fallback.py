@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from digiteyes.camera import Camera
-from digiteyes.detect.candidate import HandCandidate, HandDetector
+from digiteyes.detect.candidate import HandCandidate, HandDetector, bbox_of
 
 MIN_FALLBACK_CONFIDENCE = 0.7
 """Confidence a candidate of the second detector needs to be returned."""
@@ -47,7 +47,10 @@ def keypoint_span(candidate: HandCandidate) -> float:
     """The diagonal (px) of the box that holds ``candidate``'s keypoints."""
     points = np.asarray(candidate.keypoints, dtype=float)
     points = points[np.isfinite(points).all(axis=1)]
-    return float(np.linalg.norm(points.max(axis=0) - points.min(axis=0))) if len(points) else 0.0
+    if not len(points):
+        return 0.0
+    x0, y0, x1, y1 = bbox_of(points)
+    return float(np.hypot(x1 - x0, y1 - y0))
 
 
 class FallbackDetector:
