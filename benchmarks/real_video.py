@@ -77,11 +77,13 @@ RESULTS = Path(__file__).resolve().parent / "results"
 VIDEO = Path("real_video") / "human_hand_video.mp4"
 STORED = Path("real_video") / "mediapipe_joints_right.pkl"
 TARGET_FPS = 60.0
-TRACKERS = ("features:0", "features", "keypoints", "features+keypoints")
+TRACKERS = ("features:0", "features", "keypoints", "features+keypoints", "features@classic")
 """The runs: the DigitEyes feature tracker without and with the detection check every
 third frame (``NAME:N`` sets ``--check-every N``; the default otherwise), the keypoint
-tracker, and the feature tracker anchored by the keypoints (no detection check: it
-detects every frame)."""
+tracker, the feature tracker anchored by the keypoints (no detection check: it
+detects every frame), and the feature tracker as a user without the MediaPipe extra runs
+it (``NAME@DETECTOR`` sets ``--detector`` for that run: the classic detector starts and
+recovers it, and nothing checks it)."""
 IMAGE_STEP = 3
 """Every how many frames the image gap is measured (frames 1, 4, 7, ...)."""
 SETTLED_FRAMES = 3
@@ -141,7 +143,9 @@ def _label(row: dict) -> str:
     check = row["detection_check"]
     if row["tracker"] in ("keypoints", "features+keypoints"):  # they detect every frame
         return row["tracker"]
-    return f"{row['tracker']}, " + (f"check every {check['every']}" if check else "no check")
+    without = ", classic detector (no MediaPipe)" if row["detector"] == "ClassicDetector" else ""
+    return (f"{row['tracker']}, " + (f"check every {check['every']}" if check else "no check")
+            + without)
 
 
 def _settled(settled: dict) -> str:
@@ -193,9 +197,12 @@ def write_picture(video: Path, model, logs: dict, path: Path) -> None:
 def measure(data: Path, frames: int | None, detector: str, run_name: str,
             out_dir: Path) -> dict:
     """One run on the real video (module docstring); ``run_name`` is a tracker's name,
-    with ``:N`` for a check every N frames (0: none)."""
+    with ``:N`` for a check every N frames (0: none) and ``@DETECTOR`` for a detector
+    other than ``detector``."""
     video = data / VIDEO
-    tracker, _, every = run_name.partition(":")
+    run_spec, _, run_detector = run_name.partition("@")
+    detector = run_detector or detector
+    tracker, _, every = run_spec.partition(":")
     job = TrackJob((str(video),), str(out_dir), "hand", init_path=AUTO, max_frames=frames,
                    overlay=False, progress=False, detector=detector, tracker_name=tracker,
                    check_every=int(every) if every else DEFAULT_CHECK_EVERY)
