@@ -5,8 +5,6 @@ image; on the STB pair both views fitted together measure the hand and place it.
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 
 import pytest
@@ -14,19 +12,7 @@ import pytest
 from digiteyes import load_model
 from digiteyes.detect.mediapipe_detector import mediapipe_available
 
-BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
-DATA = BENCHMARKS.parents[1] / "shared" / "data"
-
-
-def _load_script():
-    sys.path.insert(0, str(BENCHMARKS))
-    spec = importlib.util.spec_from_file_location("real_initialisation_script",
-                                                  BENCHMARKS / "real_initialisation.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
-
+DATA = Path(__file__).resolve().parents[3] / "shared" / "data"
 
 needs_images = pytest.mark.skipif(
     not (DATA / "annotated_images").is_dir(),
@@ -40,8 +26,8 @@ needs_mediapipe = pytest.mark.skipif(not mediapipe_available(),
 
 @needs_images
 @needs_mediapipe
-def test_both_sides_are_measured_and_a_left_hands_labels_sit_on_its_detection():
-    stage = _load_script().interhand_stage(DATA, load_model("hand"))
+def test_both_sides_are_measured_and_a_left_hands_labels_sit_on_its_detection(benchmark_script):
+    stage = benchmark_script("real_initialisation").interhand_stage(DATA, load_model("hand"))
     assert (stage["right_hands"], stage["left_hands"]) == (3, 3)
     left = [r for r in stage["detectors"]["mediapipe"]
             if r["side"] == "left" and r["detected"]]
@@ -52,12 +38,12 @@ def test_both_sides_are_measured_and_a_left_hands_labels_sit_on_its_detection():
 
 @needs_stb
 @needs_mediapipe
-def test_both_stb_views_fitted_together_measure_a_smaller_hand_and_place_its_root():
+def test_both_stb_views_fitted_together_measure_a_smaller_hand_and_place_its_root(benchmark_script):
     """``pose LEFT RIGHT --rig`` on the STB pair: the scale is fitted, and the subject's
     hand (labels: 0.775 of the model's) is measured smaller than the model's, with the
     root (middle MCP) near its label; a fit at the model's size from one view puts it
     61 mm off."""
-    stage = _load_script().stb_link_length_stage(DATA, load_model("hand"))
+    stage = benchmark_script("real_initialisation").stb_link_length_stage(DATA, load_model("hand"))
     both = stage["mediapipe"]["both_views"]
     assert 0.75 < both["scale"] < 0.95
     assert both["root_position_mm"] < 40.0
