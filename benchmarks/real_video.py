@@ -143,9 +143,10 @@ def _label(row: dict) -> str:
     check = row["detection_check"]
     if row["tracker"] in ("keypoints", "features+keypoints"):  # they detect every frame
         return row["tracker"]
-    without = ", classic detector (no MediaPipe)" if row["detector"] == "ClassicDetector" else ""
+    classic = row["detector"] == "ClassicDetector"
+    no_mediapipe = ", classic detector (no MediaPipe)" if classic else ""
     return (f"{row['tracker']}, " + (f"check every {check['every']}" if check else "no check")
-            + without)
+            + no_mediapipe)
 
 
 def _settled(settled: dict) -> str:
