@@ -112,6 +112,18 @@ def test_a_thick_limb_is_the_wrist_not_a_digit():
     assert np.all(np.abs(blob.tip_angles - np.pi / 2) > np.radians(90))
 
 
+def test_the_palm_is_away_from_the_arm_the_border_cuts():
+    """A forearm 110 px wide entering from the image's lower edge, thicker than the palm
+    it ends in (radius 45 px, a fist seen edge-on): the palm centre is the disc, not the
+    forearm's widest point."""
+    mask = np.zeros((400, 300), dtype=np.uint8)
+    cv2.rectangle(mask, (95, 230), (205, 399), 1, -1)
+    cv2.circle(mask, (150, 170), 45, 1, -1)
+    blob = analyse_blob(mask > 0)
+    assert np.linalg.norm(blob.centre - [150, 170]) < 8.0, blob.centre
+    assert blob.radius == pytest.approx(45.0, abs=3.0)
+
+
 def test_no_hand_on_an_empty_wall(camera):
     wall = np.full((480, 640, 3), 120, dtype=np.uint8)
     wall += np.random.default_rng(0).integers(0, 6, wall.shape, dtype=np.uint8)

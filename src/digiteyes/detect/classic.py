@@ -62,6 +62,17 @@ OPEN_HAND_DEG = {"index.abd": -20.0, "middle.abd": -5.0, "ring.abd": 8.0, "littl
 swung away from the index in the palm plane (other joints at zero)."""
 
 
+BORDER = 4
+"""Contour points this close to the image border (px, working size) are where the frame
+cuts the arm (segmentation's smoothing keeps the mask a pixel or two off the border)."""
+ARM_CUT = 1.0
+"""A border run of the contour at least this many times the blob's largest inscribed
+radius wide is a forearm cut by the frame (a digit, or two touching, is narrower)."""
+PALM_PEAK = 0.6
+"""Where the image border cuts the blob, the palm is the inscribed circle farthest from
+the cut among those at least this fraction of the largest."""
+
+
 @dataclass(frozen=True)
 class BlobAnalysis:
     """What the blob gives before labelling (pixels of the analysed image).
@@ -93,11 +104,13 @@ def analyse_blob(mask: np.ndarray) -> BlobAnalysis | None:
     blob is too small to be a hand (palm radius under 4 px)."""
     blob = mask.astype(np.uint8)
     dist = cv2.distanceTransform(blob, cv2.DIST_L2, 5)
-    radius = float(dist.max())
-    if radius < 4.0:
+    if dist.max() < 4.0:
         return None
-    v, u = np.unravel_index(int(np.argmax(dist)), dist.shape)
-    centre = np.array([u, v], dtype=float)
+    contours, _ = cv2.findContours(blob, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    contour = max(contours, key=len).reshape(-1, 2).astype(float)
+    cut = _arm_cut(contour, blob.shape, float(dist.max()))
+    centre = _palm_centre(dist, contour[cut])
+    radius = float(dist[int(centre[1]), int(centre[0])])
     ring = RING * radius
     angles = np.linspace(-np.pi, np.pi, 720, endpoint=False)
     pu = np.round(centre[0] + ring * np.cos(angles)).astype(int)
@@ -106,20 +119,17 @@ def analyse_blob(mask: np.ndarray) -> BlobAnalysis | None:
     on = np.zeros(len(angles), dtype=bool)
     on[inside] = blob[pv[inside], pu[inside]] > 0
     runs = _circular_runs(on)
-    contours, _ = cv2.findContours(blob, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-    contour = max(contours, key=len).reshape(-1, 2).astype(float)
     offsets = contour - centre
     c_dist = np.hypot(offsets[:, 0], offsets[:, 1])
     c_angle = np.arctan2(offsets[:, 1], offsets[:, 0])
     step = angles[1] - angles[0]
     wide = [(ring * length * step, angles[0] + (start + 0.5 * (length - 1)) * step)
             for start, length in runs if ring * length * step > WIDE * radius]
-    # contour points on the image border are where the frame cuts the forearm: no tips
-    height, width = blob.shape
-    cut = ((contour[:, 0] <= 1) | (contour[:, 0] >= width - 2) | (contour[:, 1] <= 1)
-           | (contour[:, 1] >= height - 2))
-    peaks = _contour_peaks(np.where(cut, 0.0, c_dist), TIP_DISTANCE * radius,
-                           VALLEY * radius, 0.5 * radius, keep=8)
+    # where the frame cuts the arm the contour runs on away from the palm: a cut point
+    # counts as the farthest, so that the slopes up to the cut make no peaks
+    far = np.where(cut, c_dist.max() + 1.0, c_dist)
+    peaks = [i for i in _contour_peaks(far, TIP_DISTANCE * radius, VALLEY * radius,
+                                       0.5 * radius, keep=10) if not cut[i]][:8]
     thickness = [_limb_thickness(dist, contour[i], centre, THICK_DEPTH * radius)
                  for i in peaks]
     ends = [(t, i) for t, i in zip(thickness, peaks, strict=True) if t > THICK * radius]
@@ -139,6 +149,43 @@ def analyse_blob(mask: np.ndarray) -> BlobAnalysis | None:
         wrist_angle, wrist_found = np.pi / 2, False
     return BlobAnalysis(mask, centre, radius, np.array(tips).reshape(-1, 2),
                         np.array(tip_angles), float(wrist_angle), wrist_found)
+
+
+def _arm_cut(contour: np.ndarray, shape: tuple[int, int], thickest: float) -> np.ndarray:
+    """Which contour points (C, 2) px lie where the image border cuts the forearm:
+    runs of contour points within :data:`BORDER` px of the border that span at least
+    :data:`ARM_CUT` times the blob's largest inscribed radius ``thickest`` (a finger that
+    leaves the picture makes a narrower run, and keeps its tip there). Bool (C,)."""
+    height, width = shape
+    near = ((contour[:, 0] < BORDER) | (contour[:, 0] >= width - BORDER)
+            | (contour[:, 1] < BORDER) | (contour[:, 1] >= height - BORDER))
+    cut = np.zeros(len(contour), dtype=bool)
+    if not near.any():
+        return cut
+    for start, length in _circular_runs(near):
+        run = (start + np.arange(length)) % len(contour)
+        span = contour[run].max(axis=0) - contour[run].min(axis=0)
+        if np.hypot(*span) >= ARM_CUT * thickest:
+            cut[run] = True
+    return cut
+
+
+def _palm_centre(dist: np.ndarray, cut: np.ndarray) -> np.ndarray:
+    """The palm centre (2,) px: the centre of the largest circle inscribed in the blob
+    (``dist`` its distance transform), or, where the image border cuts the blob (``cut``,
+    contour points (C, 2) on the border: an arm entering the picture), of the inscribed
+    circle farthest from the cut among those at least :data:`PALM_PEAK` times the largest:
+    a forearm seen whole is often thicker than a fist or a palm seen edge-on."""
+    v, u = np.unravel_index(int(np.argmax(dist)), dist.shape)
+    if not len(cut):
+        return np.array([u, v], dtype=float)
+    size = 2 * max(1, int(0.5 * dist.max())) + 1
+    peak = (dist >= cv2.dilate(dist, np.ones((size, size), np.uint8))) & (
+        dist >= PALM_PEAK * dist.max())
+    vs, us = np.nonzero(peak)
+    far = np.linalg.norm(np.column_stack([us, vs]) - cut.mean(axis=0), axis=1)
+    best = int(np.argmax(far))
+    return np.array([us[best], vs[best]], dtype=float)
 
 
 def _limb_thickness(dist: np.ndarray, end: np.ndarray, centre: np.ndarray,
