@@ -71,6 +71,23 @@ radius wide is a forearm cut by the frame (a digit, or two touching, is narrower
 PALM_PEAK = 0.6
 """Where the image border cuts the blob, the palm is the inscribed circle farthest from
 the cut among those at least this fraction of the largest."""
+AXIS_STEP = 0.12
+"""Step of the march along a digit's medial axis, palm radii."""
+AXIS_LENGTH = 4.0
+"""The march stops after this many palm radii (longer than any digit)."""
+AXIS_REACH = 1.2
+"""A cross-section reaching this many palm radii to one side is the palm, not a digit."""
+AXIS_SETTLE = 3
+"""Steps near the tip (its rounded end) that never stop the march."""
+WIDENS = 1.7
+"""The palm begins where a digit's cross-section exceeds this many times its median
+width so far."""
+HIDDEN = {"thumb": 1.0, "index": 0.7, "middle": 0.7, "ring": 0.7, "little": 0.7}
+"""The part of each digit's first link that the palm's silhouette hides: the thumb's
+whole metacarpal (its limb meets the palm at the MCP), and of a finger's proximal phalanx
+the part under the palm up to the web between the fingers (the MCP joint sits under the
+distal palmar crease): about 0.7 of it, measured 0.6-0.8 against MediaPipe's joints on
+the real recording."""
 
 
 @dataclass(frozen=True)
@@ -123,8 +140,9 @@ def analyse_blob(mask: np.ndarray) -> BlobAnalysis | None:
     c_dist = np.hypot(offsets[:, 0], offsets[:, 1])
     c_angle = np.arctan2(offsets[:, 1], offsets[:, 0])
     step = angles[1] - angles[0]
-    wide = [(ring * length * step, angles[0] + (start + 0.5 * (length - 1)) * step)
-            for start, length in runs if ring * length * step > WIDE * radius]
+    wide = [(ring * length * step, angles[0] + (start + 0.5 * (length - 1)) * step,
+             0.5 * length * step) for start, length in runs
+            if ring * length * step > WIDE * radius]
     # where the frame cuts the arm the contour runs on away from the palm: a cut point
     # counts as the farthest, so that the slopes up to the cut make no peaks
     far = np.where(cut, c_dist.max() + 1.0, c_dist)
@@ -134,6 +152,12 @@ def analyse_blob(mask: np.ndarray) -> BlobAnalysis | None:
                  for i in peaks]
     ends = [(t, i) for t, i in zip(thickness, peaks, strict=True) if t > THICK * radius]
     tips = [i for t, i in zip(thickness, peaks, strict=True) if t <= THICK * radius]
+    # a wide crossing that two or more tips lie beyond is digits held together, unless
+    # it leads to where the frame cuts the arm
+    arm = np.mean(contour[cut], axis=0) - centre if cut.any() else None
+    wide = [(width, middle) for width, middle, half in wide
+            if sum(abs(_wrap(c_angle[i] - middle)) < half for i in tips) < 2
+            or (arm is not None and abs(_wrap(np.arctan2(arm[1], arm[0]) - middle)) < half)]
     wrist = c_angle[max(ends)[1]] if ends else max(wide)[1] if wide else None
     if wrist is not None:
         tips = [i for i in tips if abs(_wrap(c_angle[i] - wrist)) > np.radians(50.0)]
@@ -153,20 +177,30 @@ def analyse_blob(mask: np.ndarray) -> BlobAnalysis | None:
 
 def _arm_cut(contour: np.ndarray, shape: tuple[int, int], thickest: float) -> np.ndarray:
     """Which contour points (C, 2) px lie where the image border cuts the forearm:
-    runs of contour points within :data:`BORDER` px of the border that span at least
-    :data:`ARM_CUT` times the blob's largest inscribed radius ``thickest`` (a finger that
-    leaves the picture makes a narrower run, and keeps its tip there). Bool (C,)."""
+    runs of contour points within :data:`BORDER` px of the border (runs less than half of
+    ``thickest`` apart joined) that span at least :data:`ARM_CUT` times the blob's
+    largest inscribed radius ``thickest`` (a finger that leaves the picture makes a
+    narrower run, and keeps its tip there). Bool (C,)."""
     height, width = shape
     near = ((contour[:, 0] < BORDER) | (contour[:, 0] >= width - BORDER)
             | (contour[:, 1] < BORDER) | (contour[:, 1] >= height - BORDER))
     cut = np.zeros(len(contour), dtype=bool)
     if not near.any():
         return cut
-    for start, length in _circular_runs(near):
-        run = (start + np.arange(length)) % len(contour)
-        span = contour[run].max(axis=0) - contour[run].min(axis=0)
-        if np.hypot(*span) >= ARM_CUT * thickest:
-            cut[run] = True
+    runs = [(start + np.arange(length)) % len(contour)
+            for start, length in _circular_runs(near)]
+    # runs a short way apart are one cut (a notch in the mask where the arm leaves)
+    groups = []
+    for run in runs:
+        joined = [g for g in groups if min(
+            np.linalg.norm(contour[run][:, None] - contour[r][None], axis=2).min()
+            for r in g) < 0.5 * thickest]
+        groups = [g for g in groups if all(g is not j for j in joined)]
+        groups.append([run] + [r for g in joined for r in g])
+    for group in groups:
+        points = contour[np.concatenate(group)]
+        if np.hypot(*(points.max(axis=0) - points.min(axis=0))) >= ARM_CUT * thickest:
+            cut[np.concatenate(group)] = True
     return cut
 
 
@@ -329,7 +363,11 @@ def label_keypoints(blob: BlobAnalysis, template: HandTemplate,
     For each side: place the template by the palm radius and the wrist direction turned by
     up to 60 degrees (the turn whose assignment fits best), assign the tips, then
     alternate a weighted similarity fit (palm centre and matched tips onto the template's
-    palm centre and tips) with a new assignment, ``rounds`` times.
+    palm centre and tips) with a new assignment, ``rounds`` times. The found digits'
+    joints lie on the line from the template's base to the tip; where no similarity
+    within :func:`_plausible` of the first placement fits the tips (a hand tilted out of
+    the image plane foreshortens its digits, which no similarity of the open template
+    explains), they come from the digits' silhouettes instead (:func:`_digit_from_limb`).
     """
     best = None
     for dorsal in (False, True):
@@ -343,6 +381,7 @@ def label_keypoints(blob: BlobAnalysis, template: HandTemplate,
         local = template.place(np.zeros(2), np.pi / 2, 1.0, dorsal)  # template, mm
         turn = blob.wrist_angle + offset - np.pi / 2
         a0 = scale * complex(np.cos(turn), np.sin(turn))
+        fitted = False
         for _ in range(rounds):
             if len(match) < 2:
                 break
@@ -355,15 +394,20 @@ def label_keypoints(blob: BlobAnalysis, template: HandTemplate,
             if not _plausible(a, a0):
                 break
             placed = _apply(a, b, local)
+            fitted = True
             match, total = _match(blob, placed)
         if best is None or total < best[0]:
-            best = (total, dorsal, placed, match)
-    total, dorsal, placed, match = best
+            best = (total, dorsal, placed, match, fitted)
+    total, dorsal, placed, match, fitted = best
     keypoints = placed.copy()
     confidence = np.full(21, 0.6)
     for i, digit in enumerate(DIGITS):
         keys = [1 + 4 * i + j for j in range(4)]
         base = placed[keys[0]]
+        if i in match and not fitted:  # the template does not fit: follow the limb
+            keypoints[keys] = _digit_from_limb(blob, blob.tips[match[i]], digit, template)
+            confidence[keys] = (0.3, 0.5, 0.5, 0.9)  # the base is past the limb's end
+            continue
         if i in match:
             tip = blob.tips[match[i]]
             confidence[keys[1:]] = (0.5, 0.5, 0.9)
@@ -372,6 +416,80 @@ def label_keypoints(blob: BlobAnalysis, template: HandTemplate,
             confidence[keys[1:]] = 0.1
         keypoints[keys[1:]] = base + template.fractions[digit][:, None] * (tip - base)
     return keypoints, confidence, dorsal, total
+
+
+def _digit_from_limb(blob: BlobAnalysis, tip: np.ndarray, digit: str,
+                     template: HandTemplate) -> np.ndarray:
+    """A found digit's four keypoints (4, 2) px, base to tip, from its silhouette alone.
+
+    The limb's medial axis is followed from the tip to where the limb meets the palm
+    (:func:`limb_axis`) and extended straight on by the part of the digit's first link
+    the palm hides (:data:`HIDDEN`); the joints sit at the template's link-length
+    fractions of that path.
+    """
+    axis = limb_axis(blob.mask, tip, blob.centre, blob.radius)
+    seen = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(axis, axis=0), axis=1))]
+    if seen[-1] < 1e-6:
+        return np.repeat(tip[None], 4, axis=0)
+    back = axis[-1] - axis[max(0, len(axis) - 4)]
+    back = back / max(float(np.linalg.norm(back)), 1e-9)
+    fractions = template.fractions[digit]
+    length = seen[-1] / (1.0 - HIDDEN[digit] * fractions[0])
+    along = length * (1.0 - np.r_[0.0, fractions])  # from the tip
+    out = np.empty((4, 2))
+    for k, s in enumerate(along):
+        if s <= seen[-1]:
+            out[k] = [np.interp(s, seen, axis[:, 0]), np.interp(s, seen, axis[:, 1])]
+        else:
+            out[k] = axis[-1] + (s - seen[-1]) * back
+    return out
+
+
+def limb_axis(mask: np.ndarray, tip: np.ndarray, centre: np.ndarray, radius: float
+              ) -> np.ndarray:
+    """Medial axis (K, 2) px of the limb that ends at ``tip``, from the tip to where it
+    meets the palm.
+
+    March from the tip towards the palm ``centre`` in steps of :data:`AXIS_STEP` palm
+    radii; at each step the mask's cross-section perpendicular to the current direction
+    gives the limb's width and middle (the next axis point), and the direction follows
+    the last few axis points (a bent digit). The march stops where the cross-section
+    widens to :data:`WIDENS` times the limb's median width so far, or runs past
+    ``AXIS_REACH`` palm radii to one side, or leaves the mask: the palm begins there.
+    """
+    height, width = mask.shape
+    direction = centre - tip
+    direction = direction / max(float(np.linalg.norm(direction)), 1e-9)
+    point = np.asarray(tip, dtype=float)
+    reach = AXIS_REACH * radius
+    offsets = np.arange(0.0, reach, 0.5)
+    points, widths = [point], []
+    for k in range(int(AXIS_LENGTH / AXIS_STEP)):
+        ahead = point + AXIS_STEP * radius * direction
+        u, v = np.round(ahead).astype(int)
+        if not (0 <= u < width and 0 <= v < height and mask[v, u]):
+            break
+        normal = np.array([-direction[1], direction[0]])
+        extent = []
+        for sign in (1.0, -1.0):
+            line = np.round(ahead + sign * offsets[:, None] * normal).astype(int)
+            ok = ((line[:, 0] >= 0) & (line[:, 0] < width) & (line[:, 1] >= 0)
+                  & (line[:, 1] < height))
+            inside = np.zeros(len(offsets), dtype=bool)
+            inside[ok] = mask[line[ok, 1], line[ok, 0]]
+            out = np.flatnonzero(~inside)
+            extent.append(offsets[out[0]] if len(out) else reach)
+        across = extent[0] + extent[1]
+        if k >= AXIS_SETTLE and (across > WIDENS * float(np.median(widths))
+                                 or max(extent) >= reach):
+            break
+        widths.append(across)
+        point = ahead + 0.5 * (extent[0] - extent[1]) * normal
+        points.append(point)
+        turn = points[-1] - points[max(0, len(points) - 4)]
+        if np.linalg.norm(turn) > 0:
+            direction = turn / np.linalg.norm(turn)
+    return np.array(points)
 
 
 class ClassicDetector:
