@@ -4,20 +4,24 @@ Steps (each a function below):
 
 1. segmentation (:mod:`~digiteyes.detect.segmentation`): skin and not background;
 2. the largest blob; its palm centre and radius from the distance transform (the centre of
-   the largest inscribed circle);
+   the largest inscribed circle; where the image border cuts the forearm, the largest
+   such circle away from the cut);
 3. digit tips as the peaks of the contour's distance from the palm centre (at least
    ``TIP_DISTANCE`` palm radii out) that end a thin limb: a peak whose limb is thicker
    than ``THICK`` palm radii is the end of the wrist or forearm (a sleeve or the end of
    the picture cuts it); the wrist lies towards the thickest such end, else where the
    blob crosses a circle of ``RING`` palm radii in a crossing wider than ``WIDE`` radii
-   (else opposite to the tips), and a peak towards the wrist is not a tip;
+   that fewer than two tips lie beyond (else opposite to the tips), and a peak towards
+   the wrist is not a tip;
 4. a model-based labelling: the model's keypoints of an open hand (a right hand,
    seen from its palmar or its dorsal side) are placed on the image by the similarity that
    puts the model's palm centre on the blob's, its wrist towards the image wrist and its
    palm radius on the blob's; the side whose digit directions match the found tips best
    (optimal assignment) names the digits; each digit's joints lie on the line from its
-   base to its tip at the model's link-length fractions. Digits not found (curled) get a
-   guess near their base with low confidence.
+   base to its tip at the model's link-length fractions. Where no similarity fits the
+   tips (a hand tilted away foreshortens its digits), a found digit's joints follow its
+   limb's medial axis instead. Digits not found (curled) get a guess near their base
+   with low confidence.
 
 The 21 keypoints then go to :func:`~digiteyes.detect.model_fit.fit_keypoints`.
 """
