@@ -66,10 +66,6 @@ OPEN_HAND_DEG = {"index.abd": -20.0, "middle.abd": -5.0, "ring.abd": 8.0, "littl
 swung away from the index in the palm plane (other joints at zero)."""
 
 
-SHORT_LIMB = 0.3
-"""A digit whose silhouette gives it less than this fraction of the template's length (at
-the first placement) keeps the template's line: a curled digit's short limb does not say
-where its base is."""
 BORDER = 4
 """Contour points this close to the image border (px, working size) are where the frame
 cuts the arm (segmentation's smoothing keeps the mask a pixel or two off the border)."""
@@ -375,8 +371,7 @@ def label_keypoints(blob: BlobAnalysis, template: HandTemplate,
     joints lie on the line from the template's base to the tip; where no similarity
     within :func:`_plausible` of the first placement fits the tips (a hand tilted out of
     the image plane foreshortens its digits, which no similarity of the open template
-    explains), they come from the digits' silhouettes instead (:func:`_digit_from_limb`),
-    unless the silhouette makes a digit shorter than :data:`SHORT_LIMB` of the template's.
+    explains), they come from the digits' silhouettes instead (:func:`_digit_from_limb`).
     """
     best = None
     for dorsal in (False, True):
@@ -413,12 +408,8 @@ def label_keypoints(blob: BlobAnalysis, template: HandTemplate,
     for i, digit in enumerate(DIGITS):
         keys = [1 + 4 * i + j for j in range(4)]
         base = placed[keys[0]]
-        limb = None
         if i in match and not fitted:  # the template does not fit: follow the limb
-            limb = _digit_from_limb(blob, blob.tips[match[i]], digit, template)
-        if limb is not None and (np.linalg.norm(limb[3] - limb[0])
-                                 >= SHORT_LIMB * np.linalg.norm(placed[keys[3]] - base)):
-            keypoints[keys] = limb
+            keypoints[keys] = _digit_from_limb(blob, blob.tips[match[i]], digit, template)
             confidence[keys] = (0.3, 0.5, 0.5, 0.9)  # the base is past the limb's end
             continue
         if i in match:
