@@ -66,6 +66,11 @@ OPEN_HAND_DEG = {"index.abd": -20.0, "middle.abd": -5.0, "ring.abd": 8.0, "littl
 swung away from the index in the palm plane (other joints at zero)."""
 
 
+SHORT_LIMB = 0.3
+"""Where no similarity fits, the digits follow their silhouettes only if each found digit's
+silhouette gives it at least this fraction of the template's length (at the first
+placement): a shorter one is a curled digit, which the assignment can name for another,
+and the hand is not the open hand tilted away that the silhouettes explain."""
 BORDER = 4
 """Contour points this close to the image border (px, working size) are where the frame
 cuts the arm (segmentation's smoothing keeps the mask a pixel or two off the border)."""
@@ -371,7 +376,8 @@ def label_keypoints(blob: BlobAnalysis, template: HandTemplate,
     joints lie on the line from the template's base to the tip; where no similarity
     within :func:`_plausible` of the first placement fits the tips (a hand tilted out of
     the image plane foreshortens its digits, which no similarity of the open template
-    explains), they come from the digits' silhouettes instead (:func:`_digit_from_limb`).
+    explains), they come from the digits' silhouettes instead (:func:`_digit_from_limb`),
+    unless one of them is shorter than :data:`SHORT_LIMB` of the template's.
     """
     best = None
     for dorsal in (False, True):
@@ -405,11 +411,17 @@ def label_keypoints(blob: BlobAnalysis, template: HandTemplate,
     total, dorsal, placed, match, fitted = best
     keypoints = placed.copy()
     confidence = np.full(21, 0.6)
+    limbs = {} if fitted else {i: _digit_from_limb(blob, blob.tips[match[i]], DIGITS[i],
+                                                  template) for i in match}
+    if any(np.linalg.norm(limb[3] - limb[0])
+           < SHORT_LIMB * np.linalg.norm(placed[4 * i + 4] - placed[4 * i + 1])
+           for i, limb in limbs.items()):
+        limbs = {}  # a curled digit: not an open hand tilted away
     for i, digit in enumerate(DIGITS):
         keys = [1 + 4 * i + j for j in range(4)]
         base = placed[keys[0]]
-        if i in match and not fitted:  # the template does not fit: follow the limb
-            keypoints[keys] = _digit_from_limb(blob, blob.tips[match[i]], digit, template)
+        if i in limbs:  # the template does not fit: follow the limb
+            keypoints[keys] = limbs[i]
             confidence[keys] = (0.3, 0.5, 0.5, 0.9)  # the base is past the limb's end
             continue
         if i in match:
