@@ -164,7 +164,7 @@ def analyse_blob(mask: np.ndarray) -> BlobAnalysis | None:
     # a wide crossing that two or more tips lie beyond is digits held together, unless
     # it leads to where the frame cuts the arm
     arm = np.mean(contour[cut], axis=0) - centre if cut.any() else None
-    wide = [(width, middle) for width, middle, half in wide
+    wide = [(across, middle) for across, middle, half in wide
             if sum(abs(_wrap(c_angle[i] - middle)) < half for i in tips) < 2
             or (arm is not None and abs(_wrap(np.arctan2(arm[1], arm[0]) - middle)) < half)]
     wrist = c_angle[max(ends)[1]] if ends else max(wide)[1] if wide else None
