@@ -11,6 +11,7 @@ from digiteyes.detect.classic import ClassicDetector, analyse_blob, limb_axis, s
 from digiteyes.detect.hand21 import TIPS, model_anchors
 from digiteyes.detect.model_fit import KeypointObservation, fit_keypoints
 from digiteyes.detect.segmentation import BackgroundModel, border_background, hand_mask
+from digiteyes.evaluate.metrics import wrap_angle
 from digiteyes.kinematics import forward_kinematics
 from digiteyes.kinematics.rotations import (
     matrix_from_quaternion,
@@ -31,10 +32,6 @@ def open_hand(hand, seed: int) -> np.ndarray:
     q[0:4] = quaternion_from_rotvec(np.array([0.2, 0.1, np.pi + rng.uniform(-0.45, 0.45)]))
     q[4:7] = (rng.uniform(-20, 20), rng.uniform(10, 40), 0.0)
     return np.clip(q, hand.lower, hand.upper)
-
-
-def _wrap(angle: float) -> float:
-    return float(np.angle(np.exp(1j * angle)))
 
 
 SCENES = [
@@ -195,7 +192,7 @@ def test_fingers_held_together_are_not_the_wrist():
         cv2.line(mask, (x, 60), (x, 150), 0, 2)
     blob = analyse_blob(mask > 0)
     assert len(blob.tips) == 4, blob.tips
-    assert abs(_wrap(blob.wrist_angle - np.pi / 2)) < np.radians(30)
+    assert abs(wrap_angle(blob.wrist_angle - np.pi / 2)) < np.radians(30)
 
 
 def test_the_palm_is_away_from_the_arm_the_border_cuts():

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 from scipy.optimize import linear_sum_assignment
+from scipy.sparse.csgraph import connected_components
 
 from digiteyes.camera import Camera
 from digiteyes.detect.candidate import HandCandidate, bbox_of
@@ -135,7 +136,8 @@ def analyse_blob(mask: np.ndarray) -> BlobAnalysis | None:
     contours, _ = cv2.findContours(blob, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     contour = max(contours, key=len).reshape(-1, 2).astype(float)
     cut = _arm_cut(contour, blob.shape, float(dist.max()))
-    centre = _palm_centre(dist, contour[cut])
+    arm_end = contour[cut].mean(axis=0) if cut.any() else None
+    centre = _palm_centre(dist, arm_end)
     radius = float(dist[int(centre[1]), int(centre[0])])
     ring = RING * radius
     angles = np.linspace(-np.pi, np.pi, 720, endpoint=False)
@@ -149,9 +151,6 @@ def analyse_blob(mask: np.ndarray) -> BlobAnalysis | None:
     c_dist = np.hypot(offsets[:, 0], offsets[:, 1])
     c_angle = np.arctan2(offsets[:, 1], offsets[:, 0])
     step = angles[1] - angles[0]
-    wide = [(ring * length * step, angles[0] + (start + 0.5 * (length - 1)) * step,
-             0.5 * length * step) for start, length in runs
-            if ring * length * step > WIDE * radius]
     # where the frame cuts the arm the contour runs on away from the palm: a cut point
     # counts as the farthest, so that the slopes up to the cut make no peaks
     far = np.where(cut, c_dist.max() + 1.0, c_dist)
@@ -163,10 +162,14 @@ def analyse_blob(mask: np.ndarray) -> BlobAnalysis | None:
     tips = [i for t, i in zip(thickness, peaks, strict=True) if t <= THICK * radius]
     # a wide crossing that two or more tips lie beyond is digits held together, unless
     # it leads to where the frame cuts the arm
-    arm = np.mean(contour[cut], axis=0) - centre if cut.any() else None
-    wide = [(across, middle) for across, middle, half in wide
-            if sum(abs(_wrap(c_angle[i] - middle)) < half for i in tips) < 2
-            or (arm is not None and abs(_wrap(np.arctan2(arm[1], arm[0]) - middle)) < half)]
+    arm = None if arm_end is None else np.arctan2(*(arm_end - centre)[::-1])
+    wide = []
+    for start, length in runs:
+        middle, half = angles[0] + (start + 0.5 * (length - 1)) * step, 0.5 * length * step
+        beyond = sum(abs(_wrap(c_angle[i] - middle)) < half for i in tips)
+        if ring * length * step > WIDE * radius and (
+                beyond < 2 or (arm is not None and abs(_wrap(arm - middle)) < half)):
+            wide.append((ring * length * step, middle))
     wrist = c_angle[max(ends)[1]] if ends else max(wide)[1] if wide else None
     if wrist is not None:
         tips = [i for i in tips if abs(_wrap(c_angle[i] - wrist)) > np.radians(50.0)]
@@ -199,34 +202,32 @@ def _arm_cut(contour: np.ndarray, shape: tuple[int, int], thickest: float) -> np
     runs = [(start + np.arange(length)) % len(contour)
             for start, length in _circular_runs(near)]
     # runs a short way apart are one cut (a notch in the mask where the arm leaves)
-    groups = []
-    for run in runs:
-        joined = [g for g in groups if min(
-            np.linalg.norm(contour[run][:, None] - contour[r][None], axis=2).min()
-            for r in g) < 0.5 * thickest]
-        groups = [g for g in groups if all(g is not j for j in joined)]
-        groups.append([run] + [r for g in joined for r in g])
-    for group in groups:
-        points = contour[np.concatenate(group)]
-        if np.hypot(*(points.max(axis=0) - points.min(axis=0))) >= ARM_CUT * thickest:
-            cut[np.concatenate(group)] = True
+    close = np.array([[np.linalg.norm(contour[a][:, None] - contour[b][None], axis=2).min()
+                       < 0.5 * thickest for b in runs] for a in runs])
+    _, group = connected_components(close, directed=False)
+    for k in range(group.max() + 1):
+        members = np.concatenate([run for run, g in zip(runs, group, strict=True) if g == k])
+        span = contour[members].max(axis=0) - contour[members].min(axis=0)
+        if np.hypot(*span) >= ARM_CUT * thickest:
+            cut[members] = True
     return cut
 
 
-def _palm_centre(dist: np.ndarray, cut: np.ndarray) -> np.ndarray:
+def _palm_centre(dist: np.ndarray, arm_end: np.ndarray | None) -> np.ndarray:
     """The palm centre (2,) px: the centre of the largest circle inscribed in the blob
-    (``dist`` its distance transform), or, where the image border cuts the blob (``cut``,
-    contour points (C, 2) on the border: an arm entering the picture), of the inscribed
-    circle farthest from the cut among those at least :data:`PALM_PEAK` times the largest:
-    a forearm seen whole is often thicker than a fist or a palm seen edge-on."""
+    (``dist`` its distance transform), or, where the image border cuts the blob
+    (``arm_end`` (2,) px, the mean of the cut's contour points: an arm entering the
+    picture), of the inscribed circle farthest from the cut among those at least
+    :data:`PALM_PEAK` times the largest: a forearm seen whole is often thicker than a
+    fist or a palm seen edge-on."""
     v, u = np.unravel_index(int(np.argmax(dist)), dist.shape)
-    if not len(cut):
+    if arm_end is None:
         return np.array([u, v], dtype=float)
     size = 2 * max(1, int(0.5 * dist.max())) + 1
     peak = (dist >= cv2.dilate(dist, np.ones((size, size), np.uint8))) & (
         dist >= PALM_PEAK * dist.max())
     vs, us = np.nonzero(peak)
-    far = np.linalg.norm(np.column_stack([us, vs]) - cut.mean(axis=0), axis=1)
+    far = np.linalg.norm(np.column_stack([us, vs]) - arm_end, axis=1)
     best = int(np.argmax(far))
     return np.array([us[best], vs[best]], dtype=float)
 
