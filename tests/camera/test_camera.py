@@ -16,6 +16,7 @@ import pytest
 
 from digiteyes import load_model
 from digiteyes.camera import PROJECTIONS, Camera
+from digiteyes.camera.camera import PROJECTION_PARAMS
 from digiteyes.errors import CameraError
 from digiteyes.kinematics import forward_kinematics, integrate, point_jacobian
 
@@ -391,3 +392,11 @@ def test_zero_extra_distortion_coefficients_are_accepted() -> None:
     cam8 = Camera.create("b", K, 640, 480, dist=[*five, 0.0, 0.0, 0.0])
     points = np.array([[10.0, -20.0, 500.0], [-60.0, 35.0, 700.0]])
     np.testing.assert_array_equal(cam5.project(points), cam8.project(points))
+
+
+@pytest.mark.parametrize("projection", PROJECTIONS)
+def test_projection_params_have_the_length_compiled_callers_allocate(projection):
+    """The keypoint fit's kernel packs cameras into (C, PROJECTION_PARAMS) arrays."""
+    camera = Camera.look_at("c", eye=(0, 0, -500), target=(0, 0, 0), up=(0, -1, 0),
+                            projection=projection)
+    assert camera.projection_params.shape == (PROJECTION_PARAMS,)

@@ -90,6 +90,8 @@ def project_kernel(params, points, w, J, jacobian):  # pragma: no cover - compil
 
 
 
+PROJECTION_PARAMS = 24
+"""Length of :attr:`Camera.projection_params`."""
 MAX_IMAGE_SIDE = 65_536
 """Largest image width or height a camera may have (pixels)."""
 

@@ -48,6 +48,8 @@ import cv2
 import numpy as np
 
 from digiteyes.camera import Camera
+from digiteyes.camera.camera import PROJECTION_PARAMS
+from digiteyes.detect._fit_kernels import keypoint_terms_kernel
 from digiteyes.detect.candidate import HandCandidate
 from digiteyes.detect.hand21 import (
     BONES,
@@ -66,8 +68,8 @@ from digiteyes.kinematics import (
     forward_kinematics,
     held_at_limits,
     integrate,
-    point_jacobian,
 )
+from digiteyes.kinematics.jacobian import jacobian_tables
 from digiteyes.kinematics.procrustes import kabsch
 from digiteyes.kinematics.rotations import quaternion_from_matrix
 from digiteyes.solvers import GaussNewtonOptions, gauss_newton, robust_cost
@@ -206,7 +208,9 @@ class KeypointFitProblem:
             self.target_3d = np.where(missing[:, None], 0.0, self.target_3d)
         self.options = options
         self.fit_scale = fit_scale
-        self.rows, self.points = model_anchors(model)
+        rows, points = model_anchors(model)
+        self.rows = np.ascontiguousarray(rows, dtype=np.int64)
+        self.points = np.ascontiguousarray(points, dtype=float)
         self.angle_states = np.array([s.index for s in model.spec.states if s.kind == "angle"])
         self.angle_columns = model.q_to_v[self.angle_states]
         self.prior_mean = (model.neutral() if prior_mean is None else prior_mean)[
@@ -215,6 +219,19 @@ class KeypointFitProblem:
         self._weights = [np.sqrt(np.clip(o.confidence, 0.0, 1.0)) / options.sigma_px
                          for o in self.observations]
         self._shapes = [self._shape_target(o) for o in self.observations]
+        # the 2D terms' inputs for the compiled kernel (:mod:`~digiteyes.detect._fit_kernels`)
+        n_cameras = len(self.observations)
+        self._cameras = np.zeros((n_cameras, PROJECTION_PARAMS))
+        self._keypoints = np.zeros((n_cameras, 21, 2))
+        self._keypoint_weights = np.zeros((n_cameras, 21))
+        for c, (obs, w) in enumerate(zip(self.observations, self._weights, strict=True)):
+            self._cameras[c] = obs.camera.projection_params
+            self._keypoints[c] = obs.keypoints
+            self._keypoint_weights[c] = w
+        self._fk_tables = (model.theta, model.d, model.a, model.cos_alpha, model.sin_alpha,
+                           model.theta_state, model.d_state, model.order, model.parent,
+                           -1 if model.base_state is None else model.base_state)
+        self._jac_tables = jacobian_tables(model, "tangent")
         self.motion_from = None
         if motion_from is not None and options.motion_sigma is not None:
             self.motion_from = np.asarray(motion_from, dtype=float)
@@ -256,18 +273,20 @@ class KeypointFitProblem:
         return (y - y.mean(axis=0)) * (model_length / length)
 
     def residuals(self, x: np.ndarray, jacobian: bool) -> tuple[np.ndarray, np.ndarray | None]:
-        q, s = x[:-1], x[-1]
-        p, Jp = point_jacobian(forward_kinematics(self.model, q), self.rows, self.points)
-        parts, jac = [], []
+        q, s = x[:-1], float(x[-1])
         n = self.model.n_v
-        for obs, w in zip(self.observations, self._weights, strict=True):
-            uv, Jw = obs.camera.project_with_jacobian(s * p, jacobian)
-            parts.append(((uv - obs.keypoints) * w[:, None]).ravel())
-            if jacobian:
-                block = np.empty((21, 2, n + 1))
-                block[..., :n] = s * (Jw @ Jp)  # batched (2, 3) @ (3, n) per keypoint
-                block[..., n] = (Jw @ p[..., None])[..., 0]
-                jac.append((block * w[:, None, None]).reshape(42, n + 1))
+        n_2d = 42 * len(self.observations)
+        r_2d = np.empty(n_2d)
+        J_2d = np.empty((n_2d if jacobian else 0, n + 1))
+        p_world = np.empty((1, 21, 3))
+        Jp = np.empty((1, 21, 3, n))
+        keypoint_terms_kernel(np.ascontiguousarray(q, dtype=float).reshape(1, -1),
+                              self._fk_tables, self._jac_tables, self.rows, self.points,
+                              self._cameras, self._keypoints, self._keypoint_weights, s,
+                              jacobian, np.empty((1, self.model.n_frames, 4, 4)), p_world,
+                              Jp, r_2d, J_2d)
+        p, Jp = p_world[0], Jp[0]
+        parts, jac = [r_2d], [J_2d]
         for obs, shape in zip(self.observations, self._shapes, strict=True):
             if shape is None:
                 continue
