@@ -348,10 +348,10 @@ class KeypointFitProblem:
 
     def retract(self, x: np.ndarray, dv: np.ndarray) -> np.ndarray:
         s = x[-1] + (dv[-1] if self.fit_scale else 0.0)
-        return np.append(integrate(self.model, x[:-1], dv[:-1]), s)
+        return _with_scale(integrate(self.model, x[:-1], dv[:-1]), s)
 
     def project(self, x: np.ndarray) -> np.ndarray:
-        return np.append(clip_to_limits(self.model, x[:-1]), min(max(x[-1], 0.5), 2.0))
+        return _with_scale(clip_to_limits(self.model, x[:-1]), min(max(x[-1], 0.5), 2.0))
 
     def held(self, x: np.ndarray, gradient: np.ndarray) -> np.ndarray:
         """With ``options.active_set``, the joints at a limit that the cost pushes beyond
@@ -359,6 +359,15 @@ class KeypointFitProblem:
         if not self.options.active_set:
             return np.zeros(len(gradient), dtype=bool)
         return np.append(held_at_limits(self.model, x[:-1], gradient[:-1]), False)
+
+
+def _with_scale(q: np.ndarray, s: float) -> np.ndarray:
+    """The fit's parameters ``x = (q, s)`` (``np.append``'s result, without its cost at
+    every solver step)."""
+    x = np.empty(len(q) + 1)
+    x[:-1] = q
+    x[-1] = s
+    return x
 
 
 def _motion_sigmas(model: KinematicModel, sigma_mm: float, sigma_deg: float) -> np.ndarray:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import csv
 import json
 from collections.abc import Iterable, Iterator
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -114,12 +115,19 @@ def held_at_limits(model: KinematicModel, q: np.ndarray, gradient: np.ndarray) -
     q = np.asarray(q, dtype=float)
     gradient = np.asarray(gradient, dtype=float)
     held = np.zeros(len(gradient), dtype=bool)
-    states = np.flatnonzero(model.q_to_v >= 0)
-    columns = model.q_to_v[states]
-    at_lower = (q[states] <= model.lower[states]) & (gradient[columns] > 0.0)
-    at_upper = (q[states] >= model.upper[states]) & (gradient[columns] < 0.0)
+    states, columns, lower, upper = _bounded_states(model)
+    at_lower = (q[states] <= lower) & (gradient[columns] > 0.0)
+    at_upper = (q[states] >= upper) & (gradient[columns] < 0.0)
     held[columns] = at_lower | at_upper
     return held
+
+
+@lru_cache(maxsize=64)
+def _bounded_states(model: KinematicModel) -> tuple[np.ndarray, ...]:
+    """The states with a step column, their columns and their lower and upper limits (a
+    solver asks at every iteration)."""
+    states = np.flatnonzero(model.q_to_v >= 0)
+    return states, model.q_to_v[states], model.lower[states], model.upper[states]
 
 
 class State:

@@ -53,3 +53,27 @@ def scaled_cholesky_solve(A, g, pivot_floor, x):  # pragma: no cover - compiled
     for i in range(n):
         x[i] *= d[i]
     return True
+
+
+@njit(cache=True)
+def damped_system(H, g, S, lam, held, A, b):  # pragma: no cover - compiled
+    """Fill the step's system ``A dv = b`` from ``H = J^T W J`` and ``g = J^T W r``:
+    ``A = (H + diag(S)) + lam diag(max(h, 1e-6 max(h)))`` with ``h = diag(H)`` (thesis eq.
+    2.22 with Levenberg-Marquardt damping; ``lam = 0``: none) and ``b = g``, except that
+    the rows and columns of the ``held`` step columns are the identity's and their ``b``
+    is 0 (they stay at zero in the step). The additions are those numpy would make, in
+    its order, so the step is the same to the bit."""
+    n = H.shape[0]
+    h_max = H[0, 0]
+    for i in range(1, n):
+        h_max = max(h_max, H[i, i])
+    floor = 1e-6 * max(h_max, 1e-300)
+    for i in range(n):
+        for j in range(n):
+            A[i, j] = 0.0 if held[i] or held[j] else H[i, j]
+        if held[i]:
+            A[i, i] = 1.0
+            b[i] = 0.0
+        else:
+            A[i, i] = (H[i, i] + S[i]) + lam * max(H[i, i], floor)
+            b[i] = g[i]

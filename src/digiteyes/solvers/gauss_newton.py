@@ -30,7 +30,7 @@ import time
 
 import numpy as np
 
-from digiteyes.solvers._kernels import scaled_cholesky_solve
+from digiteyes.solvers._kernels import damped_system, scaled_cholesky_solve
 from digiteyes.solvers.options import GaussNewtonOptions
 from digiteyes.solvers.problem import (
     LeastSquaresProblem,
@@ -91,20 +91,6 @@ def solve_normal_equations(A: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, bo
     return d * x_scaled, bool((~keep).any())
 
 
-def _holding(A: np.ndarray, g: np.ndarray,
-             held: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    """The normal equations with the ``held`` step columns fixed at zero (their rows and
-    columns replaced by the identity's, their gradient by 0); unchanged for None."""
-    if held is None:
-        return A, g
-    A, g = A.copy(), g.copy()
-    A[held, :] = 0.0
-    A[:, held] = 0.0
-    A[held, held] = 1.0
-    g[held] = 0.0
-    return A, g
-
-
 def _check_conditioning(options: GaussNewtonOptions, n_v: int) -> np.ndarray | None:
     if options.conditioning is None:
         return None
@@ -144,7 +130,6 @@ def gauss_newton(
     options = GaussNewtonOptions() if options is None else options
     n_v = int(problem.n_v)
     S = _check_conditioning(options, n_v)
-    S_diagonal = None if S is None else np.diag(S)
     loss, scale = options.robust_loss, options.scale_px
     levenberg = options.damping == "levenberg-marquardt"
     summary = SolverSummary()
@@ -158,18 +143,18 @@ def gauss_newton(
         summary.termination = "no residuals"
         return x, summary
     lam, nu = options.initial_lambda, 2.0
+    S_diagonal = np.zeros(n_v) if S is None else S
+    A, b, no_hold = np.empty((n_v, n_v)), np.empty(n_v), np.zeros(n_v, dtype=bool)
     summary.termination = "max_iterations"
     while summary.iterations < options.max_iterations:
         start = time.perf_counter()
         JW = J if loss is None else J * robust_weights(r, loss, scale)[:, None]
         H = JW.T @ J
         g = JW.T @ r
-        A = H if S is None else H + S_diagonal
-        if levenberg:
-            h = np.diag(H)
-            A = A + lam * np.diag(np.maximum(h, 1e-6 * max(float(h.max()), 1e-300)))
-        dv, truncated = solve_normal_equations(*_holding(A, g,
-                                                         held_if_defined(problem, x, g)))
+        held = held_if_defined(problem, x, g)
+        damped_system(np.ascontiguousarray(H), np.ascontiguousarray(g), S_diagonal,
+                      lam if levenberg else 0.0, no_hold if held is None else held, A, b)
+        dv, truncated = solve_normal_equations(A, b)
         dv = -dv
         summary.n_pseudo_inverse += truncated
         finite = bool(np.isfinite(dv).all())
