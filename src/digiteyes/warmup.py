@@ -31,8 +31,10 @@ KERNEL_MODULES = (
     "digiteyes.features._kernels", "digiteyes.features._residual_kernels",
     "digiteyes.features.edges", "digiteyes.features.lines", "digiteyes.features.slices",
     "digiteyes.features.silhouette", "digiteyes.solvers._kernels",
+    "digiteyes.detect._fit_kernels",
 )
-"""Modules that define numba kernels (tracking and rendering)."""
+"""Modules that define numba kernels (tracking, rendering and the keypoint fit of an
+automatic start)."""
 DEMO_KERNELS = (
     "digiteyes.kinematics._kernels.fk_kernel", "digiteyes.kinematics._kernels.jacobian_kernel",
     "digiteyes.kinematics._kernels.integrate_kernel", "digiteyes.camera.camera.project_kernel",
@@ -48,6 +50,7 @@ DEMO_KERNELS = (
     "digiteyes.features.lines._robust_scale", "digiteyes.features.lines._lmeds",
     "digiteyes.features.lines.fit_one", "digiteyes.features.slices.tangent_pair",
     "digiteyes.features.silhouette._count", "digiteyes.solvers._kernels.scaled_cholesky_solve",
+    "digiteyes.solvers._kernels.damped_system",
 )
 """The kernels that rendering a scenario and tracking it with the default tracker compile
 (``digiteyes demo``; tests/test_warmup.py checks the list against a first run)."""
