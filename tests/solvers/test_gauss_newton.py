@@ -14,6 +14,7 @@ from digiteyes.solvers import (
     robust_cost,
     solve_normal_equations,
 )
+from digiteyes.solvers._kernels import damped_system
 
 
 def state_error(model, q, q_ref) -> float:
@@ -288,3 +289,28 @@ def test_solve_normal_equations_matches_numpy_and_pseudo_inverse():
     x, truncated = solve_normal_equations(A, g)
     assert truncated
     np.testing.assert_allclose(x, np.linalg.pinv(A) @ g, rtol=1e-7)
+
+
+@pytest.mark.parametrize("conditioned", [False, True])
+@pytest.mark.parametrize("lam", [0.0, 0.37])
+def test_the_compiled_step_system_is_numpys_to_the_bit(conditioned, lam):
+    """``damped_system`` makes the additions of eq. 2.22 with Levenberg-Marquardt damping
+    in numpy's order, and holds columns as the identity's, so every track stays the same."""
+    rng = np.random.default_rng(3)
+    J = rng.normal(size=(40, 9)) * np.logspace(-3, 3, 9)
+    r = rng.normal(size=40)
+    H, g = J.T @ J, J.T @ r
+    S = rng.uniform(0.0, 5.0, 9) if conditioned else np.zeros(9)
+    held = np.zeros(9, dtype=bool)
+    held[[2, 7]] = True
+    h = np.diag(H)
+    A_want = (H + np.diag(S) if conditioned else H) + lam * np.diag(
+        np.maximum(h, 1e-6 * max(float(h.max()), 1e-300)))
+    A_want[held, :] = 0.0
+    A_want[:, held] = 0.0
+    A_want[held, held] = 1.0
+    b_want = np.where(held, 0.0, g)
+    A, b = np.empty((9, 9)), np.empty(9)
+    damped_system(H, g, S, lam, held, A, b)
+    np.testing.assert_array_equal(A, A_want)
+    np.testing.assert_array_equal(b, b_want)
