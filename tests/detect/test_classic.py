@@ -11,12 +11,12 @@ from digiteyes.detect.classic import ClassicDetector, analyse_blob, limb_axis, s
 from digiteyes.detect.hand21 import TIPS, model_anchors
 from digiteyes.detect.model_fit import KeypointObservation, fit_keypoints
 from digiteyes.detect.segmentation import BackgroundModel, border_background, hand_mask
-from digiteyes.evaluate.metrics import wrap_angle
 from digiteyes.kinematics import forward_kinematics
 from digiteyes.kinematics.rotations import (
     matrix_from_quaternion,
     quaternion_from_matrix,
     quaternion_from_rotvec,
+    wrap_angle,
 )
 from digiteyes.synth.options import RenderOptions
 from digiteyes.synth.scenarios import basis_joint_angles, build_scenario

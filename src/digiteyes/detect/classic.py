@@ -42,6 +42,7 @@ from digiteyes.detect.model_fit import palm_points
 from digiteyes.detect.segmentation import BackgroundModel, hand_mask, largest_blob
 from digiteyes.errors import DigitEyesError
 from digiteyes.kinematics import KinematicModel, clip_to_limits, load_model
+from digiteyes.kinematics.rotations import wrap_angle
 
 RING = 1.75
 """Radius of the crossing circle, in palm radii (through the proximal phalanges)."""
@@ -122,10 +123,6 @@ class BlobAnalysis:
     wrist_found: bool
 
 
-def _wrap(a: np.ndarray | float) -> np.ndarray | float:
-    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
-
-
 def analyse_blob(mask: np.ndarray) -> BlobAnalysis | None:
     """Palm, digit tips and wrist direction of a hand blob (bool (H, W)); None when the
     blob is too small to be a hand (palm radius under 4 px)."""
@@ -166,13 +163,13 @@ def analyse_blob(mask: np.ndarray) -> BlobAnalysis | None:
     wide = []
     for start, length in runs:
         middle, half = angles[0] + (start + 0.5 * (length - 1)) * step, 0.5 * length * step
-        beyond = sum(abs(_wrap(c_angle[i] - middle)) < half for i in tips)
+        beyond = sum(abs(wrap_angle(c_angle[i] - middle)) < half for i in tips)
         if ring * length * step > WIDE * radius and (
-                beyond < 2 or (arm is not None and abs(_wrap(arm - middle)) < half)):
+                beyond < 2 or (arm is not None and abs(wrap_angle(arm - middle)) < half)):
             wide.append((ring * length * step, middle))
     wrist = c_angle[max(ends)[1]] if ends else max(wide)[1] if wide else None
     if wrist is not None:
-        tips = [i for i in tips if abs(_wrap(c_angle[i] - wrist)) > np.radians(50.0)]
+        tips = [i for i in tips if abs(wrap_angle(c_angle[i] - wrist)) > np.radians(50.0)]
     tips = tips[:5]
     tip_angles = [c_angle[i] for i in tips]
     tips = [contour[i] for i in tips]
@@ -351,7 +348,7 @@ def _match(blob: BlobAnalysis, placed: np.ndarray) -> tuple[dict[int, int], floa
     digit_angles = np.arctan2(tips[:, 1] - blob.centre[1], tips[:, 0] - blob.centre[0])
     if not len(blob.tips):
         return {}, float(np.pi)
-    cost = np.abs(_wrap(blob.tip_angles[:, None] - digit_angles[None, :]))
+    cost = np.abs(wrap_angle(blob.tip_angles[:, None] - digit_angles[None, :]))
     found, digit = linear_sum_assignment(cost)
     return dict(zip(digit.tolist(), found.tolist(), strict=True)), float(cost[found, digit].mean())
 

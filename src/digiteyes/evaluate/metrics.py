@@ -30,7 +30,7 @@ from digiteyes.kinematics.anatomy import (
     palm_pose,
 )
 from digiteyes.kinematics.keypoints import hand_keypoints, keypoints
-from digiteyes.kinematics.rotations import quaternion_angle
+from digiteyes.kinematics.rotations import quaternion_angle, wrap_angle
 
 KeypointFn = Callable[[KinematicModel, Kinematics], tuple[Sequence[str], np.ndarray]]
 
@@ -38,12 +38,6 @@ KeypointFn = Callable[[KinematicModel, Kinematics], tuple[Sequence[str], np.ndar
 DEFAULT_LOSS_THRESHOLD_MM = 20.0
 #: digit prefixes of state names, in report order (others follow in model order)
 REPORT_ORDER = (*FINGERS, "thumb")
-
-
-# --------------------------------------------------------------------------- geometry
-def wrap_angle(angle: np.ndarray) -> np.ndarray:
-    """Angles wrapped into [-pi, pi) (radians)."""
-    return (np.asarray(angle, dtype=float) + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def _grouped(names: Sequence[str], key: Callable[[str], str]) -> dict[str, list[int]]:

@@ -152,3 +152,8 @@ def matrix_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     chord = np.linalg.norm(np.asarray(a, dtype=float) - np.asarray(b, dtype=float),
                            axis=(-2, -1)) / (2.0 * np.sqrt(2.0))
     return 2.0 * np.arcsin(np.clip(chord, 0.0, 1.0))
+
+
+def wrap_angle(angle: np.ndarray | float) -> np.ndarray:
+    """Angles wrapped into [-pi, pi) (radians)."""
+    return (np.asarray(angle, dtype=float) + np.pi) % (2.0 * np.pi) - np.pi
