@@ -5,7 +5,8 @@ forward kinematics of one state, the 21 keypoints with their point Jacobians (th
 2.16) and, per camera, their projections chained with those Jacobians (thesis eq. 2.6 and
 2.17). Each step is compiled already, but called one by one from Python with the arrays
 between them built by numpy they cost about 60 us an evaluation, most of it call overhead
-(docs/keypoint-tracker.md, "Where the time goes"); this kernel runs them back to back.
+(docs/keypoint-tracker.md, "The fit's 2D terms in one compiled call"); this kernel runs
+them back to back.
 """
 
 from __future__ import annotations
@@ -14,7 +15,8 @@ import numpy as np
 from numba import njit
 
 from digiteyes.camera.camera import project_kernel
-from digiteyes.kinematics._kernels import fk_kernel, jacobian_kernel
+from digiteyes.kinematics.forward import fk_kernel
+from digiteyes.kinematics.jacobian import jacobian_kernel
 
 
 @njit(cache=True)
@@ -23,9 +25,9 @@ def keypoint_terms_kernel(Q, fk_tables, jac_tables, rows, p_shape, cameras, keyp
                           J):  # pragma: no cover - compiled
     """Fill the 2D keypoint terms of the fit for the state ``Q`` (1, n_q).
 
-    ``fk_tables`` and ``jac_tables`` are the model's arguments of
-    :func:`~digiteyes.kinematics._kernels.fk_kernel` and
-    :func:`~digiteyes.kinematics._kernels.jacobian_kernel` (tangent form); ``cameras``
+    ``fk_tables`` and ``jac_tables`` are the model's arguments of the forward kinematics'
+    and the point Jacobian's kernels (:func:`~digiteyes.kinematics.jacobian.jacobian_tables`,
+    tangent form); ``cameras``
     (C, 24) the :attr:`~digiteyes.camera.Camera.projection_params` of each camera,
     ``keypoints`` (C, P, 2) px and ``weights`` (C, P) per keypoint (confidence over
     sigma). Outputs: ``shape`` (1, F, 4, 4) shape frames, ``p_world`` (1, P, 3) and ``Jp``
