@@ -77,13 +77,15 @@ RESULTS = Path(__file__).resolve().parent / "results"
 VIDEO = Path("real_video") / "human_hand_video.mp4"
 STORED = Path("real_video") / "mediapipe_joints_right.pkl"
 TARGET_FPS = 60.0
-TRACKERS = ("features:0", "features", "keypoints", "features+keypoints", "features@classic")
+TRACKERS = ("features:0", "features", "keypoints", "features+keypoints", "features@classic",
+            "keypoints@mediapipe-lite")
 """The runs: the DigitEyes feature tracker without and with the detection check every
 third frame (``NAME:N`` sets ``--check-every N``; the default otherwise), the keypoint
 tracker, the feature tracker anchored by the keypoints (no detection check: it
-detects every frame), and the feature tracker as a user without the MediaPipe extra runs
+detects every frame), the feature tracker as a user without the MediaPipe extra runs
 it (``NAME@DETECTOR`` sets ``--detector`` for that run: the classic detector starts and
-recovers it, and nothing checks it)."""
+recovers it, and nothing checks it), and the keypoint tracker on MediaPipe's lite network
+(the choice for a slow machine)."""
 IMAGE_STEP = 3
 """Every how many frames the image gap is measured (frames 1, 4, 7, ...)."""
 SETTLED_FRAMES = 3
@@ -142,7 +144,8 @@ def _label(row: dict) -> str:
     """A run's name in the table and the picture."""
     check = row["detection_check"]
     if row["tracker"] in ("keypoints", "features+keypoints"):  # they detect every frame
-        return row["tracker"]
+        detector = row["run"].partition("@")[2]
+        return row["tracker"] + (f", {detector} detector" if detector else "")
     classic = row["detector"] == "ClassicDetector"
     no_mediapipe = ", classic detector (no MediaPipe)" if classic else ""
     return (f"{row['tracker']}, " + (f"check every {check['every']}" if check else "no check")

@@ -23,3 +23,12 @@ def test_a_run_named_with_a_detector_uses_that_detector(benchmark_script, tmp_pa
     assert row["detection_check"] is None
     assert row["frames_tracked"] == 6 and row["frames_without_state"] == 0
     assert "classic detector" in script._label(row)
+
+
+def test_the_keypoint_tracker_on_the_lite_network_is_named_for_it(benchmark_script, tmp_path):
+    pytest.importorskip("mediapipe")
+    script = benchmark_script("real_video")
+    row = script.measure(DATA, 4, "auto", "keypoints@mediapipe-lite", tmp_path / "run")
+    assert row["tracker"] == "keypoints" and row["frames_tracked"] == 4
+    assert script._label(row) == "keypoints, mediapipe-lite detector"
+    assert script._label(row | {"run": "keypoints"}) == "keypoints"
