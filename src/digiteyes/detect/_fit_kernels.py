@@ -26,10 +26,11 @@ def keypoint_terms_kernel(Q, fk_tables, jac_tables, rows, p_shape, cameras, keyp
     """Fill the 2D keypoint terms of the fit for the state ``Q`` (1, n_q).
 
     ``fk_tables`` and ``jac_tables`` are the model's arguments of the forward kinematics'
-    and the point Jacobian's kernels (:func:`~digiteyes.kinematics.jacobian.jacobian_tables`,
-    tangent form); ``cameras``
-    (C, 24) the :attr:`~digiteyes.camera.Camera.projection_params` of each camera,
-    ``keypoints`` (C, P, 2) px and ``weights`` (C, P) per keypoint (confidence over
+    and the point Jacobian's kernels (:func:`~digiteyes.kinematics.forward.fk_tables`,
+    :func:`~digiteyes.kinematics.jacobian.jacobian_tables` in the tangent form);
+    ``cameras`` (C, :data:`~digiteyes.camera.camera.PROJECTION_PARAMS`) the
+    :attr:`~digiteyes.camera.Camera.projection_params` of each camera, ``keypoints``
+    (C, P, 2) px and ``weights`` (C, P) per keypoint (confidence over
     sigma). Outputs: ``shape`` (1, F, 4, 4) shape frames, ``p_world`` (1, P, 3) and ``Jp``
     (1, P, 3, n_v) the unscaled keypoints (mm) and their Jacobian, ``r`` (C * 2P,) the
     weighted residuals ``w (pi(s p) - u)`` and, when ``jacobian``, ``J`` (C * 2P, n_v + 1)

@@ -69,6 +69,7 @@ from digiteyes.kinematics import (
     held_at_limits,
     integrate,
 )
+from digiteyes.kinematics.forward import fk_tables
 from digiteyes.kinematics.jacobian import jacobian_tables
 from digiteyes.kinematics.procrustes import kabsch
 from digiteyes.kinematics.rotations import quaternion_from_matrix
@@ -228,9 +229,7 @@ class KeypointFitProblem:
             self._cameras[c] = obs.camera.projection_params
             self._keypoints[c] = obs.keypoints
             self._keypoint_weights[c] = w
-        self._fk_tables = (model.theta, model.d, model.a, model.cos_alpha, model.sin_alpha,
-                           model.theta_state, model.d_state, model.order, model.parent,
-                           -1 if model.base_state is None else model.base_state)
+        self._fk_tables = fk_tables(model)
         self._jac_tables = jacobian_tables(model, "tangent")
         self.motion_from = None
         if motion_from is not None and options.motion_sigma is not None:

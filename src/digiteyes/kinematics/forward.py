@@ -8,7 +8,7 @@ matrix products (all chains and all states at once; DESIGN.md Sec. 8).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 import numpy as np
 
@@ -138,7 +138,15 @@ def forward_kinematics(model: KinematicModel, q: np.ndarray) -> Kinematics:
             raise StateError(f"the base quaternion q{k}..q{k + 3} is zero: it gives no "
                              "rotation")
     shape = np.empty((len(Q), model.n_frames, 4, 4))
-    fk_kernel(Q, model.theta, model.d, model.a, model.cos_alpha, model.sin_alpha,
-              model.theta_state, model.d_state, model.order, model.parent,
-              -1 if model.base_state is None else model.base_state, shape)
+    fk_kernel(Q, *fk_tables(model), shape)
     return Kinematics(model, Q, shape, batched)
+
+
+@lru_cache(maxsize=64)
+def fk_tables(model: KinematicModel) -> tuple:
+    """What :func:`~digiteyes.kinematics._kernels.fk_kernel` needs from ``model``, in its
+    argument order after the states: ``theta, d, a, cos_alpha, sin_alpha, theta_state,
+    d_state, order, parent, base_state``."""
+    return (model.theta, model.d, model.a, model.cos_alpha, model.sin_alpha,
+            model.theta_state, model.d_state, model.order, model.parent,
+            -1 if model.base_state is None else model.base_state)
