@@ -31,6 +31,20 @@ def test_mediapipe_on_an_empty_image_finds_nothing():
         detector.detect(np.zeros((240, 320, 3)))
 
 
+@pytest.mark.skipif(not mediapipe_available(), reason="optional extra digiteyes[mediapipe]")
+def test_mediapipe_is_handed_the_callers_pixels_read_only_not_a_copy():
+    """MediaPipe copies a writable array and wraps a read-only one: the detector passes
+    a read-only view of the caller's image, whose own array stays writable."""
+    detector = MediaPipeDetector(max_hands=1, static_image_mode=False)
+    passed, process = [], detector._hands.process
+    detector._hands.process = lambda image: passed.append(image) or process(image)
+    image = np.zeros((240, 320, 3), np.uint8)
+    image[..., 0] = 200  # colour: one look, no grey tint
+    assert detector.detect(image) == []
+    assert len(passed) == 1 and np.shares_memory(passed[0], image)
+    assert not passed[0].flags.writeable and image.flags.writeable
+
+
 @pytest.mark.skipif(not (mediapipe_available() and VIDEO.is_file()),
                     reason="needs the mediapipe extra and ../shared/data")
 def test_mediapipe_finds_the_right_hand_of_the_real_video():

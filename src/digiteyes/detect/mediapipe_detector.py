@@ -140,6 +140,16 @@ def skin_tinted(grey: np.ndarray) -> np.ndarray:
     return cv2.merge([cv2.LUT(grey, table) for table in _SKIN_TABLES])
 
 
+def _read_only(image: np.ndarray) -> np.ndarray:
+    """A C-contiguous read-only view of ``image`` (a copy only when it is not contiguous).
+    MediaPipe wraps a read-only array without copying it (``packet_creator.
+    create_image_frame``'s reference mode) and copies a writable one; the graph has
+    finished with it when ``process`` returns, so sharing is safe."""
+    view = np.ascontiguousarray(image).view()
+    view.flags.writeable = False
+    return view
+
+
 class MediaPipeDetector:
     """Hands by MediaPipe's palm detector and landmark network (CPU, TFLite).
 
@@ -220,7 +230,7 @@ class MediaPipeDetector:
         height, width = image.shape[:2]
         with warnings.catch_warnings():  # protobuf's deprecation notice inside MediaPipe
             warnings.simplefilter("ignore", UserWarning)
-            result = self._hands.process(np.ascontiguousarray(image))
+            result = self._hands.process(_read_only(image))
         if not result.multi_hand_landmarks:
             return []
         worlds = result.multi_hand_world_landmarks or [None] * len(result.multi_hand_landmarks)
