@@ -7,8 +7,23 @@ command has flushed what it had, even during the first seconds spent importing.
 
 from __future__ import annotations
 
+import os
+import signal
 import sys
+import threading
 
+
+def _interrupted_while_loading(signum: int, frame: object) -> None:
+    """Ctrl-C while the libraries load: one line, exit 130 at once. Raising
+    KeyboardInterrupt here is not enough: an import can surface it wrapped (a dataclass
+    field's ``__set_name__`` turns it into a RuntimeError), as a traceback. Nothing has
+    been written yet, so nothing is lost by not unwinding."""
+    os.write(2, b"digiteyes: interrupted\n")
+    os._exit(130)
+
+
+_guarded = threading.current_thread() is threading.main_thread()
+_previous_sigint = signal.signal(signal.SIGINT, _interrupted_while_loading) if _guarded else None
 try:
     import click
 
@@ -28,9 +43,9 @@ try:
     from digiteyes.commands.track import track
     from digiteyes.commands.track_many import track_many_command
     from digiteyes.errors import DigitEyesError
-except KeyboardInterrupt:  # Ctrl-C while the libraries load: one line, no traceback
-    sys.stderr.write("digiteyes: interrupted\n")
-    sys.exit(130)
+finally:
+    if _guarded:
+        signal.signal(signal.SIGINT, _previous_sigint)
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -57,6 +72,11 @@ def main(argv: list[str] | None = None) -> int:
     except DigitEyesError as exc:
         return _error(str(exc))
     except (click.exceptions.Abort, KeyboardInterrupt):
+        click.echo("digiteyes: interrupted", err=True)
+        return 130
+    except RuntimeError as exc:  # Ctrl-C inside a class being made by a late import
+        if not isinstance(exc.__cause__, KeyboardInterrupt):
+            raise
         click.echo("digiteyes: interrupted", err=True)
         return 130
     except click.ClickException as exc:

@@ -5,12 +5,10 @@ from __future__ import annotations
 import io
 import json
 import os
-import runpy
 import signal
 import subprocess
 import sys
 import time
-import types
 from pathlib import Path
 
 import numpy as np
@@ -146,20 +144,6 @@ def test_click_usage_errors_are_one_line(argv, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("digiteyes: error:"), err
-
-
-def test_ctrl_c_while_importing_prints_one_line(monkeypatch, capsys):
-    class Interrupting(types.ModuleType):
-        def __getattr__(self, name):
-            raise KeyboardInterrupt
-
-    monkeypatch.setitem(sys.modules, "digiteyes.commands.track",
-                        Interrupting("digiteyes.commands.track"))
-    cli_file = Path(digiteyes.__file__).parent / "cli.py"
-    with pytest.raises(SystemExit) as info:
-        runpy.run_path(str(cli_file), run_name="digiteyes_cli_probe")
-    assert info.value.code == 130
-    assert capsys.readouterr().err == "digiteyes: interrupted\n"
 
 
 # ----------------------------------------------------------------- 8: Python API
@@ -334,6 +318,53 @@ def test_ctrl_c_in_the_first_seconds_of_track_has_no_traceback(tmp_path, delay):
     assert "Traceback" not in text, text
     assert process.returncode in (130, 2, -signal.SIGINT), (process.returncode, text)
     assert len(text.strip().splitlines()) <= 1, text
+
+
+_SIGINT_AT_IMPORT = (
+    "import importlib.abc, os, signal, sys, time\n"
+    "class Interrupt(importlib.abc.MetaPathFinder):\n"
+    "    def find_spec(self, name, path, target=None):\n"
+    "        if name == 'digiteyes.commands.track':\n"
+    "            os.kill(os.getpid(), signal.SIGINT)\n"
+    "            time.sleep(0.5)\n"
+    "sys.meta_path.insert(0, Interrupt())\n")
+_SIGINT_IN_A_DATACLASS = (
+    "import dataclasses, os, signal, time\n"
+    "real = dataclasses.Field.__set_name__\n"
+    "def interrupted(self, owner, name):\n"
+    "    if owner.__module__.startswith('digiteyes.'):\n"
+    "        os.kill(os.getpid(), signal.SIGINT)\n"
+    "        time.sleep(0.5)\n"
+    "    return real(self, owner, name)\n"
+    "dataclasses.Field.__set_name__ = interrupted\n")
+
+
+@pytest.mark.parametrize("interrupt", [_SIGINT_AT_IMPORT, _SIGINT_IN_A_DATACLASS],
+                         ids=["at an import", "inside a dataclass"])
+def test_ctrl_c_while_the_command_loads_is_one_line(interrupt):
+    """A real SIGINT while ``digiteyes.cli`` imports its commands: one line, exit 130.
+    Sent at a module's import, or from inside a dataclass field's ``__set_name__``, where
+    Python wraps the KeyboardInterrupt a handler would raise in a RuntimeError."""
+    code = interrupt + ("import runpy, sys\n"
+                        "sys.argv = ['digiteyes', '--help']\n"
+                        "runpy.run_module('digiteyes.cli', run_name='__main__')\n")
+    env = {**os.environ, "PYTHONPATH": str(Path(digiteyes.__file__).parents[1])}
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, env=env,
+                          timeout=120)
+    text = done.stderr.decode()
+    assert "Traceback" not in text, text
+    assert done.returncode == 130 and text.strip() == "digiteyes: interrupted", text
+
+
+def test_ctrl_c_wrapped_by_a_late_import_is_one_line(monkeypatch, capsys):
+    from digiteyes import cli
+
+    def wrapped(*args, **kwargs):
+        raise RuntimeError("Error calling __set_name__") from KeyboardInterrupt()
+
+    monkeypatch.setattr(cli.cli, "main", wrapped)
+    assert cli.main(["--help"]) == 130
+    assert capsys.readouterr().err.strip() == "digiteyes: interrupted"
 
 
 @pytest.mark.parametrize("text", ["\udcffframe,a\n", "frame," + "x" * 200_000 + "\n"])
