@@ -102,7 +102,7 @@ def track_and_score(video: Path, out: Path, reference: np.ndarray,
     if summary["start"]["hand"] == "left":  # the states pose the mirror image's right hand
         camera = mirrored_camera(camera)
         found = {i: unmirror_pixels(k, width) for i, k in found.items()}
-    gaps, _ = image_gaps(model, states, summary["start"]["first_frame"], found, camera)
+    gaps = image_gaps(model, states, summary["start"]["first_frame"], found, camera)[0]
     return {"size": [width, height], "first_frame": summary["start"]["first_frame"],
             "frames_tracked": run.n_frames, "on_the_hand": float(np.mean(gaps < ON_THE_HAND)),
             "gap_palm_lengths": {"median": float(np.median(gaps)),

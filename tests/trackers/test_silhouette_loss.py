@@ -179,6 +179,31 @@ def test_restart_keeps_the_scene_models_and_still_flags(desk):
     assert tracker.shading is None and tracker.silhouette_loss.foreground is None
 
 
+def test_the_particle_filter_restarts_with_the_scene_it_fitted(desk):
+    """After a re-detection the divide-and-conquer tracker continues from the new state
+    with the first frame's foreground, palm outline and finger widths (no refit at the
+    coarser pose) and its loss flag still works; reset() forgets them."""
+    from digiteyes.trackers import restart
+
+    model, rig, q, _, image, image_curled = desk
+    tracker = create_tracker("divide-conquer", model, rig, n_particles=200)
+    tracker.reset(q)
+    assert not tracker.step([image]).lost
+    foreground = tracker.silhouette_loss.foreground
+    outline, widths = tracker.outline_calibration, tracker.finger_width_scale
+    assert foreground is not None and outline is not None
+    assert tracker.step([image_curled]).lost
+    restart(tracker, q)
+    assert tracker.silhouette_loss.foreground is foreground
+    assert not tracker.silhouette_loss._unexplained_baseline  # taken anew at this state
+    np.testing.assert_allclose(tracker.state, q, atol=1e-12)
+    assert not tracker.step([image]).lost
+    assert tracker.outline_calibration is outline and tracker.finger_width_scale == widths
+    assert tracker.step([image_curled]).lost
+    tracker.reset(q)
+    assert tracker.silhouette_loss.foreground is None and tracker.outline_calibration is None
+
+
 @pytest.mark.parametrize("name", ["templates", "templates+features", "divide-conquer",
                                   "condensation", "random-search"])
 def test_every_tracker_uses_the_silhouette_rule(desk, name):

@@ -345,6 +345,26 @@ class DivideConquerTracker:
         self.finger_width_scale = 1.0
         self.geometry = self.model_geometry
 
+    def restart(self, state: np.ndarray) -> None:
+        """Continue the same scene from ``state`` (n_q,) after a re-detection: the
+        particles start again at ``state`` and the silhouette baselines are taken anew
+        there, but the hand's size, the palm outline and finger widths fitted on the first
+        frame, the outline check and the silhouette rule's foreground stay. A re-detected
+        pose is coarser than the start they were fitted at: fitted again there, the
+        foreground failed to split the real video's frames and the loss rule went quiet
+        for the rest of the run (docs/divide-and-conquer.md)."""
+        q = np.asarray(state, dtype=float)
+        if q.shape != (self.model.n_q,):
+            raise DigitEyesError(f"restart state must have shape ({self.model.n_q},), got "
+                                 f"{q.shape}")
+        self.state = q.copy()
+        X0 = self.space.to_coordinates(q[self.joint_index])
+        self.particles = np.repeat(X0[None], self.options.n_particles, axis=0)
+        foreground = self.silhouette_loss.foreground
+        self.silhouette_loss.reset()
+        self.silhouette_loss.foreground = foreground
+        self.loss_hold.reset()
+
     def calibrate(self, frame: np.ndarray, state: np.ndarray) -> float:
         """Palm size from a frame of the open palm at a known ``state`` (Huang Sec. 4.2);
         stores and returns the outline scale."""
