@@ -58,3 +58,13 @@ def test_more_seeds_draw_more_scenarios(monkeypatch):
     assert sorted(set(calls)) == [0, 1, 2, 3, 4] and len(calls) == 5 * len(bench.SETUPS)
     assert result["settings"]["seeds"] == [0, 1, 2, 3, 4]
     assert all(s["seeds"] == [0, 1, 2, 3, 4] for s in result["summary"])
+
+
+def test_a_start_too_late_to_score_is_reported_not_averaged(monkeypatch):
+    """A hand first found at frame 14 of 16 (``--quick``) leaves no frame from frame 10
+    to score: the seed reads as not started, with why, instead of NaN means that the
+    JSON writer refuses."""
+    monkeypatch.setattr(bench, "start_automatically",
+                        lambda initialiser, frames: (None, 14, iter(())))
+    out = bench.setup_entry("webcam-1cam", 16)
+    assert not out["started"] and not out["meets_target"] and "frame 14" in out["why"]

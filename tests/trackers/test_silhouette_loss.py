@@ -383,42 +383,57 @@ def test_colour_frames_change_nothing_over_a_plain_backdrop(desk):
     assert type(given.foreground[0]).__name__ == "Foreground"
 
 
-def test_a_start_with_much_unexplained_hand_is_not_judged_by_it(desk, desk_clutter):
+def test_a_start_with_much_unexplained_hand_is_judged_on_the_hands_side_of_the_wrist(
+        desk, desk_clutter):
     """An arm in view, which the model lacks, leaves much of the foreground unexplained
     at the start; as it moves, that share moves by more than a finger's. A colour camera
-    so started is not judged by the unexplained-pixels test, and its finger tests still
-    see a finger the state has wrong; a grey-threshold camera keeps the test."""
+    so started is judged by the unexplained pixels on the hand's side of the model's wrist
+    only, so the arm's moves are not a loss and its finger tests still see a finger the
+    state has wrong; a grey-threshold camera keeps the whole test."""
     from digiteyes.features.colour_foreground import ColourForeground
     from digiteyes.features.slices import prepare_image
     from digiteyes.trackers.silhouette_loss import MAX_START_UNEXPLAINED
 
-    def with_arm(im, hand, width):
-        """A band of the hand's own median colour from the hand's lowest row to the
-        image's edge, ``width`` px wide."""
-        rows, cols = np.nonzero(hand)
+    def with_arm(im, model, q, camera, width):
+        """A band of the hand's own median colour, ``width`` px wide, from the model's
+        wrist away from its fingers to beyond the image's edge."""
+        palm = next(link for link in model.links if link.kind == "palm")
+        T = forward_kinematics(model, q[None]).T_world_shape[0, palm.row]
+        half = np.array([0.0, 0.5 * palm.size[1], 0.0])
+        ends = np.array([palm.centre - half, palm.centre + half])
+        wrist, distal = camera.project(ends @ T[:3, :3].T + T[:3, 3])
+        far = wrist + 20.0 * (wrist - distal)
+        hand = model_labels(model, forward_kinematics(model, q), camera) >= 0
+        colour = np.median(im[hand], axis=0)
         out = im.copy()
-        bottom, centre = int(rows.max()), int(np.median(cols))
-        out[bottom - 20:, centre - width // 2:centre + width // 2] = np.median(im[hand], axis=0)
+        cv2.line(out, tuple(int(v) for v in wrist), tuple(int(v) for v in far),
+                 colour.tolist() if np.ndim(colour) else float(colour), int(width))
         return out
 
     model, rig, q, image, image_curled = desk_clutter
-    hand = model_labels(model, forward_kinematics(model, q), rig.cameras[0]) >= 0
-    frames = [with_arm(im, hand, w) for im, w in ((image, 90), (image, 150),
-                                                 (image_curled, 90))]
+    camera = rig.cameras[0]
+    frames = [with_arm(im, model, q, camera, w) for im, w in ((image, 90), (image, 150),
+                                                            (image_curled, 90))]
     rule = SilhouetteLoss(model, rig)
     start, moved, wrong = (rule.check([prepare_image(f)], q, q, colours=[f]) for f in frames)
     assert isinstance(rule.foreground[0], ColourForeground)
     assert start.reasons == [] and rule._unexplained_baseline[0] > MAX_START_UNEXPLAINED
     assert moved.checks[0].unexplained - rule._unexplained_baseline[0] > rule.max_unexplained
-    assert moved.reasons == []  # the arm turned: more of it shows
+    assert moved.reasons == []  # the arm turned: more of it shows, beyond the wrist
     assert wrong.reasons and wrong.finger_lost["index"]
+    shifted = q.copy()  # the whole hand 25 mm to the side: much of the real one bare
+    i = model.base_state
+    shifted[i + 4:i + 7] += 25.0 * camera.T_world_cam[:3, 0]
+    off = rule.check([prepare_image(frames[0])], shifted, q, colours=[frames[0]])
+    assert any("hand's side of the wrist" in r for r in off.reasons), off.reasons
 
-    model, rig, q, _, image, _ = desk  # grey, black cloth: the test stands
-    hand = model_labels(model, forward_kinematics(model, q), rig.cameras[0]) >= 0
+    model, rig, q, _, image, _ = desk  # grey, black cloth: the whole test stands
+    camera = rig.cameras[0]
     grey = SilhouetteLoss(model, rig)
-    assert grey.check([with_arm(image, hand, 90)], q, q).reasons == []
+    assert grey.check([with_arm(image, model, q, camera, 90)], q, q).reasons == []
     assert grey._unexplained_baseline[0] > MAX_START_UNEXPLAINED
-    assert "unexplained" in grey.check([with_arm(image, hand, 150)], q, q).reasons[0]
+    assert "unexplained" in grey.check([with_arm(image, model, q, camera, 150)], q, q
+                                       ).reasons[0]
 
 
 def test_the_noise_blur_comes_after_the_colour_model(desk_noisy_colour):

@@ -139,6 +139,10 @@ def setup_entry(name: str, n_frames: int, detector: str = "classic",
         start, skipped, rest = start_automatically(initialiser, iter(sequence.images))
     except DatasetError as error:
         return entry | {"started": False, "why": str(error), "meets_target": False}
+    if n_frames - skipped <= SETTLE_FRAMES:  # e.g. --quick's 16 frames, a start at 14
+        return entry | {"started": False, "meets_target": False,
+                        "why": f"the hand was first found at frame {skipped}: fewer than "
+                               f"{SETTLE_FRAMES + 1} frames left to score"}
     start, size = initialiser.size_hand(start)
     start_s = time.perf_counter() - started
     truth_states, truth_scales, truth_fresh, truth_s = track_states(

@@ -12,8 +12,9 @@ estimate is drawn in each checked camera and compared with the foreground
 
 * the hand pixels beyond ``tolerance_px`` of the model, per model pixel, exceed their
   value at the start state by more than ``max_unexplained`` in any camera (a finger the pose has
-  put elsewhere, or curled into the palm while the real one is out; not judged in a colour
-  camera where that value exceeded :data:`MAX_START_UNEXPLAINED`), or
+  put elsewhere, or curled into the palm while the real one is out; in a colour camera
+  where that value exceeded :data:`MAX_START_UNEXPLAINED`, an arm in view, only the
+  pixels on the hand's side of a line across the model's wrist count), or
 * a finger's fraction of model pixels beyond ``tolerance_px`` of the foreground exceeds
   its value at the start state by more than ``max_finger_outside`` (a finger drawn over the
   backdrop); that finger is flagged in the per-finger flags, or
@@ -95,6 +96,9 @@ palm); the real video, with the forearm in view, at 0.59 (docs/accuracy.md, "Ove
 textured backdrop"). Grey-threshold cameras keep the test: there a large start share
 came from automatic starts that were themselves wrong, and the test's firing as the
 track got worse brought the re-detections that saved it (``bench auto-start``)."""
+WRIST_CUT_MARGIN = 0.1
+"""The line across the wrist that the forearm is cut at lies this fraction of the palm's
+length beyond the palm's proximal face (a real wrist is wider than the palm slab ends)."""
 MAX_FINGER_OUTSIDE = 0.35
 """Default excess of a finger's model pixels over the backdrop over the first frame."""
 MAX_HIDDEN_UNEXPLAINED = 0.05
@@ -212,6 +216,7 @@ class SilhouetteLoss:
         self.judge_curled_digits = judge_curled_digits
         self.colour_foreground = colour_foreground
         self._digit_links = digit_links(model)
+        self._palm = next((link for link in model.links if link.kind == "palm"), None)
         self._digit_ends = {d: np.array([i for i, link in enumerate(model.links)
                                          if link.name in (f"{d}.distal", f"{d}.tip")], dtype=int)
                             for d in DIGITS}
@@ -230,6 +235,7 @@ class SilhouetteLoss:
         """Forget the foreground and the baseline: the next :meth:`check` fits them."""
         self.foreground: list[Foreground | ColourForeground | None] | None = None
         self._unexplained_baseline: dict[int, float] | None = None
+        self._hand_side_baseline: dict[int, float] = {}
         self._outside_baseline: dict[int, dict[str, float]] = {}
         self._shown_baseline: set[str] = set()
 
@@ -253,6 +259,9 @@ class SilhouetteLoss:
             self._unexplained_baseline = {c.camera: c.unexplained for c in baseline}
             self._outside_baseline = {c.camera: dict(c.finger_outside) for c in baseline}
             self._shown_baseline = {d for d in self._digit_links if self.end_shown(d, baseline)}
+            self._hand_side_baseline = {
+                c.camera: value for c in baseline if not self._judged_whole(c)
+                and (value := self._unexplained_hand_side(c, reference)) is not None}
         checks = self._checks(images, forward_kinematics(self.model, state))
         reasons, fingers, shown = self._reasons(checks, state)
         return SilhouetteVerdict(reasons, fingers, checks, shown)
@@ -365,6 +374,34 @@ class SilhouetteLoss:
                     shares[digit] = max(share, shares.get(digit, 0.0))
         return shares
 
+    def _judged_whole(self, check: SilhouetteCheck) -> bool:
+        """Whether ``check``'s camera is judged by all its unexplained pixels: a grey
+        camera, or a colour camera whose start left at most
+        :data:`MAX_START_UNEXPLAINED` unexplained."""
+        base = (self._unexplained_baseline or {}).get(check.camera, 0.0)
+        return base <= MAX_START_UNEXPLAINED or not isinstance(
+            self.foreground[check.camera], ColourForeground)
+
+    def _unexplained_hand_side(self, check: SilhouetteCheck, state: np.ndarray
+                               ) -> float | None:
+        """``check``'s unexplained foreground per model pixel, counting only the pixels
+        on the hand's side of the line across the palm's long axis
+        :data:`WRIST_CUT_MARGIN` beyond the wrist of ``state`` (the forearm, which the
+        model lacks, cut away); None without a palm link or pixels to count."""
+        if self._palm is None or check.unexplained_mask is None or not check.model_pixels:
+            return None
+        centre = np.asarray(self._palm.centre, dtype=float)
+        half_length = np.array([0.0, 0.5 * float(self._palm.size[1]), 0.0])
+        ends = np.array([centre - (1.0 + 2.0 * WRIST_CUT_MARGIN) * half_length,
+                         centre + half_length])
+        T = forward_kinematics(self.model, np.asarray(state)[None]).T_world_shape[0, self._palm.row]
+        wrist, distal = self._rig[check.camera].project(ends @ T[:3, :3].T + T[:3, 3])
+        rows, cols = check.box
+        vs, us = np.nonzero(check.unexplained_mask)
+        along = ((us + cols.start - wrist[0]) * (distal[0] - wrist[0])
+                 + (vs + rows.start - wrist[1]) * (distal[1] - wrist[1]))
+        return float(np.count_nonzero(along >= 0.0)) / check.model_pixels
+
     def _reasons(self, checks: list[SilhouetteCheck], state: np.ndarray
                  ) -> tuple[list[str], dict[str, bool], tuple[str, ...]]:
         reasons: list[str] = []
@@ -374,11 +411,17 @@ class SilhouetteLoss:
             if base is None:  # not checked at the start state: nothing to compare with
                 continue
             outside_base = self._outside_baseline[check.camera]
-            judged = (base <= MAX_START_UNEXPLAINED
-                      or not isinstance(self.foreground[check.camera], ColourForeground))
-            if judged and check.unexplained - base > self.max_unexplained:
-                reasons.append(f"camera {check.camera}: {check.unexplained:.0%} of the model's "
-                               f"area of the hand unexplained (at the start state {base:.0%})")
+            if self._judged_whole(check):
+                if check.unexplained - base > self.max_unexplained:
+                    reasons.append(f"camera {check.camera}: {check.unexplained:.0%} of the "
+                                   f"model's area of the hand unexplained (at the start "
+                                   f"state {base:.0%})")
+            elif (start := self._hand_side_baseline.get(check.camera)) is not None and (
+                    now := self._unexplained_hand_side(check, state)) is not None and (
+                    now - start > self.max_unexplained):
+                reasons.append(f"camera {check.camera}: {now:.0%} of the model's area of the "
+                               f"hand unexplained on the hand's side of the wrist (at the "
+                               f"start state {start:.0%})")
             for finger, outside in check.finger_outside.items():
                 excess = outside - outside_base.get(finger, 0.0)
                 fingers[finger] = fingers.get(finger, False) or excess > self.max_finger_outside
