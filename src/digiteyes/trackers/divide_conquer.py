@@ -45,6 +45,7 @@ from digiteyes.camera import Camera, Rig
 from digiteyes.errors import DigitEyesError
 from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import KinematicModel
+from digiteyes.kinematics.state import validate_state
 from digiteyes.smc.configuration import ConfigurationSpace
 from digiteyes.smc.digit_search import DigitSearchOptions, digit_curl_directions, search_digits
 from digiteyes.smc.likelihood import (
@@ -333,8 +334,7 @@ class DivideConquerTracker:
         self.state = q.copy()
         if self.options.hold_start_spread:
             self.space = SpreadHeldSpace.of(self.base_space, q[self.joint_index])
-        X0 = self.space.to_coordinates(q[self.joint_index])
-        self.particles = np.repeat(X0[None], self.options.n_particles, axis=0)
+        self._particles_at(q)
         self.rng = np.random.default_rng(self.options.seed)
         self.frame_index = -1
         self.silhouette_loss.reset()
@@ -353,17 +353,16 @@ class DivideConquerTracker:
         pose is coarser than the start they were fitted at: fitted again there, the
         foreground failed to split the real video's frames and the loss rule went quiet
         for the rest of the run (docs/divide-and-conquer.md)."""
-        q = np.asarray(state, dtype=float)
-        if q.shape != (self.model.n_q,):
-            raise DigitEyesError(f"restart state must have shape ({self.model.n_q},), got "
-                                 f"{q.shape}")
-        self.state = q.copy()
+        self.state = validate_state(self.model, np.asarray(state, dtype=float),
+                                    normalize=True)
+        self._particles_at(self.state)
+        self.silhouette_loss.rebaseline()
+        self.loss_hold.reset()
+
+    def _particles_at(self, q: np.ndarray) -> None:
+        """Every particle at the finger configuration of state ``q`` (n_q,)."""
         X0 = self.space.to_coordinates(q[self.joint_index])
         self.particles = np.repeat(X0[None], self.options.n_particles, axis=0)
-        foreground = self.silhouette_loss.foreground
-        self.silhouette_loss.reset()
-        self.silhouette_loss.foreground = foreground
-        self.loss_hold.reset()
 
     def calibrate(self, frame: np.ndarray, state: np.ndarray) -> float:
         """Palm size from a frame of the open palm at a known ``state`` (Huang Sec. 4.2);

@@ -262,9 +262,7 @@ class KeypointTracker:
         the silhouette rule keeps its foreground; its baselines are taken anew."""
         self.state = validate_state(self.model, np.asarray(state, dtype=float),
                                     normalize=True)
-        foreground = self.silhouette_loss.foreground
-        self.silhouette_loss.reset()
-        self.silhouette_loss.foreground = foreground
+        self.silhouette_loss.rebaseline()
         self.loss_hold.reset()
         self._since_fit = 1
 

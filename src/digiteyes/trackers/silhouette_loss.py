@@ -234,6 +234,12 @@ class SilhouetteLoss:
     def reset(self) -> None:
         """Forget the foreground and the baseline: the next :meth:`check` fits them."""
         self.foreground: list[Foreground | ColourForeground | None] | None = None
+        self.rebaseline()
+
+    def rebaseline(self) -> None:
+        """Forget the baselines but keep the foreground (a tracker restarted in the same
+        scene after a re-detection): the next :meth:`check` measures them at its
+        reference state."""
         self._unexplained_baseline: dict[int, float] | None = None
         self._hand_side_baseline: dict[int, float] = {}
         self._outside_baseline: dict[int, dict[str, float]] = {}
@@ -255,15 +261,17 @@ class SilhouetteLoss:
             self.foreground = [self._fit(image, model_labels(self.model, kin0, camera))
                                for image, camera in zip(images, self._rig, strict=True)]
         if self._unexplained_baseline is None:
-            baseline = self._checks(images, forward_kinematics(self.model, reference))
+            kin0 = forward_kinematics(self.model, reference)
+            baseline = self._checks(images, kin0)
             self._unexplained_baseline = {c.camera: c.unexplained for c in baseline}
             self._outside_baseline = {c.camera: dict(c.finger_outside) for c in baseline}
             self._shown_baseline = {d for d in self._digit_links if self.end_shown(d, baseline)}
             self._hand_side_baseline = {
                 c.camera: value for c in baseline if not self._judged_whole(c)
-                and (value := self._unexplained_hand_side(c, reference)) is not None}
-        checks = self._checks(images, forward_kinematics(self.model, state))
-        reasons, fingers, shown = self._reasons(checks, state)
+                and (value := self._unexplained_hand_side(c, kin0)) is not None}
+        kin = forward_kinematics(self.model, state)
+        checks = self._checks(images, kin)
+        reasons, fingers, shown = self._reasons(checks, state, kin)
         return SilhouetteVerdict(reasons, fingers, checks, shown)
 
     def mismatch(self, images: Sequence[np.ndarray], state: np.ndarray,
@@ -382,11 +390,11 @@ class SilhouetteLoss:
         return base <= MAX_START_UNEXPLAINED or not isinstance(
             self.foreground[check.camera], ColourForeground)
 
-    def _unexplained_hand_side(self, check: SilhouetteCheck, state: np.ndarray
+    def _unexplained_hand_side(self, check: SilhouetteCheck, kin: Kinematics
                                ) -> float | None:
         """``check``'s unexplained foreground per model pixel, counting only the pixels
         on the hand's side of the line across the palm's long axis
-        :data:`WRIST_CUT_MARGIN` beyond the wrist of ``state`` (the forearm, which the
+        :data:`WRIST_CUT_MARGIN` beyond the wrist of the pose ``kin`` (the forearm, which the
         model lacks, cut away); None without a palm link or pixels to count."""
         if self._palm is None or check.unexplained_mask is None or not check.model_pixels:
             return None
@@ -394,7 +402,7 @@ class SilhouetteLoss:
         half_length = np.array([0.0, 0.5 * float(self._palm.size[1]), 0.0])
         ends = np.array([centre - (1.0 + 2.0 * WRIST_CUT_MARGIN) * half_length,
                          centre + half_length])
-        T = forward_kinematics(self.model, np.asarray(state)[None]).T_world_shape[0, self._palm.row]
+        T = kin.T_world_shape[0, self._palm.row]
         wrist, distal = self._rig[check.camera].project(ends @ T[:3, :3].T + T[:3, 3])
         rows, cols = check.box
         vs, us = np.nonzero(check.unexplained_mask)
@@ -402,7 +410,7 @@ class SilhouetteLoss:
                  + (vs + rows.start - wrist[1]) * (distal[1] - wrist[1]))
         return float(np.count_nonzero(along >= 0.0)) / check.model_pixels
 
-    def _reasons(self, checks: list[SilhouetteCheck], state: np.ndarray
+    def _reasons(self, checks: list[SilhouetteCheck], state: np.ndarray, kin: Kinematics
                  ) -> tuple[list[str], dict[str, bool], tuple[str, ...]]:
         reasons: list[str] = []
         fingers: dict[str, bool] = {}
@@ -417,7 +425,7 @@ class SilhouetteLoss:
                                    f"model's area of the hand unexplained (at the start "
                                    f"state {base:.0%})")
             elif (start := self._hand_side_baseline.get(check.camera)) is not None and (
-                    now := self._unexplained_hand_side(check, state)) is not None and (
+                    now := self._unexplained_hand_side(check, kin)) is not None and (
                     now - start > self.max_unexplained):
                 reasons.append(f"camera {check.camera}: {now:.0%} of the model's area of the "
                                f"hand unexplained on the hand's side of the wrist (at the "
