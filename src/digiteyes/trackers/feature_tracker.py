@@ -477,6 +477,7 @@ class FeatureTracker:
         """Per link, the factor on its radius fitted on the first frame (``fit_widths``;
         None before it, or when the start did not fit the image)."""
         self._widths_tried = False
+        self.side_signs: list[np.ndarray] | None = None
 
     @property
     def scale(self) -> float | None:
@@ -512,11 +513,18 @@ class FeatureTracker:
         q = np.asarray(getattr(initial_state, "q", initial_state), dtype=float)
         if (model := self.sizing.forget()) is not None:  # a new track: size unknown again
             self._build(model)
-        self._start(q, shading)
+        self._start(q)
+        # a new scene: what the first frame fits is fitted again
+        self.shading = shading
+        self.silhouette_loss.reset()
+        self.radius_scale = None
+        self._widths_tried = False
+        self.side_signs = None
 
-    def _start(self, initial_state: np.ndarray, shading: ShadingModel | None) -> None:
-        """Everything a track starts afresh but the hand's size (:meth:`reset`,
-        :meth:`restart`)."""
+    def _start(self, initial_state: np.ndarray) -> None:
+        """What every track starts afresh, a new one (:meth:`reset`) or the same scene's
+        after a re-detection (:meth:`restart`): the state, the motion history, the edge
+        bias, the silhouette rule's baselines, the finger recovery and the loss hold."""
         q = initial_state
         if q.shape != (self.model.n_q,):
             raise StateError(
@@ -528,27 +536,20 @@ class FeatureTracker:
         self.predictor.reset(q)
         self._rms_history.clear()
         self._frame_index = 0
-        self.shading = shading
         self.edge_bias = []
-        self.silhouette_loss.reset()
+        self.silhouette_loss.rebaseline()
         self.finger_recovery.reset()
         self.loss_hold.reset()
         self._invalid_baseline = None
-        self.radius_scale = None
-        self._widths_tried = False
-        self.side_signs: list[np.ndarray] | None = None
 
     def restart(self, state: np.ndarray) -> None:
         """Continue the same scene from ``state`` (n_q,) after a re-detection: the motion
         history is dropped and the silhouette baselines are taken anew at ``state``, but
-        the shading model, its backdrop, the foreground colours, the link widths and the
-        hand's size of the first frame stay, so a recovery costs no refit."""
-        foreground, radius_scale = self.silhouette_loss.foreground, self.radius_scale
-        side_signs = self.side_signs
-        self._start(np.asarray(state, dtype=float), self.shading)
-        self.side_signs = side_signs
-        self.silhouette_loss.foreground = foreground
-        self.radius_scale, self._widths_tried = radius_scale, True
+        the shading model, its backdrop, the foreground colours, the link widths, the
+        edge signs and the hand's size of the first frame stay, so a recovery costs no
+        refit."""
+        self._start(np.asarray(state, dtype=float))
+        self._widths_tried = True
         self.sizing.pending = False
 
     def step(self, frames: Sequence[np.ndarray]) -> TrackResult:
