@@ -29,11 +29,12 @@ def _palm_error(model, q, truth):
 
 
 def test_tracks_twenty_frames_with_palm_and_fingers(natural_cardboard):
-    """Huang's tracker alone (no digit search) on frames 20-39, where the fingers curl
-    from the open hand."""
+    """Huang's tracker alone (no digit search, whole particles resampled) on frames
+    20-39, where the fingers curl from the open hand."""
     model, cam, states = natural_cardboard
     tracker = DivideConquerTracker(model, [cam], options=DivideConquerOptions(
-        n_particles=300, em_iterations=2, digit_search=DigitSearchOptions(passes=0)))
+        n_particles=300, em_iterations=2, digit_search=DigitSearchOptions(passes=0),
+        digit_resampling=False))
     assert isinstance(tracker, Tracker)
     tracker.reset(states[20])
     errors = []
@@ -103,6 +104,23 @@ def test_recovers_from_thirty_degrees_off_within_ten_frames(natural_cardboard):
         [render_views(model, states[f], [cam], rng=f)[0].image]).state, states[f])
         for f in range(10)]
     assert min(errors[:10]) < 5.0 and errors[-1] < 5.0
+
+
+def test_per_digit_resampling_keeps_the_estimate_among_the_particles(natural_cardboard):
+    """The default resamples digit by digit (ours) and keeps the frame's estimate as a
+    particle; the paper's baselines resample whole hypotheses."""
+    model, cam, states = natural_cardboard
+    tracker = DivideConquerTracker(model, [cam], options=DivideConquerOptions(n_particles=60))
+    assert tracker.options.digit_resampling
+    tracker.reset(states[0])
+    for f in (1, 2):
+        result = tracker.step([render_views(model, states[f], [cam], rng=f)[0].image])
+        np.testing.assert_array_equal(tracker.particles[-1], result.details.best_coordinates)
+        assert tracker.particles.shape == (60, 7)
+        assert len(np.unique(tracker.particles, axis=0)) > 1
+    assert _joint_rms_deg(tracker, result.state, states[2]) < 8.0
+    assert not CondensationTracker(model, [cam]).options.digit_resampling
+    assert not RandomSearchTracker(model, [cam]).options.digit_resampling
 
 
 @pytest.mark.parametrize("cls, n", [(CondensationTracker, 3000), (RandomSearchTracker, 5000)])

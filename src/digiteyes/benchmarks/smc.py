@@ -57,7 +57,8 @@ from digiteyes.trackers.divide_conquer import (
 BATCH = 3000
 FIG3_SCENARIOS = ("natural", "glove-desk-1cam")
 FIG3_TRACKERS = (DivideConquerTracker, CondensationTracker, RandomSearchTracker)
-HUANG_ONLY = DivideConquerOptions(digit_search=DigitSearchOptions(passes=0))
+HUANG_ONLY = DivideConquerOptions(digit_search=DigitSearchOptions(passes=0),
+                                  digit_resampling=False)
 """The proposed tracker without our digit search: Huang's method alone."""
 FIG3_RUNS = {
     "DivideConquerTracker": (DivideConquerTracker, None),

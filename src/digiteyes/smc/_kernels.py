@@ -37,7 +37,8 @@ def _palm_depth(px, py, pu, pv, pz):  # pragma: no cover - compiled
 @njit(cache=True, fastmath=True)
 def edge_likelihood_kernel(shapes, link_rows, lengths, radii, ts, skip, palm_row, palm_outline,
                            params, edges, half_window, sigma, inv_c, margin, score, distance,
-                           use_lookup, skip_far, log_l, stats):  # pragma: no cover - compiled
+                           use_lookup, skip_far, log_l, stats,
+                           link_l):  # pragma: no cover - compiled
     """Huang Sec. 5.2 for N particles.
 
     ``shapes`` (N, S, 4, 4) ``T_world_shape`` of every shape row (forward kinematics),
@@ -55,7 +56,8 @@ def edge_likelihood_kernel(shapes, link_rows, lengths, radii, ts, skip, palm_row
     every edge (``distance``) skips the search: every pixel the search reads lies within
     ``half_window + sqrt(2)`` of it, so the search would find nothing (the same result,
     sooner). Writes ``log_l`` (N,) and ``stats`` (N, 3): visible points, points with an
-    edge, sum of squared offset of the nearest edge (px^2).
+    edge, sum of squared offset of the nearest edge (px^2); and, when ``link_l`` has N
+    rows (else it has none), ``link_l`` (N, L): each patch's share of ``log_l``.
     """
     n_particles, n_links = shapes.shape[0], link_rows.shape[0]
     n_t = ts.shape[0]
@@ -77,6 +79,7 @@ def edge_likelihood_kernel(shapes, link_rows, lengths, radii, ts, skip, palm_row
     vis_v = np.empty(n_links * n_t * 2)
     vis_nx = np.empty(n_links * n_t * 2)
     vis_ny = np.empty(n_links * n_t * 2)
+    vis_link = np.empty(n_links * n_t * 2, dtype=np.int64)
     cands = np.empty((n_links, n_links), dtype=np.int64)
     n_cands = np.empty(n_links, dtype=np.int64)
     pu = np.empty(4)
@@ -167,8 +170,13 @@ def edge_likelihood_kernel(shapes, link_rows, lengths, radii, ts, skip, palm_row
                     vis_v[n_vis_i] = py
                     vis_nx[n_vis_i] = nx
                     vis_ny[n_vis_i] = ny
+                    vis_link[n_vis_i] = li
                     n_vis_i += 1
         n_vis = float(n_vis_i)
+        per_link = link_l.shape[0] == n_particles
+        if per_link:
+            for li in range(n_links):
+                link_l[n, li] = 0.0
         for i in range(n_vis_i):
             px, py, nx, ny = vis_u[i], vis_v[i], vis_nx[i], vis_ny[i]
             if use_lookup:
@@ -179,6 +187,8 @@ def edge_likelihood_kernel(shapes, link_rows, lengths, radii, ts, skip, palm_row
                     n_hit += 1.0
                     sq += d * d
                 total += score[iy, ix]
+                if per_link:
+                    link_l[n, vis_link[i]] += score[iy, ix]
                 continue
             if skip_far and distance[int(py + 0.5), int(px + 0.5)] > far:
                 continue
@@ -204,7 +214,10 @@ def edge_likelihood_kernel(shapes, link_rows, lengths, radii, ts, skip, palm_row
             if best < 1e30:  # an edge in the window (acc > 0; log(1 + 0) = 0 else)
                 n_hit += 1.0
                 sq += best
-                total += np.log(1.0 + acc * inv_c)
+                term = np.log(1.0 + acc * inv_c)
+                total += term
+                if per_link:
+                    link_l[n, vis_link[i]] += term
         log_l[n] = total
         stats[n, 0] = n_vis
         stats[n, 1] = n_hit

@@ -130,6 +130,7 @@ class FingerGeometry:
     skip : (L, L) pairs not tested for occlusion (a patch, its parent and its child).
     palm_row : shape row of the palm box; palm_outline : (4, 3) its corners in that shape
         frame, mm (the face at the box centre's z: the cardboard palm plane).
+    link_names : (L,) the patches' link names.
     """
 
     link_rows: np.ndarray
@@ -138,6 +139,7 @@ class FingerGeometry:
     skip: np.ndarray
     palm_row: int
     palm_outline: np.ndarray
+    link_names: tuple[str, ...] = ()
 
     @classmethod
     def of(cls, model: KinematicModel) -> FingerGeometry:
@@ -154,7 +156,8 @@ class FingerGeometry:
         outline = np.array([[cx - sx / 2, cy - sy / 2, cz], [cx + sx / 2, cy - sy / 2, cz],
                             [cx + sx / 2, cy + sy / 2, cz], [cx - sx / 2, cy + sy / 2, cz]])
         return cls(rows, np.array([link.length for link in links]),
-                   np.array([link.radius for link in links]), skip, palm.row, outline)
+                   np.array([link.radius for link in links]), skip, palm.row, outline,
+                   tuple(link.name for link in links))
 
 
 def _chain_neighbours(model: KinematicModel, shaped: set[int], row_a: int, row_b: int
@@ -173,20 +176,23 @@ def _chain_neighbours(model: KinematicModel, shaped: set[int], row_a: int, row_b
 @dataclass(frozen=True)
 class LikelihoodResult:
     """Per hypothesis: ``log_likelihood`` (N,), ``visible`` points, points ``with_edge``,
-    ``rms_px`` RMS offset of the nearest edge over the points with one (NaN without)."""
+    ``rms_px`` RMS offset of the nearest edge over the points with one (NaN without);
+    ``per_link`` (N, L) each patch's share of ``log_likelihood`` when asked for, else
+    None."""
 
     log_likelihood: np.ndarray
     visible: np.ndarray
     with_edge: np.ndarray
     rms_px: np.ndarray
+    per_link: np.ndarray | None = None
 
 
 def finger_log_likelihood(model: KinematicModel, geometry: FingerGeometry, q: np.ndarray,
                           cameras: list[Camera] | tuple[Camera, ...],
                           edge_maps: list[np.ndarray] | tuple[np.ndarray, ...],
                           options: LikelihoodOptions = LikelihoodOptions(),
-                          lookups: list[EdgeLookup] | tuple[EdgeLookup, ...] | None = None
-                          ) -> LikelihoodResult:
+                          lookups: list[EdgeLookup] | tuple[EdgeLookup, ...] | None = None,
+                          per_link: bool = False) -> LikelihoodResult:
     """``log p(Z | X)`` (Huang Sec. 5.2) of states ``q`` (N, n_q), summed over cameras.
 
     Batched forward kinematics for all N states, then one compiled pass per camera.
@@ -207,6 +213,8 @@ def finger_log_likelihood(model: KinematicModel, geometry: FingerGeometry, q: np
     n = len(shapes)
     log_l = np.zeros(n)
     stats = np.zeros((n, 3))
+    links = np.zeros((n, len(geometry.link_rows))) if per_link else None
+    out_k = np.empty((n if per_link else 0, len(geometry.link_rows)))
     for camera, edges, lookup in zip(cameras, edge_maps, lookups, strict=True):
         out_l = np.empty(n)
         out_s = np.empty((n, 3))
@@ -215,12 +223,14 @@ def finger_log_likelihood(model: KinematicModel, geometry: FingerGeometry, q: np
                                camera.projection_params, edges, int(options.search_px),
                                float(options.sigma_px), float(options.inverse_clutter),
                                float(options.occlusion_margin_mm), lookup.score,
-                               lookup.distance, use_lookup, skip_far, out_l, out_s)
+                               lookup.distance, use_lookup, skip_far, out_l, out_s, out_k)
         log_l += out_l
         stats += out_s
+        if links is not None:
+            links += out_k
     with np.errstate(invalid="ignore", divide="ignore"):
         rms = np.sqrt(stats[:, 2] / stats[:, 1])
-    return LikelihoodResult(log_l, stats[:, 0], stats[:, 1], rms)
+    return LikelihoodResult(log_l, stats[:, 0], stats[:, 1], rms, links)
 
 
 def fit_finger_width(model: KinematicModel, geometry: FingerGeometry, q: np.ndarray,

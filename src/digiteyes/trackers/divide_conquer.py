@@ -45,13 +45,16 @@ from digiteyes.camera import Camera, Rig
 from digiteyes.errors import DigitEyesError
 from digiteyes.features.slices import prepare_image
 from digiteyes.kinematics import KinematicModel
+from digiteyes.kinematics.anatomy import DIGITS
 from digiteyes.kinematics.state import validate_state
 from digiteyes.smc.configuration import ConfigurationSpace
+from digiteyes.smc.digit_resampling import digit_of, digit_resample
 from digiteyes.smc.digit_search import DigitSearchOptions, digit_curl_directions, search_digits
 from digiteyes.smc.likelihood import (
     EdgeLookup,
     FingerGeometry,
     LikelihoodOptions,
+    LikelihoodResult,
     edge_lookup,
     finger_log_likelihood,
     fit_finger_width,
@@ -138,6 +141,12 @@ class DivideConquerOptions(SilhouetteLossOptions, LossHoldOptions):
         (:class:`~digiteyes.trackers.loss_hold.LossHold`; 0, the default, judges each
         frame alone: a particle filter can find a finger again by itself).
     refine_rounds : rounds of digit search then palm refinement after the EM rounds.
+    digit_resampling : resample each digit's joints by that digit's own factor of the
+        likelihood instead of whole particles by the whole likelihood, and keep the
+        frame's estimate as one of the particles
+        (:func:`~digiteyes.smc.resample.digit_resample`; ours, docs/divide-and-conquer.md,
+        "Per-digit resampling"). Off in the baselines' options and in Huang's tracker
+        alone.
     hold_start_spread : carry the start state's finger spread that the configuration
         space cannot express, scaled by each finger's openness
         (:class:`~digiteyes.smc.spread.SpreadHeldSpace`).
@@ -174,6 +183,7 @@ class DivideConquerOptions(SilhouetteLossOptions, LossHoldOptions):
     condensation_sigma: float = 0.08
     search_sigma: float = 0.15
     walk_fraction: float = 0.1
+    digit_resampling: bool = True
     refine_rounds: int = 1
     fit_first_frame: bool = True
     hold_start_spread: bool = False
@@ -231,6 +241,7 @@ class CondensationOptions(DivideConquerOptions):
 
     sampler: str = "condensation"
     n_particles: int = 3000
+    digit_resampling: bool = False
     digit_search: DigitSearchOptions = field(
         default_factory=lambda: DigitSearchOptions(passes=0))
 
@@ -242,6 +253,7 @@ class RandomSearchOptions(DivideConquerOptions):
 
     sampler: str = "random-search"
     n_particles: int = 5000
+    digit_resampling: bool = False
     digit_search: DigitSearchOptions = field(
         default_factory=lambda: DigitSearchOptions(passes=0))
 
@@ -320,6 +332,9 @@ class DivideConquerTracker:
         the patch geometry and the silhouette rule."""
         self.model = model
         self.geometry = self.model_geometry = FingerGeometry.of(model)
+        if self.options.digit_resampling:
+            # (L, 5): sums each patch's likelihood terms into its digit's
+            self.digit_of_link = np.eye(len(DIGITS))[digit_of(self.geometry.link_names)]
         self.silhouette_loss = SilhouetteLoss.from_options(model, self.rig, self.options)
 
     # ------------------------------------------------------------------ protocol
@@ -405,7 +420,7 @@ class DivideConquerTracker:
             result = finger_log_likelihood(self.model, self.geometry,
                                            self.space.states(self.model, q_palm, X),
                                            self.cameras, edge_maps, opt.likelihood,
-                                           lookups)
+                                           lookups, per_link=opt.digit_resampling)
             log_weights = result.log_likelihood / opt.temperature + (
                 log_fg if opt.importance_correction else 0.0)
             timings["likelihood"] += time.perf_counter() - t0
@@ -490,6 +505,10 @@ class DivideConquerTracker:
         t = time.perf_counter()
         if opt.sampler == "random-search":
             self.particles = X[best][None]
+        elif opt.digit_resampling:
+            self.particles = digit_resample(self.space, X, self.digit_log_likelihoods(lik),
+                                            self.rng, opt.n_particles, opt.temperature)
+            self.particles[-1] = X[best]
         else:
             self.particles = X[systematic_resample(weights, self.rng, opt.n_particles)]
         timings["resampling"] = time.perf_counter() - t
@@ -522,6 +541,11 @@ class DivideConquerTracker:
             predicted_state=predicted, frame_index=self.frame_index, timings=timings,
             finger_lost=finger_lost, details=details,
             hand_scale=self.sizing.hand_scale))
+
+    def digit_log_likelihoods(self, lik: LikelihoodResult) -> np.ndarray:
+        """Each hypothesis's ``log p(Z | X)`` split by digit (N, 5), thumb to little:
+        the sum of its patches' terms (the likelihood's ``per_link``)."""
+        return lik.per_link @ self.digit_of_link
 
     def _palm_motion_cost(self, q: np.ndarray, predicted: np.ndarray) -> float:
         """Negative log of the palm's motion prior (:class:`DivideConquerOptions`,
