@@ -5,7 +5,7 @@ import pytest
 
 from digiteyes.errors import DigitEyesError
 from digiteyes.kinematics.anatomy import DIGITS
-from digiteyes.smc.digit_resampling import digit_of, digit_resample
+from digiteyes.smc.digit_resampling import best_of_each_digit, digit_of, digit_resample
 from digiteyes.smc.likelihood import (
     FingerGeometry,
     LikelihoodOptions,
@@ -42,7 +42,8 @@ def test_each_patch_share_sums_to_the_likelihood_and_stays_with_its_digit(
 
 def test_each_digit_comes_from_the_hypothesis_that_explains_it(natural_cardboard):
     """Five digits, three hypotheses: digit d's factor strongly favours hypothesis d % 3,
-    so every new particle carries each digit's joints from that hypothesis."""
+    so every new particle carries each digit's joints from that hypothesis, and so does
+    the best of each digit."""
     model = natural_cardboard[0]
     space = default_configuration_space(model)
     X = np.random.default_rng(0).normal(0.0, 0.5, (3, space.n_dims))
@@ -60,6 +61,8 @@ def test_each_digit_comes_from_the_hypothesis_that_explains_it(natural_cardboard
                                atol=1e-12)
     again = digit_resample(space, X, factors, np.random.default_rng(1), 8)
     np.testing.assert_array_equal(out, again)  # a pure function of its inputs
+    np.testing.assert_allclose(best_of_each_digit(space, X, factors),
+                               space.to_coordinates(expected), atol=1e-12)
 
 
 def test_bad_inputs_say_what_was_expected(natural_cardboard):

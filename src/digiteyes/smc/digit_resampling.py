@@ -37,6 +37,31 @@ def digit_of(names: tuple[str, ...] | list[str]) -> np.ndarray:
     return np.array(out, dtype=int)
 
 
+def recombine(space: ConfigurationSpace, coordinates: np.ndarray, parents: np.ndarray
+              ) -> np.ndarray:
+    """Hypotheses (n, D) in PCA coordinates whose digit ``d`` has the joints of hypothesis
+    ``parents[:, d]`` of ``coordinates`` (N, D); ``parents`` (n, 5) indices, thumb first.
+    The joint vectors are mapped back into the space (its least-squares coordinates)."""
+    joints = space.to_joints(np.atleast_2d(np.asarray(coordinates, dtype=float)))
+    parents = np.atleast_2d(np.asarray(parents, dtype=int))
+    digit = digit_of(space.joint_names)
+    out = np.empty((len(parents), joints.shape[1]))
+    for d in range(len(DIGITS)):
+        columns = digit == d
+        out[:, columns] = joints[parents[:, d]][:, columns]
+    return space.to_coordinates(out)
+
+
+def _checked(coordinates: np.ndarray, digit_log_likelihood: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+    coordinates = np.atleast_2d(np.asarray(coordinates, dtype=float))
+    factors = np.asarray(digit_log_likelihood, dtype=float)
+    if factors.shape != (len(coordinates), len(DIGITS)):
+        raise DigitEyesError(f"per-digit resampling: expected ({len(coordinates)}, "
+                             f"{len(DIGITS)}) digit log-likelihoods, got {factors.shape}")
+    return coordinates, factors
+
+
 def digit_resample(space: ConfigurationSpace, coordinates: np.ndarray,
                    digit_log_likelihood: np.ndarray, rng: np.random.Generator, n: int,
                    temperature: float = 1.0) -> np.ndarray:
@@ -44,20 +69,21 @@ def digit_resample(space: ConfigurationSpace, coordinates: np.ndarray,
     hypotheses ``coordinates`` (N, D) by systematic resampling on that digit's
     ``digit_log_likelihood`` (N, 5) divided by ``temperature``: one uniform draw from
     ``rng`` per digit, thumb first. Pure: same inputs, same output."""
-    coordinates = np.atleast_2d(np.asarray(coordinates, dtype=float))
-    factors = np.asarray(digit_log_likelihood, dtype=float)
-    if factors.shape != (len(coordinates), len(DIGITS)):
-        raise DigitEyesError(f"per-digit resampling: expected ({len(coordinates)}, "
-                             f"{len(DIGITS)}) digit log-likelihoods, got {factors.shape}")
-    joints = space.to_joints(coordinates)
-    digit = digit_of(space.joint_names)
-    out = np.empty((int(n), joints.shape[1]))
-    for d in range(len(DIGITS)):
-        parents = systematic_resample(normalised_weights(factors[:, d] / temperature), rng,
-                                      n)
-        columns = digit == d
-        out[:, columns] = joints[parents][:, columns]
-    return space.to_coordinates(out)
+    coordinates, factors = _checked(coordinates, digit_log_likelihood)
+    parents = np.column_stack([
+        systematic_resample(normalised_weights(factors[:, d] / temperature), rng, n)
+        for d in range(len(DIGITS))])
+    return recombine(space, coordinates, parents)
 
 
-__all__ = ["digit_of", "digit_resample"]
+def best_of_each_digit(space: ConfigurationSpace, coordinates: np.ndarray,
+                       digit_log_likelihood: np.ndarray) -> np.ndarray:
+    """The hypothesis (D,) whose every digit has the joints of the hypothesis of
+    ``coordinates`` (N, D) that explains that digit best (``digit_log_likelihood``
+    (N, 5)): the product of the per-digit maxima, where the particle set's best whole
+    hypothesis maximises the product only over the hypotheses drawn."""
+    coordinates, factors = _checked(coordinates, digit_log_likelihood)
+    return recombine(space, coordinates, np.argmax(factors, axis=0)[None])[0]
+
+
+__all__ = ["best_of_each_digit", "digit_of", "digit_resample", "recombine"]

@@ -48,7 +48,7 @@ from digiteyes.kinematics import KinematicModel
 from digiteyes.kinematics.anatomy import DIGITS
 from digiteyes.kinematics.state import validate_state
 from digiteyes.smc.configuration import ConfigurationSpace
-from digiteyes.smc.digit_resampling import digit_of, digit_resample
+from digiteyes.smc.digit_resampling import best_of_each_digit, digit_of, digit_resample
 from digiteyes.smc.digit_search import DigitSearchOptions, digit_curl_directions, search_digits
 from digiteyes.smc.likelihood import (
     EdgeLookup,
@@ -477,6 +477,8 @@ class DivideConquerTracker:
                 stop = "converged"
                 break
         x_best, changed = X[best], False
+        if opt.digit_resampling:
+            x_best, changed = self._best_of_each_digit(X, best, lik, q, edge_maps, lookups)
         for _ in range(opt.refine_rounds):
             if opt.digit_search.passes > 0:
                 t = time.perf_counter()
@@ -541,6 +543,20 @@ class DivideConquerTracker:
             predicted_state=predicted, frame_index=self.frame_index, timings=timings,
             finger_lost=finger_lost, details=details,
             hand_scale=self.sizing.hand_scale))
+
+    def _best_of_each_digit(self, X: np.ndarray, best: int, lik: LikelihoodResult,
+                            q: np.ndarray, edge_maps: list[np.ndarray],
+                            lookups: list[EdgeLookup]) -> tuple[np.ndarray, bool]:
+        """The hypothesis made of each digit's best-explained joints among ``X`` (N, D)
+        (:func:`~digiteyes.smc.digit_resampling.best_of_each_digit`) when its likelihood
+        under the palm of ``q`` beats that of the best whole hypothesis ``X[best]``, else
+        ``X[best]``; and whether it was taken."""
+        opt = self.options
+        mixed = best_of_each_digit(self.space, X, self.digit_log_likelihoods(lik))
+        score = finger_log_likelihood(self.model, self.geometry,
+                                      self.space.states(self.model, q, mixed), self.cameras,
+                                      edge_maps, opt.likelihood, lookups).log_likelihood[0]
+        return (mixed, True) if score > lik.log_likelihood[best] else (X[best], False)
 
     def digit_log_likelihoods(self, lik: LikelihoodResult) -> np.ndarray:
         """Each hypothesis's ``log p(Z | X)`` split by digit (N, 5), thumb to little:
