@@ -115,21 +115,27 @@ def test_restart_keeps_the_size_and_reset_forgets_it(rig, true_states):
 
 def test_divide_and_conquer_tracks_a_smaller_hand_at_its_size(rig, true_states):
     """Huang et al.'s tracker (one camera, the particle filter seeded) measures the size
-    too, and its fingertips follow the smaller hand closer than at the model's size."""
+    too, and its fingertips follow the smaller hand closer than at the model's size: the
+    median over three tracker seeds of the ratio of the mean fingertip errors (one seed
+    is one draw of the particles; 0.58-0.84 by seed on the 4 Dec Intel VM)."""
     one = Rig((rig[0],))
     frames = render(0.9, one, true_states[:6])
-    errors = {}
-    for sizing in (True, False):
-        tracker = DivideConquerTracker(HAND, one, DivideConquerOptions(start_size=sizing))
-        tracker.reset(true_states[0])
-        results = [tracker.step(f) for f in frames]
-        if sizing:
-            assert tracker.scale == pytest.approx(0.9, abs=0.021)
-            assert all(r.hand_scale == tracker.scale for r in results)
-        else:
-            assert tracker.scale is None and all(r.hand_scale == 1.0 for r in results)
-        errors[sizing] = tip_errors(results, true_states[:6], 0.9).mean()
-    assert errors[True] < 0.7 * errors[False], errors
+    ratios = []
+    for seed in (0, 1, 2):
+        errors = {}
+        for sizing in (True, False):
+            tracker = DivideConquerTracker(HAND, one, DivideConquerOptions(start_size=sizing,
+                                                                           seed=seed))
+            tracker.reset(true_states[0])
+            results = [tracker.step(f) for f in frames]
+            if sizing:
+                assert tracker.scale == pytest.approx(0.9, abs=0.021)
+                assert all(r.hand_scale == tracker.scale for r in results)
+            else:
+                assert tracker.scale is None and all(r.hand_scale == 1.0 for r in results)
+            errors[sizing] = tip_errors(results, true_states[:6], 0.9).mean()
+        ratios.append(errors[True] / errors[False])
+    assert np.median(ratios) < 0.7, np.round(ratios, 2)
 
 
 @pytest.mark.parametrize("cameras", [(0,), (0, 1)])
