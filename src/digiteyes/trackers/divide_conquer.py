@@ -141,12 +141,15 @@ class DivideConquerOptions(SilhouetteLossOptions, LossHoldOptions):
         (:class:`~digiteyes.trackers.loss_hold.LossHold`; 0, the default, judges each
         frame alone: a particle filter can find a finger again by itself).
     refine_rounds : rounds of digit search then palm refinement after the EM rounds.
-    digit_resampling : resample each digit's joints by that digit's own factor of the
-        likelihood instead of whole particles by the whole likelihood, and keep the
-        frame's estimate as one of the particles
-        (:func:`~digiteyes.smc.resample.digit_resample`; ours, docs/divide-and-conquer.md,
-        "Per-digit resampling"). Off in the baselines' options and in Huang's tracker
-        alone.
+    digit_resampling : split each hypothesis's likelihood into its five digits' shares;
+        start the digit search from the hypothesis made of each digit's best-explained
+        joints when it beats the best whole one
+        (:func:`~digiteyes.smc.digit_resampling.best_of_each_digit`), and resample each
+        digit's joints by its own share instead of whole particles by the whole
+        likelihood, the frame's estimate kept as one of the particles
+        (:func:`~digiteyes.smc.digit_resampling.digit_resample`). Ours,
+        docs/divide-and-conquer.md, "Per-digit resampling"; off in the baselines'
+        options and in Huang's tracker alone.
     hold_start_spread : carry the start state's finger spread that the configuration
         space cannot express, scaled by each finger's openness
         (:class:`~digiteyes.smc.spread.SpreadHeldSpace`).
