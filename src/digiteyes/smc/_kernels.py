@@ -57,10 +57,11 @@ def edge_likelihood_kernel(shapes, link_rows, lengths, radii, ts, skip, palm_row
     ``half_window + sqrt(2)`` of it, so the search would find nothing (the same result,
     sooner). Writes ``log_l`` (N,) and ``stats`` (N, 3): visible points, points with an
     edge, sum of squared offset of the nearest edge (px^2); and, when ``link_l`` has N
-    rows (else it has none), ``link_l`` (N, L): each patch's share of ``log_l``.
+    rows (else it has none), adds each patch's share of ``log_l`` to ``link_l`` (N, L).
     """
     n_particles, n_links = shapes.shape[0], link_rows.shape[0]
     n_t = ts.shape[0]
+    per_link = link_l.shape[0] == n_particles
     height, width = edges.shape
     fx = params[12]
     scale = 1.0 if params[22] != 2.0 else 1.0 / params[23]
@@ -173,10 +174,6 @@ def edge_likelihood_kernel(shapes, link_rows, lengths, radii, ts, skip, palm_row
                     vis_link[n_vis_i] = li
                     n_vis_i += 1
         n_vis = float(n_vis_i)
-        per_link = link_l.shape[0] == n_particles
-        if per_link:
-            for li in range(n_links):
-                link_l[n, li] = 0.0
         for i in range(n_vis_i):
             px, py, nx, ny = vis_u[i], vis_v[i], vis_nx[i], vis_ny[i]
             if use_lookup:

@@ -42,13 +42,16 @@ def recombine(space: ConfigurationSpace, coordinates: np.ndarray, parents: np.nd
     """Hypotheses (n, D) in PCA coordinates whose digit ``d`` has the joints of hypothesis
     ``parents[:, d]`` of ``coordinates`` (N, D); ``parents`` (n, 5) indices, thumb first.
     The joint vectors are mapped back into the space (its least-squares coordinates)."""
-    joints = space.to_joints(np.atleast_2d(np.asarray(coordinates, dtype=float)))
+    coordinates = np.atleast_2d(np.asarray(coordinates, dtype=float))
     parents = np.atleast_2d(np.asarray(parents, dtype=int))
+    rows, index = np.unique(parents, return_inverse=True)  # only the hypotheses drawn
+    joints = space.to_joints(coordinates[rows])
+    index = index.reshape(parents.shape)
     digit = digit_of(space.joint_names)
     out = np.empty((len(parents), joints.shape[1]))
     for d in range(len(DIGITS)):
         columns = digit == d
-        out[:, columns] = joints[parents[:, d]][:, columns]
+        out[:, columns] = joints[index[:, d]][:, columns]
     return space.to_coordinates(out)
 
 

@@ -139,7 +139,7 @@ class FingerGeometry:
     skip: np.ndarray
     palm_row: int
     palm_outline: np.ndarray
-    link_names: tuple[str, ...] = ()
+    link_names: tuple[str, ...]
 
     @classmethod
     def of(cls, model: KinematicModel) -> FingerGeometry:
@@ -213,8 +213,7 @@ def finger_log_likelihood(model: KinematicModel, geometry: FingerGeometry, q: np
     n = len(shapes)
     log_l = np.zeros(n)
     stats = np.zeros((n, 3))
-    links = np.zeros((n, len(geometry.link_rows))) if per_link else None
-    out_k = np.empty((n if per_link else 0, len(geometry.link_rows)))
+    links = np.zeros((n if per_link else 0, len(geometry.link_rows)))  # summed over cameras
     for camera, edges, lookup in zip(cameras, edge_maps, lookups, strict=True):
         out_l = np.empty(n)
         out_s = np.empty((n, 3))
@@ -223,14 +222,13 @@ def finger_log_likelihood(model: KinematicModel, geometry: FingerGeometry, q: np
                                camera.projection_params, edges, int(options.search_px),
                                float(options.sigma_px), float(options.inverse_clutter),
                                float(options.occlusion_margin_mm), lookup.score,
-                               lookup.distance, use_lookup, skip_far, out_l, out_s, out_k)
+                               lookup.distance, use_lookup, skip_far, out_l, out_s, links)
         log_l += out_l
         stats += out_s
-        if links is not None:
-            links += out_k
     with np.errstate(invalid="ignore", divide="ignore"):
         rms = np.sqrt(stats[:, 2] / stats[:, 1])
-    return LikelihoodResult(log_l, stats[:, 0], stats[:, 1], rms, links)
+    return LikelihoodResult(log_l, stats[:, 0], stats[:, 1], rms,
+                            links if per_link else None)
 
 
 def fit_finger_width(model: KinematicModel, geometry: FingerGeometry, q: np.ndarray,
