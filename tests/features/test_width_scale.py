@@ -82,9 +82,8 @@ def test_the_tracker_fits_the_widths_once_and_keeps_them_on_restart(scene):
 
 
 def test_a_start_that_does_not_fit_the_image_keeps_the_models_radii(scene):
-    """A start 25 mm off across the view: no link lies where it says, so no factors, and
-    none later either (a factor fitted once the track has settled would freeze the depth
-    error the start left)."""
+    """A start 25 mm off across the view: no link lies where it says, the track stays
+    off the hand (lost), so no factors on any frame."""
     model, q, camera = scene
     image = render_views(thinner(model, 0.9), q, [camera], RenderOptions(noise_sigma=2.0),
                          rng=0)[0].image
@@ -95,6 +94,30 @@ def test_a_start_that_does_not_fit_the_image_keeps_the_models_radii(scene):
     for _ in range(4):
         tracker.step([image])
     assert tracker.radius_scale is None
+
+
+def test_a_start_near_the_hand_measures_the_widths_where_the_track_lands(scene):
+    """A start 10 mm off across the view (an automatic start's size of error): the
+    start does not fit the image, so no factors before the first solve; the solves
+    bring the track onto the hand (within 2 mm), and the factors are measured there on
+    the first frame whose solved state fits: the hand's 0.9, not the model's 1."""
+    model, q, camera = scene
+    image = render_views(thinner(model, 0.9), q, [camera], RenderOptions(noise_sigma=2.0),
+                         rng=0)[0].image
+    cylinders = np.array([link.kind == "link" for link in model.links])
+    off = q.copy()
+    off[4] += 10.0
+    tracker = FeatureTracker(model, Rig((camera,)))
+    tracker.reset(off)
+    first = tracker.step([image])
+    assert not first.lost and tracker.radius_scale is None  # still 6 mm off after one solve
+    for _ in range(3):
+        result = tracker.step([image])
+    palm, true = (forward_kinematics(model, state).T_world_shape[0, 0, :3, 3]
+                  for state in (result.state, q))
+    assert np.linalg.norm(palm - true) < 2.0
+    assert tracker.radius_scale is not None
+    assert 0.85 < np.median(tracker.radius_scale[cylinders]) < 0.95
 
 
 def test_the_factors_do_not_depend_on_the_width_weight(scene):

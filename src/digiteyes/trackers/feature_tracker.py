@@ -100,13 +100,14 @@ class FeatureTrackerOptions(SilhouetteLossOptions, LossHoldOptions, FingerSearch
         the thesis's residuals only.
     max_width_error : width rows whose measured width is off the predicted one by more
         than this fraction are left out.
-    fit_widths : with one camera, on the first frame of a track, measure each link's
-        width at the start state and scale its radius in the width residuals to match
-        (:mod:`digiteyes.features.width_scale`: the user's fingers, not the model's),
-        when the start fits the image (else keep the model's radii); kept through a
-        :meth:`FeatureTracker.restart`. Several cameras see depth by themselves, and
-        there the fitted widths made the track worse (docs/features.md, "Width
-        calibration").
+    fit_widths : with one camera, measure each link's width and scale its radius in the
+        width residuals to match (:mod:`digiteyes.features.width_scale`: the user's
+        fingers, not the model's): at the start state on the first frame when the start
+        fits the image, else (an automatic start, centimetres off) at the solved state of
+        the first frame not flagged lost whose state fits it (the model's radii until
+        then); kept through a :meth:`FeatureTracker.restart`. Several cameras see depth
+        by themselves, and there the fitted widths made the track worse
+        (docs/features.md, "Width calibration").
     learn_edge_signs : on the first frame of a track, in a camera where the hand's darkest
         pixels reach the backdrop's grey levels (a grey wall, a dark hand), let each link
         side search for edges of the sign its silhouette shows at the start state
@@ -474,8 +475,8 @@ class FeatureTracker:
         self.loss_hold = LossHold(opts.hold_lost_frames)
         self._invalid_baseline: float | None = None
         self.radius_scale: np.ndarray | None = None
-        """Per link, the factor on its radius fitted on the first frame (``fit_widths``;
-        None before it, or when the start did not fit the image)."""
+        """Per link, the factor on its radius (``fit_widths``; None until a frame's state
+        fits the image)."""
         self._widths_tried = False
         self.side_signs: list[np.ndarray] | None = None
 
@@ -583,8 +584,7 @@ class FeatureTracker:
             start = time.perf_counter()
             self._predict_edge_bias(images, predicted)
             timings["shading"] = time.perf_counter() - start
-        if (not self._widths_tried and self.options.fit_widths and len(self.rig) == 1
-                and self.options.width_weight > 0):
+        if not self._widths_tried and self._widths_wanted():
             start = time.perf_counter()
             self.radius_scale = self._fit_widths(images, predicted)
             self._widths_tried = True
@@ -614,6 +614,12 @@ class FeatureTracker:
             verdict = self.finger_recovery.judge(verdict)
         result = self._result(q, predicted, summary, final, timings, verdict)
         result.details.searched = searched
+        if self._widths_wanted() and not result.lost:
+            # the start did not fit the image (an automatic start, centimetres off): the
+            # widths are measured on the first frame whose solved state does
+            start = time.perf_counter()
+            self.radius_scale = self._fit_widths(images, q)
+            timings["feature_detection"] += time.perf_counter() - start
         self.state = q
         self.predictor.update(q, reliable=not (result.lost or searched))
         self._frame_index += 1
@@ -669,10 +675,16 @@ class FeatureTracker:
             self._build(model)
             self.predictor.reset(q)
 
+    def _widths_wanted(self) -> bool:
+        """Whether the links' widths are still to be measured (``fit_widths``, one
+        camera, width residuals on, none measured yet)."""
+        return (self.radius_scale is None and self.options.fit_widths and len(self.rig) == 1
+                and self.options.width_weight > 0)
+
     def _fit_widths(self, images: list[np.ndarray], q: np.ndarray) -> np.ndarray | None:
         """Each link's radius factor from the features measured at ``q`` (the start of
-        the track), or None when too few links lie where ``q`` puts them
-        (:func:`~digiteyes.features.width_scale.link_radius_scales`)."""
+        the track, or a later frame's solved state), or None when too few links lie where
+        ``q`` puts them (:func:`~digiteyes.features.width_scale.link_radius_scales`)."""
         opts = self.options
         kin = forward_kinematics(self.model, q)
         signs = self.side_signs or [None] * len(self.rig)
