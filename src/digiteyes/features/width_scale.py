@@ -18,9 +18,11 @@ the widths taken at the middle slice of the link (px). ``bias_k`` is the predict
 bias of the shading model (:mod:`digiteyes.features.appearance`): shading pulls both
 edges inwards by a fixed fraction of the width, so a link ``scale_k`` times as wide loses
 ``scale_k bias_k``. Only links that lie where the state says are measured, so a start a
-few centimetres off (an automatic one) gives no factors, and the tracker keeps the
-model's radii: calibrating later, once the track has settled in the image, would freeze
-whatever depth error the start left (a factor absorbs it).
+centimetre or more off (an automatic one) gives no factors. The feature tracker then
+measures at its solved states, on the first frame that fits: a factor measured there can
+absorb a depth error the solve leaves, but on the automatic starts of ``bench
+auto-start`` the user's widths on the first frame did more good than that harm
+(docs/initialisation.md, "The widths measured after the first solve").
 
 A perspective cylinder's apparent width is ``2 f r / sqrt(z^2 - r^2)``: for a finger of
 10 mm radius at 300 mm the slope between radius factors 1 and :data:`PROBE` is within
