@@ -138,6 +138,7 @@ def test_pose_reports_an_unreadable_image(tmp_path, capsys):
     bad.write_text("not an image")
     assert main(["pose", str(bad), "--detector", "classic", "-o", str(tmp_path / "o")]) == 2
     assert "not an image" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()  # nothing written, not even the folder
 
 
 TRUTH_K = np.array([[650.0, 0, 318.0], [0, 650.0, 242.0], [0, 0, 1]])

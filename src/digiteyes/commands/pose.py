@@ -64,7 +64,6 @@ def pose(images: tuple[Path, ...], output: Path, rig: Path | None, detector: str
         raise DigitEyesError(f"{len(images)} image(s) for a rig of {per_set} cameras: give "
                              f"them {per_set} at a time")
     det = make_detector(detector, model, classic_fallback=True, max_hands=2)
-    output.mkdir(parents=True, exist_ok=True)
     options = FitOptions(scale=hand_scale)
     found = 0
     names = distinct_names(images[::per_set])  # a/x.jpg and b/x.jpg: x and x-2
@@ -85,6 +84,7 @@ def pose(images: tuple[Path, ...], output: Path, rig: Path | None, detector: str
             cams = mirrored_rig(real)
             result = estimate_pose(mirror_images(frames), cams, det, model, options,
                                    TRACKED_SIDE)
+        output.mkdir(parents=True, exist_ok=True)  # once an image has been read
         write_pose_json(pose_to_json(result, cams, [str(p) for p in paths]),
                         output / f"{name}.json")
         write_pose_csv(result, cams, output / f"{name}.csv")
