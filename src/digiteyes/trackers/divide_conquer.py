@@ -366,7 +366,7 @@ class DivideConquerTracker:
         self.state = q.copy()
         self.space = (SpreadHeldSpace.of(self.base_space, q[self.joint_index])
                       if self.options.hold_start_spread else self.base_space)
-        self.spread_test: tuple[float, float] | None = None
+        self.spread_test = None
         self._particles_at(q)
         self.rng = np.random.default_rng(self.options.seed)
         self.frame_index = -1
