@@ -230,7 +230,8 @@ def test_a_start_spread_the_space_cannot_express_is_held_when_the_frame_says_so(
     configuration space can: reconstructed by the space, its first-frame likelihood falls
     far below the start with its spread held, so the tracker holds the spread, and its
     first frame stays near the truth where without the test the fingers curl off it.
-    ``natural``'s start, inside the space, is not held; a reset forgets the test."""
+    ``natural``'s start, inside the space, is not held; a restart tests its own start
+    again on its next frame; a reset forgets the test."""
     from digiteyes.benchmarks.accuracy import scenario_for
     from digiteyes.benchmarks.tracker import render_sequence
     from digiteyes.evaluate.truth_loss import truth_loss
@@ -252,6 +253,11 @@ def test_a_start_spread_the_space_cannot_express_is_held_when_the_frame_says_so(
         if margin is not None:
             reconstructed, held = tracker.spread_test
             assert held > reconstructed + 50.0
+            assert isinstance(tracker.space, SpreadHeldSpace)
+            tracker.restart(start)  # a re-detection: its start is tested afresh
+            assert tracker.spread_test is None and tracker.space is tracker.base_space
+            tracker.step(sequence.images[0])
+            assert tracker.spread_test == (reconstructed, held)
             assert isinstance(tracker.space, SpreadHeldSpace)
             tracker.reset(start)
             assert tracker.spread_test is None and tracker.space is tracker.base_space

@@ -335,8 +335,10 @@ class DivideConquerTracker:
         self.outline_calibration: OutlineCalibration | None = None
         self.finger_width_scale = 1.0
         self.spread_test: tuple[float, float] | None = None
-        """The first frame's log-likelihoods of the start as the space reconstructs it
-        and with its spread held (``spread_test_margin``; None before it or when off)."""
+        """The log-likelihoods, on the first frame of the track or after its last
+        restart, of the start as the space reconstructs it and with its spread held
+        (``spread_test_margin``; None before it or when off)."""
+        self._spread_untested = False
 
     @property
     def scale(self) -> float | None:
@@ -367,6 +369,7 @@ class DivideConquerTracker:
         self.space = (SpreadHeldSpace.of(self.base_space, q[self.joint_index])
                       if self.options.hold_start_spread else self.base_space)
         self.spread_test = None
+        self._spread_untested = True
         self._particles_at(q)
         self.rng = np.random.default_rng(self.options.seed)
         self.frame_index = -1
@@ -385,9 +388,13 @@ class DivideConquerTracker:
         frame, the outline check and the silhouette rule's foreground stay. A re-detected
         pose is coarser than the start they were fitted at: fitted again there, the
         foreground failed to split the real video's frames and the loss rule went quiet
-        for the rest of the run (docs/divide-and-conquer.md)."""
+        for the rest of the run (docs/divide-and-conquer.md). The start's spread is tested
+        again on the next frame (``spread_test_margin``): it is the new start's."""
         self.state = validate_state(self.model, np.asarray(state, dtype=float),
                                     normalize=True)
+        if not self.options.hold_start_spread:  # the new start's spread is tested afresh
+            self.space, self.spread_test = self.base_space, None
+            self._spread_untested = True
         self._particles_at(self.state)
         self.silhouette_loss.rebaseline()
         self.loss_hold.reset()
@@ -424,7 +431,7 @@ class DivideConquerTracker:
         nearest = nearest_edge_field(edge_maps[0]) if opt.track_palm else None
         if self.frame_index == 0 and opt.track_palm:
             self._fit_first_frame(edge_maps, lookups)
-        if self.frame_index == 0:
+        if self._spread_untested:
             self._test_start_spread(edge_maps, lookups)
         timings["edges"] = time.perf_counter() - t
 
@@ -629,10 +636,11 @@ class DivideConquerTracker:
 
     def _test_start_spread(self, edge_maps: list[np.ndarray], lookups: list[EdgeLookup]
                            ) -> None:
-        """On the first frame (``spread_test_margin``): hold the start's spread when the
-        start with it held explains the frame better than the start the space
-        reconstructs, by more than the margin; both log-likelihoods are kept in
-        :attr:`spread_test` (reconstructed, held)."""
+        """On the first frame of a track or of a restart (``spread_test_margin``): hold
+        the start's spread when the start with it held explains the frame better than
+        the start the space reconstructs, by more than the margin; both log-likelihoods
+        are kept in :attr:`spread_test` (reconstructed, held)."""
+        self._spread_untested = False
         margin = self.options.spread_test_margin
         if self.options.hold_start_spread or margin is None:
             return
