@@ -154,13 +154,15 @@ class DivideConquerOptions(SilhouetteLossOptions, LossHoldOptions):
         space cannot express, scaled by each finger's openness
         (:class:`~digiteyes.smc.spread.SpreadHeldSpace`), whatever the first frame shows.
     spread_test_margin : when ``hold_start_spread`` is off, hold the start's spread all
-        the same if, on the first frame, the start with its spread held explains the
-        image better than the start as the space reconstructs it by more than this many
-        units of log-likelihood (eq. 6's ``log p(Z | X)``; 10 is a likelihood ratio of
-        e^10): a start whose spread the space cannot express (the accuracy table's
-        setups) keeps it, while a start inside the space (``natural``) or a wrong one (the
-        recovery runs' 30 degrees off) does not. None never holds it. Ours,
-        docs/divide-and-conquer.md, "Known limits"; off in the baselines' options.
+        the same if, on the first frame (and on the first after each
+        :meth:`DivideConquerTracker.restart`, for its own start), the start with its
+        spread held explains the image better than the start as the space reconstructs
+        it by more than this many units of log-likelihood (eq. 6's ``log p(Z | X)``; 10
+        is a likelihood ratio of e^10): a start whose spread the space cannot express
+        (the accuracy table's setups) keeps it, while a start inside the space
+        (``natural``) or a wrong one (the recovery runs' 30 degrees off) does not. None
+        never holds it. Ours, docs/divide-and-conquer.md, "Known limits"; off in the
+        baselines' options.
     fit_first_frame : fit the model's patches to the user's hand on the first frame, at
         the state the track starts from: the palm outline's sides
         (:func:`~digiteyes.smc.palm.calibrate_palm_outline`; the outline serves the ICP,
