@@ -340,7 +340,6 @@ class DivideConquerTracker:
         """The log-likelihoods, on the first frame of the track or after its last
         restart, of the start as the space reconstructs it and with its spread held
         (``spread_test_margin``; None before it or when off)."""
-        self._spread_untested = False
 
     @property
     def scale(self) -> float | None:
@@ -371,7 +370,6 @@ class DivideConquerTracker:
         self.space = (SpreadHeldSpace.of(self.base_space, q[self.joint_index])
                       if self.options.hold_start_spread else self.base_space)
         self.spread_test = None
-        self._spread_untested = True
         self._particles_at(q)
         self.rng = np.random.default_rng(self.options.seed)
         self.frame_index = -1
@@ -396,7 +394,6 @@ class DivideConquerTracker:
                                     normalize=True)
         if not self.options.hold_start_spread:  # the new start's spread is tested afresh
             self.space, self.spread_test = self.base_space, None
-            self._spread_untested = True
         self._particles_at(self.state)
         self.silhouette_loss.rebaseline()
         self.loss_hold.reset()
@@ -433,7 +430,7 @@ class DivideConquerTracker:
         nearest = nearest_edge_field(edge_maps[0]) if opt.track_palm else None
         if self.frame_index == 0 and opt.track_palm:
             self._fit_first_frame(edge_maps, lookups)
-        if self._spread_untested:
+        if self.spread_test is None:  # a new start (cheap when the test is off)
             self._test_start_spread(edge_maps, lookups)
         timings["edges"] = time.perf_counter() - t
 
@@ -642,7 +639,6 @@ class DivideConquerTracker:
         the start's spread when the start with it held explains the frame better than
         the start the space reconstructs, by more than the margin; both log-likelihoods
         are kept in :attr:`spread_test` (reconstructed, held)."""
-        self._spread_untested = False
         margin = self.options.spread_test_margin
         if self.options.hold_start_spread or margin is None:
             return
