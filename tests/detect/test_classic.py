@@ -7,7 +7,14 @@ import numpy as np
 import pytest
 
 from digiteyes.benchmarks.tracker import render_sequence
-from digiteyes.detect.classic import ClassicDetector, analyse_blob, limb_axis, similarity_2d
+from digiteyes.detect.classic import (
+    SIDE_MARGIN,
+    ClassicDetector,
+    analyse_blob,
+    label_keypoints,
+    limb_axis,
+    similarity_2d,
+)
 from digiteyes.detect.hand21 import TIPS, model_anchors
 from digiteyes.detect.model_fit import KeypointObservation, fit_keypoints
 from digiteyes.detect.segmentation import BackgroundModel, border_background, hand_mask
@@ -249,3 +256,60 @@ def test_washed_out_skin_counts_where_the_border_lacks_its_colour():
     wall = np.empty_like(image)
     wall[:] = patch
     assert not hand_mask(wall).any()
+
+
+def _silhouette(digit_deg: list[float], lobe: bool = False) -> np.ndarray:
+    """A skin-coloured hand silhouette on a grey wall (400x400 RGB): a palm disc (radius
+    50 px), thin digits at ``digit_deg`` (image angles, v down) and a forearm 60 px wide
+    down to the bottom border; ``lobe``: a fist's curled fingers above the palm (a limb
+    too thick for a digit)."""
+    image = np.full((400, 400, 3), 110, np.uint8)
+    mask = np.zeros((400, 400), np.uint8)
+    cv2.circle(mask, (200, 220), 50, 1, -1)
+    for angle in np.radians(digit_deg):
+        end = (round(200 + 150 * np.cos(angle)), round(220 + 150 * np.sin(angle)))
+        cv2.line(mask, (200, 220), end, 1, 18)
+    if lobe:
+        cv2.ellipse(mask, (200, 140), (28, 30), 0, 0, 360, 1, -1)
+    cv2.line(mask, (200, 220), (200, 399), 1, 60)
+    image[mask > 0] = (205, 150, 125)
+    return image
+
+
+def test_a_fist_on_a_forearm_the_frame_cuts_keeps_its_wrist_down():
+    """A fist (no digit tip) whose curled fingers make a thick end above the palm, on a
+    forearm the image border cuts: the wrist lies towards the cut, not the curled fingers,
+    and the template stands on it unturned (before, the thick end was taken for the wrist
+    and every turn of the template tied, so the first, 60 degrees, was kept)."""
+    image = _silhouette([], lobe=True)
+    detector = ClassicDetector()
+    blob, _ = detector.analyse(image)
+    assert len(blob.tips) == 0
+    assert abs(wrap_angle(blob.wrist_angle - np.pi / 2)) < np.radians(10)
+    keypoints = detector.detect(image)[0].keypoints
+    up = keypoints[9] - keypoints[0]  # wrist to middle MCP
+    assert up[1] < 0 and abs(np.arctan2(up[0], -up[1])) < np.radians(10)
+
+
+FINGERS_DEG = [-128.0, -103.0, -78.0, -53.0]
+"""Four fingers fanned so that both sides of the template fit them equally well."""
+
+
+@pytest.mark.parametrize(("thumb_deg", "index_side"), [(-15.0, 1), (-165.0, -1)])
+def test_footage_keeps_the_side_a_clear_silhouette_gave(thumb_deg, index_side):
+    """Frames in order: a hand with its thumb out (the side is clear: the index lies on
+    the thumb's side), then the thumb curled, four fingers that fit either side's
+    labelling (within ``SIDE_MARGIN``). With ``remember_side`` the second frame keeps the
+    first frame's side, so the same image is labelled both ways depending on the frame
+    before; a fresh detector labels it one way only."""
+    curled = _silhouette(FINGERS_DEG)
+    blob, _ = ClassicDetector().analyse(curled)
+    costs = [label_keypoints(blob, ClassicDetector().template, sides=(side,))[3]
+             for side in (False, True)]
+    assert abs(costs[0] - costs[1]) < SIDE_MARGIN
+    detector = ClassicDetector(remember_side=True)
+    detector.detect(_silhouette([*FINGERS_DEG, thumb_deg]))
+    keypoints = detector.detect(curled)[0].keypoints
+    index_tip, little_tip = keypoints[8], keypoints[20]
+    assert np.sign(index_tip[0] - little_tip[0]) == index_side
+    assert min(np.linalg.norm(index_tip - blob.tips, axis=1)) < 5.0  # on a found tip

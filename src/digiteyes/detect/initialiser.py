@@ -88,7 +88,8 @@ class AutoInitialiser:
         # webcam render a turned look fitted a whole hand onto the thumb, a start 420 mm
         # off, where the classic detector's was 14 mm off; docs/initialisation.md)
         self._detector = make_detector(self.detector, self.model, classic_fallback=True,
-                                       max_hands=MAX_HANDS, look_turned=False)
+                                       max_hands=MAX_HANDS, look_turned=False,
+                                       remember_side=True)
         self._options = FitOptions(fit_scale=False)
 
     @property

@@ -30,7 +30,8 @@ DETECTORS = ("auto", "mediapipe", "mediapipe-lite", "classic")
 
 def make_detector(name: str, model: KinematicModel | None = None,
                   video: bool = False, classic_fallback: bool = False,
-                  max_hands: int = 1, look_turned: bool = True) -> HandDetector:
+                  max_hands: int = 1, look_turned: bool = True,
+                  remember_side: bool = False) -> HandDetector:
     """``"mediapipe"`` (needs the extra; its full landmark network), ``"mediapipe-lite"``
     (its lite landmark network: faster, see docs/initialisation.md for what it costs),
     ``"classic"`` or ``"auto"`` (MediaPipe when installed, else classic). ``video``:
@@ -45,7 +46,10 @@ def make_detector(name: str, model: KinematicModel | None = None,
     ``look_turned``: MediaPipe in still-image mode looks again at an image without a hand
     turned by quarter turns (:mod:`~digiteyes.detect.mediapipe_detector`); on for single
     images, off for frames of footage (:class:`~digiteyes.detect.initialiser.
-    AutoInitialiser`), where a miss costs a frame and a false find a wrong start."""
+    AutoInitialiser`), where a miss costs a frame and a false find a wrong start.
+    ``remember_side``: the images are frames of footage in order, and the classic
+    detector keeps a camera's side of the hand where a silhouette cannot tell it
+    (:class:`~digiteyes.detect.classic.ClassicDetector`)."""
     from digiteyes.detect.classic import ClassicDetector
     from digiteyes.detect.fallback import FallbackDetector
     from digiteyes.detect.mediapipe_detector import MediaPipeDetector, mediapipe_available
@@ -53,7 +57,7 @@ def make_detector(name: str, model: KinematicModel | None = None,
     if name == "auto" and classic_fallback and mediapipe_available():
         return FallbackDetector(make_detector("mediapipe", model, video, max_hands=max_hands,
                                               look_turned=look_turned),
-                                ClassicDetector(model))
+                                ClassicDetector(model, remember_side=remember_side))
     if name == "auto":
         name = "mediapipe" if mediapipe_available() else "classic"
     if name in ("mediapipe", "mediapipe-lite"):
@@ -61,7 +65,7 @@ def make_detector(name: str, model: KinematicModel | None = None,
                                  model_complexity=0 if name == "mediapipe-lite" else 1,
                                  look_turned=look_turned)
     if name == "classic":
-        return ClassicDetector(model)
+        return ClassicDetector(model, remember_side=remember_side)
     raise DigitEyesError(f"unknown detector {name!r}; choose one of {', '.join(DETECTORS)}")
 
 
